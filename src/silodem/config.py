@@ -1,0 +1,200 @@
+"""Run configuration: the validated schema of a silodem TOML file.
+
+Every quantity is in SI units; the unit of each key is written in its description.
+Unknown keys are errors (``extra="forbid"``), so a typo never silently falls back to a default.
+
+Stiffness convention (PFC2D's, Itasca manual "Contact models"): ``material.kn`` and
+``walls.kn`` are the stiffnesses of the *bodies*; the stiffness of a contact between two
+bodies a and b is the series value ``k = k_a k_b / (k_a + k_b)``.  Two equal grains of
+stiffness k therefore touch with stiffness k/2.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+class Material(_Strict):
+    """Grain properties (the paper's Tables 1-2, column "Grain-Grain")."""
+
+    density: float = Field(gt=0, description="grain density rho [kg/m^3]")
+    radius_min: float = Field(gt=0, description="smallest grain radius [m]")
+    radius_max: float = Field(gt=0, description="largest grain radius [m]; radii uniform in [min, max]")
+    thickness: float = Field(1.0, gt=0, description="out-of-plane thickness t of a disk [m]")
+    kn: float = Field(gt=0, description="grain normal stiffness [N/m] (contact = springs in series)")
+    ks: float = Field(gt=0, description="grain shear stiffness [N/m] (contact = springs in series)")
+    friction_deg: float = Field(ge=0, lt=90, description="grain-grain friction angle phi_G [deg]")
+    restitution: float | None = Field(
+        0.5, gt=0, le=1, description="normal restitution coefficient e of a contact [-]"
+    )
+    damping_ratio: float | None = Field(
+        None, ge=0, lt=1, description="normal critical-damping ratio zeta [-] (instead of e)"
+    )
+    local_damping: float = Field(
+        0.0, ge=0, lt=1, description="PFC local (non-viscous) damping coefficient alpha [-]"
+    )
+    allow_tension: bool = Field(
+        False, description="allow an attractive normal force while a contact separates"
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> Material:
+        if self.radius_max < self.radius_min:
+            raise ValueError(
+                f"material.radius_max ({self.radius_max}) must be >= material.radius_min "
+                f"({self.radius_min})"
+            )
+        return self
+
+    @property
+    def normal_damping_ratio(self) -> float:
+        """zeta from ``damping_ratio`` if set, else from ``restitution`` (see physics docs)."""
+        if self.damping_ratio is not None:
+            return self.damping_ratio
+        e = 1.0 if self.restitution is None else self.restitution
+        if e >= 1.0:
+            return 0.0
+        le = math.log(e)
+        return -le / math.sqrt(math.pi**2 + le**2)
+
+
+class WallMaterial(_Strict):
+    """Wall properties (Tables 1-2, column "Grain-Wall")."""
+
+    kn: float = Field(gt=0, description="wall normal stiffness [N/m] (contact = springs in series)")
+    ks: float = Field(gt=0, description="wall shear stiffness [N/m] (contact = springs in series)")
+    friction_deg: float = Field(ge=0, lt=90, description="grain-wall friction angle phi_P [deg]")
+
+
+class Silo(_Strict):
+    """Silo geometry.  z = 0 is the outlet (gate) level; x = 0 is the left wall of the cell."""
+
+    kind: Literal["flat", "hopper"] = Field(description="flat-bottomed, or cell + planar hopper")
+    cell_width: float = Field(gt=0, description="cell width B [m]")
+    wall_height: float = Field(gt=0, description="height of the top of the vertical walls [m]")
+    outlet_width: float = Field(gt=0, description="outlet (slot) width D, centred [m]")
+    hopper_angle_from_horizontal_deg: float = Field(
+        45.0,
+        gt=0,
+        lt=90,
+        description="hopper wall slope theta measured FROM THE HORIZONTAL [deg] (the paper's "
+        "'slope'; hopper theory uses 90 - theta, measured from the vertical)",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> Silo:
+        if self.outlet_width >= self.cell_width:
+            raise ValueError(
+                f"silo.outlet_width ({self.outlet_width}) must be smaller than silo.cell_width "
+                f"({self.cell_width})"
+            )
+        if self.kind == "hopper" and self.hopper_height >= self.wall_height:
+            raise ValueError(
+                f"silo.wall_height ({self.wall_height}) must exceed the hopper height "
+                f"{self.hopper_height:.3f} m given by cell_width, outlet_width and the angle"
+            )
+        return self
+
+    @property
+    def hopper_height(self) -> float:
+        """Height of the cell-hopper junction above the outlet [m] (0 for a flat bottom)."""
+        if self.kind == "flat":
+            return 0.0
+        theta = math.radians(self.hopper_angle_from_horizontal_deg)
+        return 0.5 * (self.cell_width - self.outlet_width) * math.tan(theta)
+
+
+class Fill(_Strict):
+    """How the silo is filled (Fig. 1: generation, then settling under gravity)."""
+
+    method: Literal["pour", "loose"] = Field(
+        "pour",
+        description="'pour': rain grains from a band under the top of the walls at `rate`; "
+        "'loose': place all grains at once on a jittered lattice, then let them fall",
+    )
+    n_particles: int = Field(gt=0, description="number of grains to put in the silo [-]")
+    rate: float = Field(200.0, gt=0, description="pouring rate [grains/s] (method 'pour')")
+    band_height: float = Field(
+        0.6, gt=0, description="height of the pouring band under the wall top [m]"
+    )
+    initial_speed: float = Field(0.0, ge=0, description="downward speed of poured grains [m/s]")
+    max_time: float = Field(60.0, gt=0, description="give up pouring after this time [s]")
+
+
+class Settle(_Strict):
+    """Equilibrium criterion that ends a settling phase (after filling)."""
+
+    criterion: Literal["force_ratio", "kinetic_energy"] = Field(
+        "force_ratio",
+        description="'force_ratio': mean unbalanced force / mean contact force (PFC's ratio); "
+        "'kinetic_energy': mean kinetic energy per grain [J]",
+    )
+    threshold: float = Field(1e-3, gt=0, description="settled when the criterion is below this")
+    max_time: float = Field(10.0, gt=0, description="stop settling after this time [s] (warns)")
+    min_time: float = Field(0.2, ge=0, description="settle at least this long [s]")
+
+
+class Discharge(_Strict):
+    """Discharge: the gate under the outlet is withdrawn."""
+
+    enabled: bool = Field(True, description="run the discharge phase")
+    stop_fraction: float = Field(
+        0.9, gt=0, le=1, description="stop when this mass fraction has left the silo [-]"
+    )
+    max_time: float = Field(30.0, gt=0, description="stop after this discharge time [s]")
+    clog_time: float = Field(
+        2.0, gt=0, description="no grain leaving for this long [s] means a clog (arch)"
+    )
+    reinsert: bool = Field(False, description="re-insert discharged grains at the top")
+
+
+class TimeStep(_Strict):
+    """Time step.  ``dt`` unset: dt = safety * dt_crit (see physics docs)."""
+
+    dt: float | None = Field(None, gt=0, description="time step [s]; must not exceed dt_crit")
+    safety: float = Field(0.2, gt=0, le=1, description="fraction of dt_crit used when dt unset")
+
+
+class Output(_Strict):
+    """What is recorded."""
+
+    sample_interval: float = Field(0.02, gt=0, description="time-series sampling interval [s]")
+    png: bool = Field(True, description="draw the final state with its force network")
+
+
+class Config(_Strict):
+    """A complete silodem run."""
+
+    name: str = Field("custom", description="scenario name")
+    description: str = Field("", description="free text")
+    seed: int = Field(ge=0, description="seed of the random generator (radii, positions)")
+    gravity: float = Field(9.81, ge=0, description="gravitational acceleration g [m/s^2]")
+    material: Material
+    walls: WallMaterial
+    silo: Silo
+    fill: Fill
+    settle: Settle = Settle()
+    discharge: Discharge = Discharge()
+    time: TimeStep = TimeStep()
+    output: Output = Output()
+
+    @model_validator(mode="after")
+    def _check(self) -> Config:
+        if self.silo.outlet_width <= 2.0 * self.material.radius_max:
+            raise ValueError(
+                f"silo.outlet_width ({self.silo.outlet_width}) must exceed the largest grain "
+                f"diameter {2 * self.material.radius_max}"
+            )
+        if self.fill.band_height < 2.0 * self.material.radius_max:
+            raise ValueError(
+                f"fill.band_height ({self.fill.band_height}) must be at least one grain diameter "
+                f"{2 * self.material.radius_max}"
+            )
+        return self
