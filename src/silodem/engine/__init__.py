@@ -1,0 +1,1 @@
+"""The DEM engine: particle state, walls, contact law, neighbour search, integration."""

@@ -1,0 +1,208 @@
+"""The linear contact law of the paper (eqs. 1-5) and the force kernels that apply it.
+
+For a contact with overlap ``delta`` [m] and relative velocity of the contact point split into a
+normal part ``v_n`` (negative when the bodies approach) and a tangential part ``v_t`` [m/s]:
+
+    F_n = k_n * delta - c_n * v_n                    (normal spring + viscous dashpot, eqs. 1, 3, 5)
+    F_n = max(F_n, 0)                                unless tension is allowed
+    F_s <- F_s - k_s * v_t * dt                      (incremental shear spring, eqs. 2, 4)
+    |F_s| <= mu * max(F_n, 0),  mu = tan(phi)        (Coulomb slip)
+    c_n = 2 * zeta * sqrt(k_n * m_eff),  m_eff = m_a m_b / (m_a + m_b)  (m_eff = m for a wall)
+
+The normal force is written in total form, k_n*delta, which equals the paper's incremental sum of
+k_n*v_n*dt for a linear spring.  In 2D the shear force is a scalar along the tangent
+t = (-n_y, n_x) of the current normal n; this *is* the rotation of the shear force with the
+contact frame that PFC applies in 3D.  A contact that opens (delta <= 0) forgets its shear force.
+
+Contact stiffnesses are the series values of the two bodies (PFC2D convention):
+k = k_a k_b / (k_a + k_b); they are resolved once at set-up, never in the loop.
+
+Sign conventions: for a pair (i, j), n points from i to j and the force computed is the force
+on j (the force on i is its opposite).  For a grain-wall contact n points from the wall to the
+grain and the force is the force on the grain.  The torque on each grain is -r * F_s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from silodem.jit import njit, njit_parallel, prange
+
+
+def series(k_a: float, k_b: float) -> float:
+    """Stiffness of two springs in series [N/m]: k_a k_b / (k_a + k_b)."""
+    return k_a * k_b / (k_a + k_b)
+
+
+def damping_ratio_from_restitution(e: float) -> float:
+    """zeta = -ln e / sqrt(pi^2 + ln^2 e): the damping ratio whose linear spring-dashpot contact,
+    with tension allowed, rebounds with normal restitution e (e.g. Schwager & Poeschel,
+    Granular Matter 9 (2007) 465)."""
+    if not 0.0 < e <= 1.0:
+        raise ValueError(f"restitution must be in (0, 1], got {e}")
+    if e == 1.0:
+        return 0.0
+    le = math.log(e)
+    return -le / math.sqrt(math.pi**2 + le**2)
+
+
+@dataclass(frozen=True)
+class GrainLaw:
+    """Contact parameters between two grains, already combined (series stiffness)."""
+
+    kn: float  # contact normal stiffness [N/m]
+    ks: float  # contact shear stiffness [N/m]
+    mu: float  # friction coefficient tan(phi_G) [-]
+    zeta: float  # normal critical-damping ratio [-], used for grain-grain and grain-wall
+    allow_tension: bool = False
+    local_damping: float = 0.0  # PFC local damping alpha [-], applied in the integrator
+
+
+def critical_time_step(m_min: float, law: GrainLaw, wall_kn: np.ndarray, wall_ks: np.ndarray) -> float:
+    """dt_crit [s] = min over contact kinds of sqrt(m_eff / k).
+
+    m_eff is m_min/2 (normal) and m_min/6 (shear, the rotational inertia of two disks with
+    I = m r^2/2 included) for grain-grain contacts, m_min and m_min/3 for grain-wall contacts.
+    A single undamped contact is stable for dt < 2 sqrt(m_eff/k); dropping the factor 2 leaves
+    room for a grain pressed by several contacts at once (Cundall & Strack 1979; PFC manual).
+    """
+    ratios = [0.5 * m_min / law.kn, m_min / 6.0 / law.ks]
+    for kn, ks in zip(np.atleast_1d(wall_kn), np.atleast_1d(wall_ks)):
+        ratios += [m_min / kn, m_min / 3.0 / ks]
+    return math.sqrt(min(ratios))
+
+
+@numba.njit(inline="always", cache=True)
+def linear_law(overlap, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt):
+    """Normal and shear force [N] of one touching contact (see module docstring)."""
+    fn = kn * overlap - cn * v_n
+    if fn < 0.0 and not allow_tension:
+        fn = 0.0
+    fs = fs_old - ks * v_t * dt
+    cap = mu * fn if fn > 0.0 else 0.0
+    if fs > cap:
+        fs = cap
+    elif fs < -cap:
+        fs = -cap
+    return fn, fs
+
+
+@njit_parallel
+def pair_forces(pair_i, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+                x, y, vx, vy, omega, radius, inv_mass,
+                kn, ks, mu, zeta, allow_tension, dt):
+    """Grain-grain contacts of the candidate list: updates the shear history ``pair_fs`` and
+    writes the normal force and the force vector on j (``pair_fn, pair_fx, pair_fy``)."""
+    for k in prange(pair_i.shape[0]):
+        i = pair_i[k]
+        j = pair_j[k]
+        dx = x[j] - x[i]
+        dy = y[j] - y[i]
+        rsum = radius[i] + radius[j]
+        d2 = dx * dx + dy * dy
+        if d2 >= rsum * rsum:
+            pair_fs[k] = 0.0
+            pair_fn[k] = 0.0
+            pair_fx[k] = 0.0
+            pair_fy[k] = 0.0
+            continue
+        d = math.sqrt(d2)
+        nx = dx / d
+        ny = dy / d
+        # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
+        rvx = vx[j] - vx[i] + omega[j] * radius[j] * ny + omega[i] * radius[i] * ny
+        rvy = vy[j] - vy[i] - omega[j] * radius[j] * nx - omega[i] * radius[i] * nx
+        v_n = rvx * nx + rvy * ny
+        v_t = -rvx * ny + rvy * nx
+        m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
+        cn = 2.0 * zeta * math.sqrt(kn * m_eff)
+        fn, fs = linear_law(rsum - d, v_n, v_t, pair_fs[k], kn, ks, cn, mu, allow_tension, dt)
+        pair_fs[k] = fs
+        pair_fn[k] = fn
+        pair_fx[k] = fn * nx - fs * ny
+        pair_fy[k] = fn * ny + fs * nx
+
+
+@njit
+def closest_point(px, py, ax, ay, bx, by, cap_a, cap_b):
+    """Closest point of segment A-B to P, and whether it counts (False at an uncapped end)."""
+    ux = bx - ax
+    uy = by - ay
+    s = ((px - ax) * ux + (py - ay) * uy) / (ux * ux + uy * uy)
+    if s <= 0.0:
+        return ax, ay, cap_a
+    if s >= 1.0:
+        return bx, by, cap_b
+    return ax + s * ux, ay + s * uy, True
+
+
+@njit_parallel
+def wall_forces(wc_i, wc_w, wc_fs, wc_fn, wc_fx, wc_fy,
+                x, y, vx, vy, omega, radius, mass,
+                w_ax, w_ay, w_bx, w_by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b,
+                zeta, allow_tension, dt):
+    """Grain-wall contacts of the candidate list; the force written is the force on the grain."""
+    for k in prange(wc_i.shape[0]):
+        i = wc_i[k]
+        w = wc_w[k]
+        touching = False
+        if w_active[w]:
+            cx, cy, counts = closest_point(x[i], y[i], w_ax[w], w_ay[w], w_bx[w], w_by[w],
+                                           w_cap_a[w], w_cap_b[w])
+            dx = x[i] - cx
+            dy = y[i] - cy
+            d2 = dx * dx + dy * dy
+            touching = counts and d2 < radius[i] * radius[i] and d2 > 0.0
+        if not touching:
+            wc_fs[k] = 0.0
+            wc_fn[k] = 0.0
+            wc_fx[k] = 0.0
+            wc_fy[k] = 0.0
+            continue
+        d = math.sqrt(d2)
+        nx = dx / d
+        ny = dy / d
+        # grain contact point velocity v + w x (-r n), relative to the wall's velocity
+        rvx = vx[i] + omega[i] * radius[i] * ny - w_vx[w]
+        rvy = vy[i] - omega[i] * radius[i] * nx - w_vy[w]
+        v_n = rvx * nx + rvy * ny
+        v_t = -rvx * ny + rvy * nx
+        cn = 2.0 * zeta * math.sqrt(w_kn[w] * mass[i])
+        fn, fs = linear_law(radius[i] - d, v_n, v_t, wc_fs[k], w_kn[w], w_ks[w], cn, w_mu[w],
+                            allow_tension, dt)
+        wc_fs[k] = fs
+        wc_fn[k] = fn
+        wc_fx[k] = fn * nx - fs * ny
+        wc_fy[k] = fn * ny + fs * nx
+
+
+@njit_parallel
+def gather_forces(n, radius, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
+                  w_start, wc_fx, wc_fy, wc_fs, fx, fy, torque):
+    """Sum the contact forces and torques on each grain, in a fixed order (no races, and the
+    same bits for any number of threads).  Pairs where the grain is i are the contiguous range
+    ``i_start[p]:i_start[p+1]``; pairs where it is j are listed in ``j_pairs``."""
+    for p in prange(n):
+        sx = 0.0
+        sy = 0.0
+        ss = 0.0
+        for k in range(i_start[p], i_start[p + 1]):
+            sx -= pair_fx[k]
+            sy -= pair_fy[k]
+            ss += pair_fs[k]
+        for q in range(j_start[p], j_start[p + 1]):
+            k = j_pairs[q]
+            sx += pair_fx[k]
+            sy += pair_fy[k]
+            ss += pair_fs[k]
+        for k in range(w_start[p], w_start[p + 1]):
+            sx += wc_fx[k]
+            sy += wc_fy[k]
+            ss += wc_fs[k]
+        fx[p] = sx
+        fy[p] = sy
+        torque[p] = -radius[p] * ss

@@ -1,0 +1,114 @@
+"""Particle state: a struct of arrays with spare capacity (jax-md / LAMMPS style).
+
+Only the first ``n`` entries of each array are live.  Arrays are reordered (spatial sort) and
+compacted (removed grains) by the neighbour list at each rebuild, so code that must follow a
+grain across steps uses its permanent ``uid``, never its index.
+
+Units: positions [m], velocities [m/s], spin [rad/s], forces [N], torques [N m], mass [kg],
+moment of inertia [kg m^2].  Disks: m = rho*pi*r^2*t and I = m*r^2/2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_FLOAT_FIELDS = (
+    "x", "y", "vx", "vy", "omega", "radius", "mass", "inv_mass", "inv_inertia",
+    "fx", "fy", "torque", "x_ref", "y_ref",
+)
+
+
+class Particles:
+    """Disks in 2D.  ``fx, fy, torque`` hold the contact forces of the last step (no gravity)."""
+
+    def __init__(self, capacity: int = 1024) -> None:
+        capacity = max(int(capacity), 16)
+        for name in _FLOAT_FIELDS:
+            setattr(self, name, np.zeros(capacity))
+        self.uid = np.zeros(capacity, dtype=np.int64)
+        self.n = 0
+        self.next_uid = 0
+
+    @property
+    def capacity(self) -> int:
+        return self.x.shape[0]
+
+    def _grow(self, needed: int) -> None:
+        cap = self.capacity
+        while cap < needed:
+            cap *= 2
+        if cap == self.capacity:
+            return
+        for name in (*_FLOAT_FIELDS, "uid"):
+            old = getattr(self, name)
+            new = np.zeros(cap, dtype=old.dtype)
+            new[: self.n] = old[: self.n]
+            setattr(self, name, new)
+
+    def add(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        radius: np.ndarray,
+        density: float,
+        thickness: float = 1.0,
+        vx: np.ndarray | float = 0.0,
+        vy: np.ndarray | float = 0.0,
+        omega: np.ndarray | float = 0.0,
+    ) -> np.ndarray:
+        """Append disks; return their uids.  The neighbour list must be rebuilt afterwards."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        k = x.shape[0]
+        self._grow(self.n + k)
+        s = slice(self.n, self.n + k)
+        r = np.broadcast_to(np.asarray(radius, dtype=float), (k,))
+        self.x[s] = x
+        self.y[s] = np.broadcast_to(np.asarray(y, dtype=float), (k,))
+        self.vx[s] = vx
+        self.vy[s] = vy
+        self.omega[s] = omega
+        self.radius[s] = r
+        mass = density * np.pi * r**2 * thickness
+        self.mass[s] = mass
+        self.inv_mass[s] = 1.0 / mass
+        self.inv_inertia[s] = 2.0 / (mass * r**2)
+        self.fx[s] = 0.0
+        self.fy[s] = 0.0
+        self.torque[s] = 0.0
+        self.x_ref[s] = self.x[s]
+        self.y_ref[s] = self.y[s]
+        uids = np.arange(self.next_uid, self.next_uid + k, dtype=np.int64)
+        self.uid[s] = uids
+        self.next_uid += k
+        self.n += k
+        return uids
+
+    def keep(self, mask: np.ndarray) -> None:
+        """Keep the live particles where ``mask`` is True (compaction, order preserved)."""
+        idx = np.flatnonzero(mask[: self.n])
+        m = idx.shape[0]
+        for name in (*_FLOAT_FIELDS, "uid"):
+            arr = getattr(self, name)
+            arr[:m] = arr[idx]
+        self.n = m
+
+    def permute(self, order: np.ndarray) -> None:
+        """Reorder the live particles: new index k holds old index ``order[k]``."""
+        for name in (*_FLOAT_FIELDS, "uid"):
+            arr = getattr(self, name)
+            arr[: self.n] = arr[order]
+
+    # --- read-only views and derived quantities (never change state) -------------------
+    def view(self, name: str) -> np.ndarray:
+        return getattr(self, name)[: self.n]
+
+    def kinetic_energy(self) -> float:
+        """Translational + rotational kinetic energy [J] (half-step velocities)."""
+        n = self.n
+        m = self.mass[:n]
+        v2 = self.vx[:n] ** 2 + self.vy[:n] ** 2
+        inertia = 1.0 / self.inv_inertia[:n]
+        return float(0.5 * np.sum(m * v2) + 0.5 * np.sum(inertia * self.omega[:n] ** 2))
+
+    def total_mass(self) -> float:
+        return float(np.sum(self.mass[: self.n]))

@@ -1,0 +1,104 @@
+"""The results folder of a run: config.toml, results.h5 and PNG pictures (docs/output.md).
+
+Every file is written to a temporary name in the same folder and renamed into place, so a
+reader never sees a half-written file.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import h5py
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
+from matplotlib.patches import Circle  # noqa: E402
+
+from silodem import __version__  # noqa: E402
+from silodem.silo.procedure import Snapshot, SiloRun  # noqa: E402
+
+
+def _atomic(path: Path):
+    tmp = path.with_name(f".{path.name}.tmp")
+    return tmp, lambda: os.replace(tmp, path)
+
+
+def write_text(path: Path, text: str) -> None:
+    tmp, commit = _atomic(path)
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    commit()
+
+
+def _write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
+    group.attrs["time"] = snap.time
+    group.create_dataset("walls_active", data=snap.walls_active)
+    for sub, data in (("particles", snap.particles), ("contacts", snap.contacts),
+                      ("wall_contacts", snap.wall_contacts)):
+        g = group.create_group(sub)
+        for key, arr in data.items():
+            g.create_dataset(key, data=arr)
+
+
+def write_results(run: SiloRun, path: Path, config_toml: str) -> None:
+    """results.h5: attributes, /timeseries, /walls, /events, /settled and /final snapshots."""
+    tmp, commit = _atomic(path)
+    with h5py.File(tmp, "w") as h5:
+        h5.attrs["silodem_version"] = __version__
+        h5.attrs["scenario"] = run.cfg.name
+        h5.attrs["seed"] = run.cfg.seed
+        h5.attrs["dt"] = run.dt
+        h5.attrs["dt_crit"] = run.dt_crit
+        h5.attrs["config_toml"] = config_toml
+        ts = h5.create_group("timeseries")
+        for key, arr in run.series.as_arrays().items():
+            ts.create_dataset(key, data=arr)
+        ts.attrs["phase_names"] = ",".join(("fill", "settle", "discharge"))
+        w = run.walls
+        wg = h5.create_group("walls")
+        wg.create_dataset("name", data=np.array(w.names, dtype=h5py.string_dtype()))
+        for key in ("ax", "ay", "bx", "by", "kn", "ks", "mu", "active"):
+            wg.create_dataset(key, data=getattr(w, key))
+        ev = h5.create_group("events")
+        for key, val in run.events.items():
+            ev.attrs[key] = val
+        h5.create_dataset("warnings", data=np.array(run.warnings, dtype=h5py.string_dtype()))
+        for name, snap in run.snapshots.items():
+            _write_snapshot(h5.create_group(name), snap)
+    commit()
+
+
+def draw_state(run: SiloRun, snap: Snapshot, path: Path, title: str) -> None:
+    """Grains to scale, the force network (line width ~ normal force) and the walls."""
+    p, c = snap.particles, snap.contacts
+    fig, ax = plt.subplots(figsize=(6, 9), dpi=110)
+    circles = [Circle((x, y), r) for x, y, r in zip(p["x"], p["y"], p["radius"])]
+    ax.add_collection(PatchCollection(circles, facecolor="#d9d2c3", edgecolor="#8a7f6a",
+                                      linewidth=0.3))
+    if c["fn"].size:
+        segs = np.stack([np.column_stack([p["x"][c["i"]], p["y"][c["i"]]]),
+                         np.column_stack([p["x"][c["j"]], p["y"][c["j"]]])], axis=1)
+        fmax = float(c["fn"].max()) or 1.0
+        ax.add_collection(LineCollection(segs, linewidths=0.2 + 3.0 * c["fn"] / fmax,
+                                         colors="#b2182b"))
+    w = run.walls
+    for k in range(len(w)):
+        style = "-" if snap.walls_active[k] else ":"
+        ax.plot([w.ax[k], w.bx[k]], [w.ay[k], w.by[k]], style, color="k", lw=1.5)
+    ax.set_aspect("equal")
+    ax.set_xlim(-0.3, run.shape.width + 0.3)
+    ax.set_ylim(min(-0.5, run.z_remove), run.shape.wall_top + 0.3)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    tmp, commit = _atomic(path)
+    fig.savefig(tmp, format="png")
+    plt.close(fig)
+    commit()

@@ -1,0 +1,95 @@
+"""Run one configured silo end to end and write its results folder.
+
+Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> discharge
+-> results folder (config.toml, results.h5, settled.png, final.png).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from silodem.config import Config
+from silodem.output import draw_state, write_results, write_text
+from silodem.silo.procedure import Progress, SiloRun
+
+
+@dataclass
+class RunSummary:
+    name: str
+    out_dir: Path
+    wall_seconds: float
+    steps: int
+    dt: float
+    events: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        e = self.events
+        out = [
+            f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s in "
+            f"{self.wall_seconds:.1f} s wall time",
+            f"fill: {e.get('n_poured', 0)} grains in {e.get('fill_time', 0):.2f} s; settled in "
+            f"{e.get('settle_time', 0):.2f} s to a fill level of {e.get('fill_level', 0):.2f} m",
+        ]
+        if "discharge_end_reason" in e:
+            out.append(
+                f"discharge: {100 * e['discharged_fraction']:.1f}% of the mass left in "
+                f"{e['discharge_time']:.2f} s (ended by: {e['discharge_end_reason']})"
+            )
+        out += [f"warning: {w}" for w in self.warnings]
+        out.append(f"results: {self.out_dir}")
+        return out
+
+
+def _set_threads(threads: int | None) -> None:
+    if threads is not None:
+        import numba
+
+        numba.set_num_threads(int(threads))
+
+
+def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = None,
+                   progress: bool = True) -> RunSummary:
+    """Run ``cfg`` and write its results folder ``out_dir``; return a summary."""
+    from silodem.scenario_files import config_to_toml
+
+    _set_threads(threads)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    toml_text = config_to_toml(cfg)
+    write_text(out / "config.toml", toml_text)
+    t0 = time.perf_counter()
+    if progress:
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+
+        console = Console(stderr=True)
+        with Bar(TextColumn("[bold]{task.fields[phase]:<9}"), BarColumn(),
+                 TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
+                 transient=False) as bar:
+            task = bar.add_task("compiling kernels...", total=3, phase="start")
+
+            def show(pr: Progress) -> None:
+                bar.update(task, completed=("fill", "settle", "discharge").index(pr.phase),
+                           phase=pr.phase,
+                           description=f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
+                           f"{pr.steps_per_s:8.0f} steps/s  {pr.detail}")
+
+            run = SiloRun(cfg, on_progress=show)
+            for w in run.warnings:
+                console.print(f"[yellow]warning:[/] {w}")
+            run.run()
+            bar.update(task, completed=3)
+    else:
+        run = SiloRun(cfg)
+        run.run()
+    write_results(run, out / "results.h5", toml_text)
+    if cfg.output.png:
+        draw_state(run, run.snapshots["settled"], out / "settled.png",
+                   f"{cfg.name}: end of settling, t = {run.snapshots['settled'].time:.2f} s")
+        draw_state(run, run.snapshots["final"], out / "final.png",
+                   f"{cfg.name}: end of run, t = {run.snapshots['final'].time:.2f} s")
+    return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
+                      dict(run.events), list(run.warnings))

@@ -1,0 +1,100 @@
+"""Physical sanity of a configuration, checked before a run starts.
+
+* Time step: dt_crit from the stiffest contact and the lightest grain
+  (``silodem.engine.contact.critical_time_step``); a user dt above it is refused.
+* Overlap under the silo's own weight.  The vertical stress at the bottom of the cell is
+  estimated with the 2D Janssen solution for a slot of width B with two walls,
+      sigma_v = rho_b g B / (2 K mu_w) * (1 - exp(-2 K mu_w h / B)),
+  with K = 0.4 (the paper's value during filling) and rho_b = 0.82 rho (a random packing of
+  disks covers about 82 % of the plane).  A grain of diameter 2r and thickness t carries about
+  F = sigma_v 2r t, and its contacts overlap about F / k_n,contact.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from silodem.config import Config
+from silodem.engine.contact import GrainLaw, critical_time_step, series
+from silodem.errors import InputError
+from silodem.silo.geometry import silo_shape
+
+PACKING_FRACTION = 0.82  # area fraction of a random packing of disks [-]
+JANSSEN_K = 0.4  # lateral pressure ratio during filling (the paper, section 4.2) [-]
+WARN_OVERLAP = 0.05  # warn when the expected overlap exceeds this fraction of the mean radius
+TARGET_OVERLAP = 0.01  # the stiffness recommended keeps the overlap under 1 % of the radius
+
+
+def grain_law(cfg: Config) -> GrainLaw:
+    m = cfg.material
+    return GrainLaw(
+        kn=series(m.kn, m.kn),
+        ks=series(m.ks, m.ks),
+        mu=math.tan(math.radians(m.friction_deg)),
+        zeta=m.normal_damping_ratio,
+        allow_tension=m.allow_tension,
+        local_damping=m.local_damping,
+    )
+
+
+def choose_time_step(cfg: Config, law: GrainLaw, wall_kn, wall_ks) -> tuple[float, float]:
+    """(dt, dt_crit) [s]; raises InputError if the user's dt exceeds dt_crit."""
+    m = cfg.material
+    m_min = m.density * math.pi * m.radius_min**2 * m.thickness
+    dt_crit = critical_time_step(m_min, law, wall_kn, wall_ks)
+    if cfg.time.dt is None:
+        return cfg.time.safety * dt_crit, dt_crit
+    if cfg.time.dt > dt_crit:
+        raise InputError(
+            f"time.dt = {cfg.time.dt:.4g} s exceeds the stability limit dt_crit = {dt_crit:.4g} s "
+            f"(lightest grain, stiffest contact); use time.dt <= {dt_crit:.4g} or leave it unset"
+        )
+    return cfg.time.dt, dt_crit
+
+
+@dataclass(frozen=True)
+class OverlapEstimate:
+    fill_height: float  # expected height of the settled fill [m]
+    sigma_v: float  # vertical stress at the bottom of the cell [Pa]
+    contact_force: float  # typical contact force there [N]
+    overlap: float  # expected overlap [m]
+    overlap_fraction: float  # overlap / mean radius [-]
+    recommended_kn: float  # grain stiffness for an overlap of 1 % of the radius [N/m]
+
+    @property
+    def too_soft(self) -> bool:
+        return self.overlap_fraction > WARN_OVERLAP
+
+    def warning(self) -> str:
+        return (
+            f"soft contacts: under the expected {self.fill_height:.2f} m of grains the vertical "
+            f"stress reaches ~{self.sigma_v:.3g} Pa, contact forces ~{self.contact_force:.3g} N and "
+            f"overlaps ~{self.overlap:.3g} m = {100 * self.overlap_fraction:.0f}% of the mean "
+            f"radius; a grain stiffness material.kn >= {self.recommended_kn:.2g} N/m (and a wall "
+            f"stiffness as large) keeps them under {100 * TARGET_OVERLAP:.0f}%"
+        )
+
+
+def estimate_overlap(cfg: Config) -> OverlapEstimate:
+    m, s = cfg.material, cfg.silo
+    shape = silo_shape(cfg)
+    r_mean = 0.5 * (m.radius_min + m.radius_max)
+    mean_r2 = (m.radius_max**3 - m.radius_min**3) / (3 * (m.radius_max - m.radius_min)) \
+        if m.radius_max > m.radius_min else m.radius_min**2
+    area = cfg.fill.n_particles * math.pi * mean_r2 / PACKING_FRACTION
+    fill_height = shape.height_of_area(area)
+    depth = max(fill_height - shape.junction, 0.0)
+    rho_b = PACKING_FRACTION * m.density
+    mu_w = math.tan(math.radians(cfg.walls.friction_deg))
+    if mu_w > 0:
+        a = 2.0 * JANSSEN_K * mu_w / s.cell_width
+        sigma_v = rho_b * cfg.gravity / a * (1.0 - math.exp(-a * depth))
+    else:
+        sigma_v = rho_b * cfg.gravity * depth
+    force = sigma_v * 2.0 * r_mean * m.thickness
+    k_contact = min(series(m.kn, m.kn), series(m.kn, cfg.walls.kn))
+    overlap = force / k_contact
+    # grain stiffness k with contact stiffness k/2 >= F / (0.01 r)
+    recommended = 2.0 * force / (TARGET_OVERLAP * r_mean)
+    return OverlapEstimate(fill_height, sigma_v, force, overlap, overlap / r_mean, recommended)

@@ -1,0 +1,93 @@
+"""Silo walls from a few parameters.
+
+Coordinates: x across the silo, x = 0 at the left wall of the cell; z (the simulation's y)
+upwards, z = 0 at the outlet.  The outlet of width D is centred: x in [(B-D)/2, (B+D)/2].
+
+* flat:   left/right vertical walls from z = 0 to the wall top, floor pieces on each side of the
+          outlet, and the gate across it.
+* hopper: left/right vertical walls from the junction z_j = (B-D)/2 * tan(theta) to the wall top,
+          planar hopper walls from the outlet edges to the junction, and the gate.
+
+theta is the hopper wall's angle FROM THE HORIZONTAL (the paper's "slope"); hopper theory
+(Walker, Jenike) uses the complement 90 deg - theta, measured from the vertical.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from silodem.config import Config
+from silodem.engine.contact import series
+from silodem.engine.walls import Walls
+
+GATE = "gate"
+
+
+@dataclass(frozen=True)
+class SiloShape:
+    """The silo's outline, for placing grains and for measurements."""
+
+    kind: str
+    width: float  # B [m]
+    wall_top: float  # [m]
+    outlet_left: float  # [m]
+    outlet_right: float  # [m]
+    junction: float  # z of the cell-hopper junction [m] (0 for flat)
+
+    def inner_x_range(self, z: float) -> tuple[float, float]:
+        """Horizontal extent of the silo's inside at height z [m] (0 <= z <= wall_top)."""
+        if self.kind == "flat" or z >= self.junction:
+            return 0.0, self.width
+        f = max(z, 0.0) / self.junction
+        return self.outlet_left * (1.0 - f), self.outlet_right + (self.width - self.outlet_right) * f
+
+    def area_below(self, z: float) -> float:
+        """Area of the silo's inside under height z [m^2]."""
+        z = min(max(z, 0.0), self.wall_top)
+        if self.kind == "flat":
+            return self.width * z
+        zh = min(z, self.junction)
+        lo, hi = self.inner_x_range(zh)
+        hopper = 0.5 * ((self.outlet_right - self.outlet_left) + (hi - lo)) * zh
+        return hopper + self.width * max(z - self.junction, 0.0)
+
+    def height_of_area(self, area: float) -> float:
+        """Inverse of ``area_below`` (bisection) [m]."""
+        lo, hi = 0.0, self.wall_top
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            if self.area_below(mid) < area:
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
+
+
+def silo_shape(cfg: Config) -> SiloShape:
+    s = cfg.silo
+    left = 0.5 * (s.cell_width - s.outlet_width)
+    return SiloShape(s.kind, s.cell_width, s.wall_height, left, left + s.outlet_width,
+                     s.hopper_height)
+
+
+def build_walls(cfg: Config) -> Walls:
+    """The silo's wall segments with their contact parameters (series with the grains')."""
+    shape = silo_shape(cfg)
+    m, wm = cfg.material, cfg.walls
+    kn = series(m.kn, wm.kn)
+    ks = series(m.ks, wm.ks)
+    mu = math.tan(math.radians(wm.friction_deg))
+    walls = Walls()
+    B, top, zj = shape.width, shape.wall_top, shape.junction
+    xl, xr = shape.outlet_left, shape.outlet_right
+    walls.add("left_wall", (0.0, zj), (0.0, top), kn, ks, mu)
+    walls.add("right_wall", (B, zj), (B, top), kn, ks, mu)
+    if shape.kind == "hopper":
+        walls.add("left_hopper", (xl, 0.0), (0.0, zj), kn, ks, mu)
+        walls.add("right_hopper", (xr, 0.0), (B, zj), kn, ks, mu)
+    else:
+        walls.add("left_floor", (0.0, 0.0), (xl, 0.0), kn, ks, mu)
+        walls.add("right_floor", (xr, 0.0), (B, 0.0), kn, ks, mu)
+    walls.add(GATE, (xl, 0.0), (xr, 0.0), kn, ks, mu)
+    return walls
