@@ -3,19 +3,57 @@
 * ``cache=True``: compiled kernels are stored next to the sources, so only the first run of a
   fresh install pays for compilation.
 * ``fastmath=False`` and ``error_model="numpy"``: IEEE arithmetic, so that a run is
-  bit-reproducible from its seed for a given thread count.
+  bit-reproducible from its seed.
+* Kernels whose outer loop is a ``prange`` are compiled twice, serial and parallel
+  (``@kernel``); ``pick`` takes the parallel one only for systems large enough to pay for the
+  threads.  Both give the same bits: every parallel loop writes disjoint entries, and sums run
+  in a fixed order.
 """
 
 from __future__ import annotations
 
+import types
+
 import numba
 
 FLAGS = {"cache": True, "fastmath": False, "error_model": "numpy"}
+PARALLEL_MIN_GRAINS = 5000  # below this, thread start-up costs more than it saves
 
 njit = numba.njit(**FLAGS)
-"""Decorator for serial kernels."""
-
-njit_parallel = numba.njit(parallel=True, **FLAGS)
-"""Decorator for kernels whose outer loop is a race-free ``numba.prange``."""
+"""Decorator for serial helpers."""
 
 prange = numba.prange
+
+
+def _renamed(fn: types.FunctionType, suffix: str) -> types.FunctionType:
+    """A copy of ``fn`` under another qualified name (so the two compiled caches differ)."""
+    copy = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + suffix,
+                              fn.__defaults__, fn.__closure__)
+    copy.__qualname__ = fn.__qualname__ + suffix
+    copy.__module__ = fn.__module__
+    copy.__doc__ = fn.__doc__
+    return copy
+
+
+class Kernel:
+    """A kernel compiled serial (``.serial``) and parallel (``.parallel``), on first use."""
+
+    def __init__(self, fn: types.FunctionType) -> None:
+        self.__doc__ = fn.__doc__
+        self.__name__ = fn.__name__
+        self.serial = numba.njit(**FLAGS)(_renamed(fn, "_serial"))
+        self.parallel = numba.njit(parallel=True, **FLAGS)(_renamed(fn, "_parallel"))
+
+    def pick(self, n: int):
+        """The variant for ``n`` grains with the current numba thread count."""
+        if n >= PARALLEL_MIN_GRAINS and numba.get_num_threads() > 1:
+            return self.parallel
+        return self.serial
+
+    def __call__(self, *args):
+        return self.serial(*args)
+
+
+def kernel(fn: types.FunctionType) -> Kernel:
+    """Decorator for kernels with a race-free ``prange`` outer loop."""
+    return Kernel(fn)

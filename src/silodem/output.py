@@ -13,13 +13,13 @@ import h5py
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
-from matplotlib.patches import Circle  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.collections import LineCollection, PatchCollection
+from matplotlib.patches import Circle
 
-from silodem import __version__  # noqa: E402
-from silodem.silo.procedure import Snapshot, SiloRun  # noqa: E402
+from silodem import __version__
+from silodem.silo.procedure import SiloRun, Snapshot
 
 
 def _atomic(path: Path):
@@ -59,7 +59,7 @@ def write_results(run: SiloRun, path: Path, config_toml: str) -> None:
         ts = h5.create_group("timeseries")
         for key, arr in run.series.as_arrays().items():
             ts.create_dataset(key, data=arr)
-        ts.attrs["phase_names"] = ",".join(("fill", "settle", "discharge"))
+        ts.attrs["phase_names"] = "fill,settle,discharge"
         w = run.walls
         wg = h5.create_group("walls")
         wg.create_dataset("name", data=np.array(w.names, dtype=h5py.string_dtype()))

@@ -28,10 +28,10 @@ class RunSummary:
     def lines(self) -> list[str]:
         e = self.events
         out = [
-            f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s in "
-            f"{self.wall_seconds:.1f} s wall time",
-            f"fill: {e.get('n_poured', 0)} grains in {e.get('fill_time', 0):.2f} s; settled in "
-            f"{e.get('settle_time', 0):.2f} s to a fill level of {e.get('fill_level', 0):.2f} m",
+            (f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s in "
+            f"{self.wall_seconds:.1f} s wall time"),
+            (f"fill: {e.get('n_poured', 0)} grains in {e.get('fill_time', 0):.2f} s; settled in "
+            f"{e.get('settle_time', 0):.2f} s to a fill level of {e.get('fill_level', 0):.2f} m"),
         ]
         if "discharge_end_reason" in e:
             out.append(
@@ -63,7 +63,8 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     t0 = time.perf_counter()
     if progress:
         from rich.console import Console
-        from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import Progress as Bar
 
         console = Console(stderr=True)
         with Bar(TextColumn("[bold]{task.fields[phase]:<9}"), BarColumn(),

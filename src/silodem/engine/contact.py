@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from silodem.jit import njit, njit_parallel, prange
+from silodem.jit import kernel, njit, prange
 
 
 def series(k_a: float, k_b: float) -> float:
@@ -91,7 +91,7 @@ def linear_law(overlap, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt):
     return fn, fs
 
 
-@njit_parallel
+@kernel
 def pair_forces(pair_i, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
                 x, y, vx, vy, omega, radius, inv_mass,
                 kn, ks, mu, zeta, allow_tension, dt):
@@ -140,7 +140,7 @@ def closest_point(px, py, ax, ay, bx, by, cap_a, cap_b):
     return ax + s * ux, ay + s * uy, True
 
 
-@njit_parallel
+@kernel
 def wall_forces(wc_i, wc_w, wc_fs, wc_fn, wc_fx, wc_fy,
                 x, y, vx, vy, omega, radius, mass,
                 w_ax, w_ay, w_bx, w_by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b,
@@ -180,7 +180,7 @@ def wall_forces(wc_i, wc_w, wc_fs, wc_fn, wc_fx, wc_fy,
         wc_fy[k] = fn * ny + fs * nx
 
 
-@njit_parallel
+@kernel
 def gather_forces(n, radius, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
                   w_start, wc_fx, wc_fy, wc_fs, fx, fy, torque):
     """Sum the contact forces and torques on each grain, in a fixed order (no races, and the

@@ -16,12 +16,12 @@ import math
 
 import numpy as np
 
-from silodem.jit import njit_parallel, prange
+from silodem.jit import kernel, prange
 
 _CHUNKS = 64
 
 
-@njit_parallel
+@kernel
 def leapfrog(n, x, y, vx, vy, omega, fx, fy, torque, mass, inv_mass, inv_inertia,
              x_ref, y_ref, gravity, alpha, dt):
     """Advance the first ``n`` grains by one step; return the largest squared displacement

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from silodem.engine.contact import closest_point
-from silodem.jit import njit, njit_parallel, prange
+from silodem.jit import kernel, njit, prange
 
 UID_SPAN = np.int64(1) << np.int64(31)  # pair key = min_uid * UID_SPAN + max_uid
 WALL_SPAN = np.int64(1024)  # wall contact key = uid * WALL_SPAN + wall index
@@ -48,7 +48,7 @@ def cell_sort(n, x, y, xmin, ymin, cell_size, ncx, ncy):
     return order, cell_start
 
 
-@njit_parallel
+@kernel
 def _pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, skin,
               counts, pair_j, pair_key, offsets, fill):
     """Count (fill=False) or write (fill=True) the candidates j > i of every grain i; the grains
@@ -121,7 +121,7 @@ def _wall_candidates(n, x, y, radius, uid, w_ax, w_ay, w_bx, w_by, w_active, ski
     return wc_i, wc_w, wc_key
 
 
-@njit_parallel
+@kernel
 def transfer_history(old_key, old_val, new_key, new_val):
     """new_val[k] = old_val of the old candidate with the same key, else 0."""
     order = np.argsort(old_key)
@@ -182,18 +182,19 @@ class NeighborList:
 
         counts = np.zeros(n, dtype=np.int64)
         dummy = np.zeros(0, dtype=np.int64)
-        _pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin,
-                  counts, dummy, dummy, dummy, False)
+        pairs_of = _pairs_of.pick(n)
+        pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin,
+                 counts, dummy, dummy, dummy, False)
         i_start = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(counts, out=i_start[1:])
         npairs = int(i_start[-1])
         pair_j = np.empty(npairs, dtype=np.int64)
         pair_key = np.empty(npairs, dtype=np.int64)
-        _pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin,
-                  counts, pair_j, pair_key, i_start, True)
+        pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin,
+                 counts, pair_j, pair_key, i_start, True)
         pair_i = np.repeat(np.arange(n, dtype=np.int64), counts)
         pair_fs = np.empty(npairs)
-        transfer_history(self.pair_key, self.pair_fs, pair_key, pair_fs)
+        transfer_history.pick(n)(self.pair_key, self.pair_fs, pair_key, pair_fs)
         self.pair_i, self.pair_j, self.pair_key, self.pair_fs = pair_i, pair_j, pair_key, pair_fs
         self.pair_fn = np.zeros(npairs)
         self.pair_fx = np.zeros(npairs)
@@ -204,7 +205,7 @@ class NeighborList:
         wc_i, wc_w, wc_key = _wall_candidates(n, x, y, radius, uid, walls.ax, walls.ay,
                                               walls.bx, walls.by, walls.active, self.skin)
         wc_fs = np.empty(wc_i.shape[0])
-        transfer_history(self.wc_key, self.wc_fs, wc_key, wc_fs)
+        transfer_history.pick(n)(self.wc_key, self.wc_fs, wc_key, wc_fs)
         self.wc_i, self.wc_w, self.wc_key, self.wc_fs = wc_i, wc_w, wc_key, wc_fs
         self.wc_fn = np.zeros(wc_i.shape[0])
         self.wc_fx = np.zeros(wc_i.shape[0])

@@ -75,17 +75,18 @@ class Simulation:
             nb.rebuild(p, w)
             self._stale = False
             self._wall_drift = 0.0
-        pair_forces(nb.pair_i, nb.pair_j, nb.pair_fs, nb.pair_fn, nb.pair_fx, nb.pair_fy,
+        n = p.n
+        pair_forces.pick(n)(nb.pair_i, nb.pair_j, nb.pair_fs, nb.pair_fn, nb.pair_fx, nb.pair_fy,
                     p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
                     law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
-        wall_forces(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
+        wall_forces.pick(n)(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                     p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
                     w.ax, w.ay, w.bx, w.by, w.vx, w.vy, w.kn, w.ks, w.mu, w.active,
                     w.cap_a, w.cap_b, law.zeta, law.allow_tension, dt)
-        gather_forces(p.n, p.radius, nb.i_start, nb.j_start, nb.j_pairs,
+        gather_forces.pick(n)(n, p.radius, nb.i_start, nb.j_start, nb.j_pairs,
                       nb.pair_fx, nb.pair_fy, nb.pair_fs,
                       nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs, p.fx, p.fy, p.torque)
-        max_d2 = leapfrog(p.n, p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque,
+        max_d2 = leapfrog.pick(n)(n, p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque,
                           p.mass, p.inv_mass, p.inv_inertia, p.x_ref, p.y_ref,
                           self.gravity, law.local_damping, dt)
         if not np.isfinite(max_d2):

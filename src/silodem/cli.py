@@ -1,0 +1,213 @@
+"""The ``silodem`` command line.
+
+Every bad input (file, scenario, ``--set``, option value, usage) ends in exactly one line on
+stderr and exit code 2, never a traceback: see :func:`main`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from silodem.errors import InputError, one_line
+from silodem.scenario_files import (
+    DEFAULT_SCENARIO,
+    config_to_toml,
+    list_scenarios,
+    load_config,
+    quick_variant,
+)
+
+app = typer.Typer(
+    name="silodem",
+    help=(
+        "Simulate the filling and discharge of 2D silos with the Discrete Element Method. "
+        "Start with 'silodem scenarios' to see the ready-made cases, 'silodem show NAME' to "
+        "read every value of one, and 'silodem run' to run one (paper-case2 by default)."
+    ),
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+SourceArg = Annotated[
+    str,
+    typer.Argument(
+        metavar="[SCENARIO|FILE.toml]",
+        help="An embedded scenario name (see 'silodem scenarios') or the path of a TOML "
+        "config file.",
+        show_default=True,
+    ),
+]
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        "-s",
+        metavar="KEY=VALUE",
+        help="Override one config value, e.g. --set material.kn=2e7 or "
+        "--set silo.kind=flat. KEY is the dotted path of 'silodem show'; VALUE is read as "
+        'TOML (number, true/false, "text"). Repeat for several values.',
+        show_default=False,
+    ),
+]
+QuickOpt = Annotated[
+    bool,
+    typer.Option(
+        "--quick",
+        help="Shrink the case to a small silo (cell and walls x 0.6, about a third of the "
+        "grains, shorter time limits) that runs in well under a minute: a first try.",
+    ),
+]
+
+
+def _numba_max_threads() -> int:
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
+def _check_threads(threads: int | None) -> None:
+    if threads is None:
+        return
+    top = _numba_max_threads()
+    if not 1 <= threads <= top:
+        raise InputError(
+            f"--threads must be an integer from 1 to {top} (the number of threads numba may "
+            f"use here, NUMBA_NUM_THREADS); got {threads}"
+        )
+
+
+def _config(source: str, sets: list[str] | None, quick: bool):
+    cfg = load_config(source, sets or [])
+    return quick_variant(cfg) if quick else cfg
+
+
+@app.command()
+def run(
+    source: SourceArg = DEFAULT_SCENARIO,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="DIR",
+            help="Folder for the results (config, data, plots). Default: runs/<config name>.",
+            show_default=False,
+        ),
+    ] = None,
+    sets: SetOpt = None,
+    threads: Annotated[
+        int | None,
+        typer.Option(
+            "--threads",
+            "-t",
+            metavar="N",
+            help="Number of CPU threads for the compiled kernels (1 to the number numba "
+            "allows). Default: numba's default, all cores.",
+            show_default=False,
+        ),
+    ] = None,
+    quick: QuickOpt = False,
+) -> None:
+    """Fill a silo with grains, let them settle, then open the outlet and discharge it.
+
+    Writes the results into a folder and prints a summary. Examples:
+
+      silodem run                       (the paper's hopper case, paper-case2)
+
+      silodem run paper-case1 --quick   (the flat silo, small and fast)
+
+      silodem run my.toml --set fill.n_particles=300 --out runs/test
+    """
+    _check_threads(threads)
+    cfg = _config(source, sets, quick)
+    out_dir = out if out is not None else Path("runs") / cfg.name
+
+    from silodem.run import run_simulation  # imports numba: only when running
+
+    console = Console()
+    console.print(
+        f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False, soft_wrap=True
+    )
+    summary = run_simulation(cfg, out_dir, threads=threads, progress=True)
+    for line in summary.lines():
+        console.print(line, markup=False, highlight=False, soft_wrap=True)
+
+
+@app.command()
+def scenarios() -> None:
+    """List the ready-made scenarios shipped with silodem."""
+    items = list_scenarios()
+    width = max((len(name) for name, _ in items), default=0)
+    for name, description in items:
+        typer.echo(f"{name:<{width}}  {description}")
+    typer.echo("")
+    typer.echo("See all values of one: silodem show NAME    Run one: silodem run NAME")
+
+
+@app.command()
+def show(
+    source: SourceArg = DEFAULT_SCENARIO,
+    sets: SetOpt = None,
+    quick: QuickOpt = False,
+) -> None:
+    """Print the complete config of a scenario or file as TOML, every default included.
+
+    Save it to start your own case:
+
+      silodem show paper-case2 > my.toml   (edit my.toml, then: silodem run my.toml)
+    """
+    cfg = _config(source, sets, quick)
+    sys.stdout.write(config_to_toml(cfg))
+
+
+def _error(message: str, code: int = 2) -> None:
+    sys.stderr.write(one_line(message) + "\n")
+    sys.stderr.flush()
+    raise SystemExit(code)
+
+
+def _click_types(name: str) -> tuple[type[BaseException], ...]:
+    """Class ``name`` of click's exceptions, from click and from typer's vendored copy."""
+    found = []
+    for module in ("typer._click.exceptions", "click.exceptions"):
+        try:
+            cls = getattr(importlib.import_module(module), name, None)
+        except ImportError:
+            continue
+        if isinstance(cls, type):
+            found.append(cls)
+    return tuple(found)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
+    command = typer.main.get_command(app)
+    no_args = _click_types("NoArgsIsHelpError")
+    usage = _click_types("UsageError")
+    other = _click_types("ClickException")
+    abort = _click_types("Abort") + (typer.Abort, KeyboardInterrupt)
+    try:
+        result = command.main(args=argv, prog_name="silodem", standalone_mode=False)
+    except InputError as exc:
+        message = str(exc)
+        _error(message if message.startswith("config error:") else f"error: {message}")
+    except no_args as exc:
+        sys.stdout.write(exc.ctx.get_help() + "\n")
+        raise SystemExit(0) from None
+    except usage as exc:
+        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
+        _error(f"usage error: {exc.format_message()}{hint}", 2)
+    except other as exc:
+        _error(f"error: {exc.format_message()}", getattr(exc, "exit_code", 1))
+    except abort:
+        _error("interrupted", 130)
+    raise SystemExit(result if isinstance(result, int) else 0)

@@ -1,0 +1,196 @@
+"""User-input errors, and one-line messages for configuration validation errors.
+
+An :class:`InputError` is a problem with what the user gave (a file, a scenario name, a
+``--set`` override, a command-line value).  Its ``str()`` is one line that names what is wrong
+and what is allowed; the command line prints it as is and exits with code 2, no traceback.
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+
+class InputError(Exception):
+    """A user-input problem; ``str()`` is one line naming what is wrong and what is allowed."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(one_line(message))
+
+
+def one_line(text: str) -> str:
+    """Collapse ``text`` to a single line (newlines and runs of blanks become one space)."""
+    return " ".join(str(text).split())
+
+
+# --- walking the schema --------------------------------------------------------------------
+
+
+def submodel(annotation: Any) -> type[BaseModel] | None:
+    """The pydantic model class inside a field annotation (``Material``, ``X | None``), else None."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    origin = typing.get_origin(annotation)
+    if origin is typing.Union or origin is types.UnionType:
+        for arg in typing.get_args(annotation):
+            found = submodel(arg)
+            if found is not None:
+                return found
+    return None
+
+
+def model_at(root: type[BaseModel], parts: Sequence[Any]) -> type[BaseModel] | None:
+    """The model class reached by following the field names ``parts`` from ``root``.
+
+    Returns None when a part is not a field or does not lead to a sub-model.
+    """
+    model: type[BaseModel] | None = root
+    for part in parts:
+        if model is None or not isinstance(part, str) or part not in model.model_fields:
+            return None
+        model = submodel(model.model_fields[part].annotation)
+    return model
+
+
+def schema_keys(root: type[BaseModel], prefix: str = "") -> list[str]:
+    """Every dotted key of the schema, sections included (``material``, ``material.kn``, ...)."""
+    keys: list[str] = []
+    for name, field in root.model_fields.items():
+        dotted = f"{prefix}{name}"
+        keys.append(dotted)
+        sub = submodel(field.annotation)
+        if sub is not None:
+            keys.extend(schema_keys(sub, dotted + "."))
+    return keys
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str | None:
+    """The closest of ``choices`` to ``word`` (difflib), or None."""
+    matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return matches[0] if matches else None
+
+
+def suggest_key(root: type[BaseModel], parts: Sequence[str]) -> str | None:
+    """A dotted key of the schema that the unknown key ``parts`` was probably meant to be.
+
+    First among the fields at the same level (``material.knn`` -> ``material.kn``), then
+    anywhere in the schema by last component (``kn`` -> ``material.kn``).
+    """
+    if not parts:
+        return None
+    *head, last = parts
+    parent = model_at(root, head)
+    if parent is not None:
+        hit = did_you_mean(last, parent.model_fields)
+        if hit is not None:
+            return ".".join([*head, hit])
+    leaves = {k.rsplit(".", 1)[-1]: k for k in reversed(schema_keys(root))}
+    hit = did_you_mean(last, leaves)
+    return leaves[hit] if hit is not None else None
+
+
+def unknown_key_message(root: type[BaseModel], parts: Sequence[str]) -> str:
+    """``unknown key 'a.b' (did you mean 'a.c'?)``, or the keys allowed at that level."""
+    dotted = ".".join(parts)
+    hint = suggest_key(root, parts)
+    if hint is not None:
+        return f"unknown key '{dotted}' (did you mean '{hint}'?)"
+    parent = model_at(root, parts[:-1])
+    if parent is not None:
+        where = f"in [{'.'.join(parts[:-1])}]" if len(parts) > 1 else "at the top level"
+        return f"unknown key '{dotted}' (allowed {where}: {', '.join(parent.model_fields)})"
+    return f"unknown key '{dotted}'"
+
+
+# --- formatting validation errors ----------------------------------------------------------
+
+
+def format_value(value: Any, limit: int = 60) -> str:
+    """A short TOML-like rendering of a scalar value, for ``(got ...)``."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, str):
+        text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    else:
+        text = repr(value)
+    text = one_line(text)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _lookup(data: Any, loc: Sequence[Any]) -> tuple[bool, Any]:
+    for part in loc:
+        in_dict = isinstance(data, dict) and part in data
+        in_list = (
+            isinstance(data, list) and isinstance(part, int) and -len(data) <= part < len(data)
+        )
+        if in_dict or in_list:
+            data = data[part]
+        else:
+            return False, None
+    return True, data
+
+
+def _root_model(err: ValidationError) -> type[BaseModel] | None:
+    from silodem import config
+
+    found = getattr(config, err.title, None)
+    return found if isinstance(found, type) and issubclass(found, BaseModel) else None
+
+
+def first_error(err: ValidationError) -> dict[str, Any]:
+    """The error reported: the first unknown key if any, else pydantic's first error."""
+    return dict(min(err.errors(), key=lambda e: e["type"] != "extra_forbidden"))
+
+
+def format_validation_error(
+    err: ValidationError, data: dict, *, model: type[BaseModel] | None = None
+) -> str:
+    """One line describing the first error of ``err`` (plus ``(+N more)``).
+
+    ``data`` is the raw dict that was validated; ``model`` the validated model class (found
+    by the error's title in :mod:`silodem.config` when omitted).  Unknown keys are reported
+    first, with a did-you-mean; then the other errors in pydantic's order.
+    """
+    root = model if model is not None else _root_model(err)
+    errors = err.errors()
+    if not errors:
+        return "config error: invalid configuration"
+    first = first_error(err)
+    loc = list(first["loc"])
+    dotted = ".".join(str(p) for p in loc)
+    more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
+
+    if first["type"] == "extra_forbidden":
+        parts = [str(p) for p in loc]
+        text = unknown_key_message(root, parts) if root is not None else f"unknown key '{dotted}'"
+        return one_line(f"config error: {text}{more}")
+
+    if first["type"] == "missing":
+        desc = ""
+        parent = model_at(root, loc[:-1]) if root is not None else None
+        if parent is not None and loc and loc[-1] in parent.model_fields:
+            field_desc = parent.model_fields[loc[-1]].description
+            desc = f" ({field_desc})" if field_desc else ""
+        return one_line(f"config error: missing required key '{dotted}'{desc}{more}")
+
+    msg = str(first["msg"])
+    for prefix in ("Value error, ", "Assertion failed, "):
+        msg = msg.removeprefix(prefix)
+    if "input" in first:
+        has_value, value = True, first["input"]
+    else:
+        has_value, value = _lookup(data, loc)
+    got = ""
+    if has_value and not isinstance(value, dict | list | tuple | set):
+        got = f" (got {format_value(value)})"
+    if not dotted or msg.startswith(dotted):
+        text = f"config error: {msg}"
+        got = ""
+    else:
+        text = f"config error: {dotted}: {msg}"
+    return one_line(f"{text}{got}{more}")

@@ -1,0 +1,260 @@
+"""Loading run configurations: embedded scenarios, TOML files and ``--set`` overrides.
+
+The embedded scenarios are the TOML files in the package folder ``silodem/scenarios/``
+(package data; the folder has no ``__init__.py``).  A scenario is named by its file name
+without ``.toml``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Iterable
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+from pydantic import BaseModel, ValidationError
+
+from silodem.config import Config
+from silodem.errors import (
+    InputError,
+    did_you_mean,
+    first_error,
+    format_validation_error,
+    one_line,
+    submodel,
+    unknown_key_message,
+)
+
+DEFAULT_SCENARIO = "paper-case2"
+
+_QUICK_SUFFIX = "-quick"
+
+
+# --- embedded scenarios --------------------------------------------------------------------
+
+
+def _scenario_dir() -> Any:
+    return resources.files("silodem") / "scenarios"
+
+
+def _scenario_files() -> dict[str, Any]:
+    folder = _scenario_dir()
+    files = {}
+    for entry in folder.iterdir():
+        if entry.is_file() and entry.name.endswith(".toml"):
+            files[entry.name[: -len(".toml")]] = entry
+    return dict(sorted(files.items()))
+
+
+def scenario_names() -> list[str]:
+    """Names of the embedded scenarios, sorted."""
+    return list(_scenario_files())
+
+
+def list_scenarios() -> list[tuple[str, str]]:
+    """``(name, description)`` of every embedded scenario, sorted by name."""
+    out = []
+    for name, entry in _scenario_files().items():
+        try:
+            description = str(
+                tomllib.loads(entry.read_text(encoding="utf-8")).get("description", "")
+            )
+        except tomllib.TOMLDecodeError:
+            description = "(unreadable scenario file)"
+        out.append((name, one_line(description)))
+    return out
+
+
+# --- reading -------------------------------------------------------------------------------
+
+
+def _parse_toml(text: str, where: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: malformed TOML: {exc}") from None
+
+
+def _read_source(source: str) -> dict[str, Any]:
+    """The raw dict of an embedded scenario or of a TOML file."""
+    path = Path(source)
+    if path.is_file():
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read {source}: {exc}") from None
+        return _parse_toml(text, str(source))
+    files = _scenario_files()
+    names = ", ".join(files)
+    if path.exists():
+        raise InputError(f"{source} is not a file (give a .toml file or one of: {names})")
+    if source in files:
+        return _parse_toml(files[source].read_text(encoding="utf-8"), f"scenario {source}")
+    if source.endswith(".toml") or "/" in source or "\\" in source:
+        raise InputError(
+            f"file not found: {source} (give an existing .toml file, or an embedded scenario: "
+            f"{names})"
+        )
+    hint = did_you_mean(source, files)
+    hint_text = f" (did you mean '{hint}'?)" if hint else ""
+    raise InputError(
+        f"unknown scenario '{source}'{hint_text}; embedded scenarios: {names}; "
+        f"or give a path to a .toml file"
+    )
+
+
+# --- overrides -----------------------------------------------------------------------------
+
+
+def parse_value(text: str) -> Any:
+    """A ``--set`` value: a TOML value (``3``, ``2.5``, ``true``, ``"x"``), else the plain string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except (ValueError, RecursionError):  # whatever tomllib rejects is taken literally
+        return text
+
+
+def _short(item: str, limit: int = 60) -> str:
+    item = one_line(item)
+    return item if len(item) <= limit else item[: limit - 3] + "..."
+
+
+def _split_set(item: str) -> tuple[list[str], str]:
+    key, sep, value = item.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise InputError(
+            f"--set '{_short(item)}': expected dotted.key=value, e.g. --set material.kn=2e7"
+        )
+    return [p.strip() for p in key.split(".")], value.strip()
+
+
+def _check_key(parts: list[str], item: str) -> None:
+    """Raise InputError when ``parts`` is not a key path of the schema."""
+    model: type[BaseModel] | None = Config
+    for i, part in enumerate(parts):
+        if model is None:
+            section = ".".join(parts[:i])
+            raise InputError(
+                f"--set {_short(item)}: '{section}' is a value, not a section, so "
+                f"'{'.'.join(parts)}' does not exist"
+            )
+        if part not in model.model_fields:
+            raise InputError(f"--set {_short(item)}: {unknown_key_message(Config, parts[: i + 1])}")
+        model = submodel(model.model_fields[part].annotation)
+
+
+def apply_sets(data: dict[str, Any], sets: Iterable[str]) -> dict[str, Any]:
+    """Apply ``dotted.key=value`` overrides to the raw dict ``data`` (in place; returned)."""
+    for item in sets:
+        parts, text = _split_set(item)
+        _check_key(parts, item)
+        node = data
+        for i, part in enumerate(parts[:-1]):
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise InputError(
+                    f"--set {_short(item)}: '{'.'.join(parts[: i + 1])}' holds a value, not a section"
+                )
+            node = child
+        node[parts[-1]] = parse_value(text)
+    return data
+
+
+def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        message = format_validation_error(exc, data, model=Config)
+        first = first_error(exc)
+        dotted = ".".join(str(p) for p in first["loc"])
+        for item in sets:
+            key = item.partition("=")[0].strip()
+            if dotted and (key == dotted or dotted.startswith(key + ".")):
+                message += f" (from --set {_short(item)})"
+                break
+        raise InputError(message) from None
+
+
+def load_config(source: str, sets: Iterable[str] = ()) -> Config:
+    """The validated :class:`Config` of an embedded scenario name or a ``.toml`` path.
+
+    ``sets`` are ``dotted.key=value`` overrides applied before validation.  Every problem
+    (missing file, malformed TOML, unknown scenario or key, bad value) raises
+    :class:`InputError` with a one-line message.
+    """
+    sets = list(sets)
+    data = _read_source(str(source))
+    apply_sets(data, sets)
+    return _validate(data, sets)
+
+
+# --- writing -------------------------------------------------------------------------------
+
+
+def _toml_value(value: Any) -> str:
+    return tomli_w.dumps({"v": value}).strip()[len("v = ") :]
+
+
+def _field_lines(model: BaseModel, width: int) -> list[str]:
+    lines = []
+    for name, field in type(model).model_fields.items():
+        if submodel(field.annotation) is not None:
+            continue
+        value = getattr(model, name)
+        desc = one_line(field.description or "")
+        if value is None:
+            lines.append(f"# {name} is unset (the default)" + (f"; {desc}" if desc else ""))
+            continue
+        text = f"{name} = {_toml_value(value)}"
+        lines.append(f"{text:<{width}}  # {desc}" if desc else text)
+    return lines
+
+
+def config_to_toml(cfg: Config) -> str:
+    """The complete TOML of ``cfg``: every key, defaults included (unset ones as comments).
+
+    :func:`load_config` reads the text back to a Config equal to ``cfg``.
+    """
+    out = [
+        f"# silodem configuration: {one_line(cfg.name)}",
+        *([f"# {one_line(cfg.description)}"] if cfg.description else []),
+        "# Every key is listed, defaults included; units are SI (see docs/scenarios.md).",
+        "",
+    ]
+    out += _field_lines(cfg, 30)
+    for name, field in Config.model_fields.items():
+        sub = getattr(cfg, name)
+        if submodel(field.annotation) is None or sub is None:
+            continue
+        doc = one_line((type(sub).__doc__ or "").strip().split("\n\n")[0])
+        out += ["", f"[{name}]"] + ([f"# {doc}"] if doc else []) + _field_lines(sub, 34)
+    return "\n".join(out) + "\n"
+
+
+# --- quick variant -------------------------------------------------------------------------
+
+
+def quick_variant(cfg: Config) -> Config:
+    """The same procedure on a small silo (a few hundred grains, well under a minute).
+
+    Cell width x 0.6, wall height x 0.6 (at least hopper height + 1 m), same outlet,
+    grains x 0.36 (at least 50), phase time limits capped; name suffixed ``-quick``.
+    """
+    data = cfg.model_dump()
+    silo = data["silo"]
+    silo["cell_width"] = round(cfg.silo.cell_width * 0.6, 9)
+    hopper = cfg.silo.model_copy(update={"cell_width": silo["cell_width"]}).hopper_height
+    silo["wall_height"] = round(max(cfg.silo.wall_height * 0.6, hopper + 1.0), 9)
+    data["fill"]["n_particles"] = max(50, round(cfg.fill.n_particles * 0.36))
+    data["fill"]["max_time"] = min(cfg.fill.max_time, 15.0)
+    data["settle"]["max_time"] = min(cfg.settle.max_time, 3.0)
+    data["discharge"]["max_time"] = min(cfg.discharge.max_time, 10.0)
+    data["name"] = cfg.name + _QUICK_SUFFIX
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        detail = format_validation_error(exc, data, model=Config).removeprefix("config error: ")
+        raise InputError(f"--quick cannot shrink '{cfg.name}': {detail}") from None

@@ -1,0 +1,290 @@
+"""Configuration loading and the command line: scenarios, --set, one-line errors, exit code 2."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import silodem
+from silodem.config import Config
+from silodem.errors import InputError, schema_keys
+from silodem.scenario_files import (
+    DEFAULT_SCENARIO,
+    config_to_toml,
+    list_scenarios,
+    load_config,
+    quick_variant,
+)
+
+SCENARIOS = [name for name, _ in list_scenarios()]
+
+
+def _env() -> dict[str, str]:
+    """The environment for a subprocess that imports the same silodem as these tests."""
+    env = dict(os.environ)
+    package_parent = str(Path(next(iter(silodem.__path__))).parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH")) if p)
+    env.setdefault("NUMBA_NUM_THREADS", "2")
+    return env
+
+
+def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "silodem", *args],
+        check=False,
+        capture_output=True,
+        text=True,
+        env=_env(),
+        cwd=cwd,
+        timeout=120,
+    )
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess[str], *needles: str) -> str:
+    assert result.returncode == 2, (result.returncode, result.stdout, result.stderr)
+    assert "Traceback" not in result.stderr + result.stdout
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].strip(), result.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]
+
+
+# --- embedded scenarios --------------------------------------------------------------------
+
+
+def test_the_two_paper_scenarios_are_embedded():
+    assert {"paper-case1", "paper-case2"} <= set(SCENARIOS)
+    assert DEFAULT_SCENARIO in SCENARIOS
+    assert all(description for _, description in list_scenarios())
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_each_embedded_scenario_loads(name):
+    cfg = load_config(name)
+    assert isinstance(cfg, Config)
+    assert cfg.name == name
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_config_to_toml_reads_back_equal(name, tmp_path):
+    for cfg in (load_config(name), quick_variant(load_config(name))):
+        path = tmp_path / "c.toml"
+        path.write_text(config_to_toml(cfg))
+        assert load_config(str(path)) == cfg
+
+
+def test_config_to_toml_lists_defaults_and_keeps_set_optional_values(tmp_path):
+    cfg = load_config("paper-case2", ["time.dt=1e-4", "material.damping_ratio=0.3"])
+    text = config_to_toml(cfg)
+    assert "sample_interval" in text and "local_damping" in text
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    assert load_config(str(path)) == cfg
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_show_output_round_trips_to_an_equal_config(name, tmp_path):
+    result = cli("show", name)
+    assert result.returncode == 0, result.stderr
+    path = tmp_path / "shown.toml"
+    path.write_text(result.stdout)
+    assert load_config(str(path)) == load_config(name)
+
+
+def test_scenarios_command_lists_names_and_descriptions():
+    result = cli("scenarios")
+    assert result.returncode == 0, result.stderr
+    for name, description in list_scenarios():
+        assert name in result.stdout and description in result.stdout
+
+
+def test_help_works_for_each_command():
+    for args in ([], ["--help"], ["run", "--help"], ["show", "--help"], ["scenarios", "--help"]):
+        result = cli(*args)
+        assert result.returncode == 0, (args, result.stderr)
+        assert "Usage" in result.stdout
+
+
+# --- quick variant -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_quick_variant_validates_and_is_smaller(name):
+    cfg = load_config(name)
+    quick = quick_variant(cfg)
+    Config.model_validate(quick.model_dump())
+    assert quick.fill.n_particles < cfg.fill.n_particles
+    assert quick.fill.n_particles >= 50
+    assert quick.silo.cell_width < cfg.silo.cell_width
+    assert quick.silo.outlet_width == cfg.silo.outlet_width
+    assert quick.silo.wall_height >= quick.silo.hopper_height + 1.0
+    assert quick.settle.max_time <= 3.0 and quick.discharge.max_time <= 10.0
+    assert quick.fill.max_time <= 15.0
+    assert quick.name == f"{name}-quick"
+
+
+# --- --set ---------------------------------------------------------------------------------
+
+
+def test_set_overrides_int_float_bool_and_string():
+    cfg = load_config(
+        "paper-case2",
+        [
+            "fill.n_particles=123",
+            "material.kn=2e7",
+            "discharge.enabled=false",
+            "silo.kind=flat",
+            'name="my run"',
+            "description=plain words",
+            "time.dt=1e-5",
+        ],
+    )
+    assert cfg.fill.n_particles == 123 and isinstance(cfg.fill.n_particles, int)
+    assert cfg.material.kn == 2e7
+    assert cfg.discharge.enabled is False
+    assert cfg.silo.kind == "flat"
+    assert cfg.name == "my run"
+    assert cfg.description == "plain words"
+    assert cfg.time.dt == 1e-5
+
+
+def test_set_on_the_command_line_reaches_the_config():
+    result = cli("show", "paper-case1", "--set", "fill.n_particles=77", "--set", "seed=9")
+    assert result.returncode == 0, result.stderr
+    assert "n_particles = 77" in result.stdout and "seed = 9" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("item", "needles"),
+    [
+        ("material.knn=3", ["material.knn", "did you mean 'material.kn'"]),
+        ("kn=3", ["'kn'", "material.kn"]),
+        ("name.x=1", ["name.x"]),
+        ("noequals", ["noequals"]),
+    ],
+)
+def test_set_with_a_bad_key_fails_with_one_line_naming_it(item, needles):
+    with pytest.raises(InputError):
+        load_config("paper-case2", [item])
+    assert_one_line_error(cli("show", "--set", item), *needles)
+
+
+@pytest.mark.parametrize(
+    ("item", "key"),
+    [
+        ("material.kn=-1", "material.kn"),
+        ("material.kn=abc", "material.kn"),
+        ("fill.n_particles=2.5", "fill.n_particles"),
+        ("silo.kind=round", "silo.kind"),
+        ("discharge.enabled=[1, 2]", "discharge.enabled"),
+        ("silo.outlet_width=9", "silo.outlet_width"),
+    ],
+)
+def test_set_with_a_bad_value_fails_with_one_line_naming_the_key(item, key):
+    with pytest.raises(InputError, match=key.replace(".", r"\.")):
+        load_config("paper-case2", [item])
+    assert_one_line_error(cli("run", "--set", item), key)
+
+
+# --- files and scenario names --------------------------------------------------------------
+
+
+def test_unknown_key_in_a_file_suggests_the_right_one(tmp_path):
+    good = config_to_toml(load_config("paper-case2"))
+    bad = tmp_path / "typo.toml"
+    bad.write_text(good.replace("\nkn = ", "\nknn = ", 1))
+    line = assert_one_line_error(cli("show", str(bad)), "unknown key 'material.knn'")
+    assert "did you mean 'material.kn'?" in line
+    with pytest.raises(InputError, match="did you mean 'material.kn'"):
+        load_config(str(bad))
+
+
+def test_misspelt_section_is_reported_with_a_suggestion(tmp_path):
+    bad = tmp_path / "typo.toml"
+    bad.write_text(config_to_toml(load_config("paper-case1")).replace("[material]", "[materal]"))
+    with pytest.raises(InputError, match=r"unknown key 'materal' \(did you mean 'material'\?\)"):
+        load_config(str(bad))
+
+
+def test_malformed_toml_names_the_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\nseed = = 3\n')
+    line = assert_one_line_error(cli("run", str(bad)), "bad.toml", "line 2")
+    assert "TOML" in line
+
+
+def test_missing_file_is_reported(tmp_path):
+    missing = tmp_path / "nowhere.toml"
+    assert_one_line_error(cli("run", str(missing)), "nowhere.toml", "not found")
+    with pytest.raises(InputError):
+        load_config(str(missing))
+
+
+def test_unknown_scenario_lists_the_names_and_suggests_one():
+    line = assert_one_line_error(cli("run", "paper-case3"), "paper-case3", "paper-case1")
+    assert "did you mean 'paper-case2'?" in line
+
+
+def test_missing_required_key_is_named(tmp_path):
+    text = config_to_toml(load_config("paper-case2"))
+    bad = tmp_path / "nokn.toml"
+    bad.write_text("\n".join(ln for ln in text.splitlines() if not ln.startswith("kn = ")))
+    with pytest.raises(InputError, match=r"material\.kn"):
+        load_config(str(bad))
+
+
+# --- command-line values -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "x", "100000"])
+def test_bad_threads_fail_with_one_line(value):
+    assert_one_line_error(cli("run", "--threads", value), "--threads")
+
+
+def test_usage_errors_are_one_line_with_exit_code_2():
+    assert_one_line_error(cli("run", "--no-such-option"), "--no-such-option")
+    assert_one_line_error(cli("no-such-command"), "no-such-command")
+
+
+# --- fuzzing -------------------------------------------------------------------------------
+
+_KEYS = schema_keys(Config)
+_JUNK_KEYS = ["", ".", "material.", ".kn", "materal.kn", "silo.kind.x", "a.b.c", "x", "fill..rate"]
+
+_values = st.one_of(
+    st.integers(min_value=-(10**30), max_value=10**30).map(str),
+    st.floats(allow_nan=True, allow_infinity=True).map(
+        lambda f: "nan" if math.isnan(f) else {math.inf: "inf", -math.inf: "-inf"}.get(f, repr(f))
+    ),
+    st.booleans().map(lambda b: "true" if b else "false"),
+    st.text(max_size=12).map(lambda s: '"' + s.replace("\\", "").replace('"', "") + '"'),
+    st.text(max_size=12),
+    st.sampled_from(["[1, 2]", "{a = 1}", "1979-05-27", "[]", "{}", '"flat"', '"hopper"', "pour"]),
+)
+_sets = st.lists(
+    st.tuples(st.sampled_from(_KEYS + _JUNK_KEYS) | st.text(max_size=8), _values).map(
+        lambda kv: f"{kv[0]}={kv[1]}"
+    )
+    | st.text(max_size=16),
+    max_size=4,
+)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenario=st.sampled_from(SCENARIOS), sets=_sets)
+def test_load_config_with_random_overrides_returns_a_config_or_raises_input_error(scenario, sets):
+    try:
+        cfg = load_config(scenario, sets)
+    except InputError as exc:
+        message = str(exc)
+        assert message and "\n" not in message
+    else:
+        assert isinstance(cfg, Config)
