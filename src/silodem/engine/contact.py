@@ -128,44 +128,63 @@ def pair_forces(pair_i, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
 
 
 @njit
-def closest_point(px, py, ax, ay, bx, by, cap_a, cap_b):
-    """Closest point of segment A-B to P, and whether it counts (False at an uncapped end)."""
+def closest_point(px, py, ax, ay, bx, by):
+    """Closest point of segment A-B to P, and where it lies: 0 on the face, 1 at A, 2 at B."""
     ux = bx - ax
     uy = by - ay
     s = ((px - ax) * ux + (py - ay) * uy) / (ux * ux + uy * uy)
     if s <= 0.0:
-        return ax, ay, cap_a
+        return ax, ay, 1
     if s >= 1.0:
-        return bx, by, cap_b
-    return ax + s * ux, ay + s * uy, True
+        return bx, by, 2
+    return ax + s * ux, ay + s * uy, 0
 
 
 @kernel
 def wall_forces(wc_i, wc_w, wc_fs, wc_fn, wc_fx, wc_fy,
                 x, y, vx, vy, omega, radius, mass,
                 w_ax, w_ay, w_bx, w_by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b,
-                zeta, allow_tension, dt):
-    """Grain-wall contacts of the candidate list; the force written is the force on the grain."""
+                w_one_sided, zeta, allow_tension, dt):
+    """Grain-wall contacts of the candidate list; the force written is the force on the grain.
+
+    n points from the closest point of the wall to the grain's centre.  One-sided walls: a
+    contact on the face that already exists (non-zero force at the last step) keeps the wall's
+    inner normal and the overlap r - (signed distance) even after the centre has been pressed
+    past the line (soft contacts, fast impacts), so the grain is pushed back, not through; a new
+    contact can only start from the inner side."""
     for k in prange(wc_i.shape[0]):
         i = wc_i[k]
         w = wc_w[k]
         touching = False
+        d = 0.0
+        nx = 0.0
+        ny = 0.0
         if w_active[w]:
-            cx, cy, counts = closest_point(x[i], y[i], w_ax[w], w_ay[w], w_bx[w], w_by[w],
-                                           w_cap_a[w], w_cap_b[w])
-            dx = x[i] - cx
-            dy = y[i] - cy
-            d2 = dx * dx + dy * dy
-            touching = counts and d2 < radius[i] * radius[i] and d2 > 0.0
+            cx, cy, where = closest_point(x[i], y[i], w_ax[w], w_ay[w], w_bx[w], w_by[w])
+            if where == 0 and w_one_sided[w]:
+                ux = w_bx[w] - w_ax[w]
+                uy = w_by[w] - w_ay[w]
+                length = math.sqrt(ux * ux + uy * uy)
+                nx = -uy / length
+                ny = ux / length
+                d = (x[i] - cx) * nx + (y[i] - cy) * ny
+                existing = wc_fn[k] != 0.0 or wc_fs[k] != 0.0
+                touching = d < radius[i] and (d > 0.0 or existing)
+            else:
+                counts = where == 0 or (where == 1 and w_cap_a[w]) or (where == 2 and w_cap_b[w])
+                dx = x[i] - cx
+                dy = y[i] - cy
+                d = math.sqrt(dx * dx + dy * dy)
+                touching = counts and 0.0 < d < radius[i]
+                if touching:
+                    nx = dx / d
+                    ny = dy / d
         if not touching:
             wc_fs[k] = 0.0
             wc_fn[k] = 0.0
             wc_fx[k] = 0.0
             wc_fy[k] = 0.0
             continue
-        d = math.sqrt(d2)
-        nx = dx / d
-        ny = dy / d
         # grain contact point velocity v + w x (-r n), relative to the wall's velocity
         rvx = vx[i] + omega[i] * radius[i] * ny - w_vx[w]
         rvy = vy[i] - omega[i] * radius[i] * nx - w_vy[w]

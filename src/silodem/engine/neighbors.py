@@ -93,14 +93,15 @@ def _csr_by(index, n):
 
 
 @njit
-def _wall_candidates(n, x, y, radius, uid, w_ax, w_ay, w_bx, w_by, w_active, skin):
+def _wall_candidates(n, x, y, radius, uid, w_ax, w_ay, w_bx, w_by, w_active, w_one_sided, skin):
+    """Grain-wall pairs closer than r + skin (3r + skin for one-sided walls, whose contacts may
+    persist with the centre pressed behind the line)."""
     count = 0
     for p in range(n):
         for w in range(w_ax.shape[0]):
             if w_active[w]:
-                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w],
-                                          True, True)
-                cut = radius[p] + skin
+                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
+                cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
                 if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
                     count += 1
     wc_i = np.empty(count, dtype=np.int64)
@@ -110,9 +111,8 @@ def _wall_candidates(n, x, y, radius, uid, w_ax, w_ay, w_bx, w_by, w_active, ski
     for p in range(n):
         for w in range(w_ax.shape[0]):
             if w_active[w]:
-                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w],
-                                          True, True)
-                cut = radius[p] + skin
+                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
+                cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
                 if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
                     wc_i[k] = p
                     wc_w[k] = w
@@ -203,11 +203,14 @@ class NeighborList:
         self.j_start, self.j_pairs = _csr_by(pair_j, n)
 
         wc_i, wc_w, wc_key = _wall_candidates(n, x, y, radius, uid, walls.ax, walls.ay,
-                                              walls.bx, walls.by, walls.active, self.skin)
+                                              walls.bx, walls.by, walls.active, walls.one_sided,
+                                              self.skin)
         wc_fs = np.empty(wc_i.shape[0])
+        wc_fn = np.empty(wc_i.shape[0])
         transfer_history.pick(n)(self.wc_key, self.wc_fs, wc_key, wc_fs)
+        transfer_history.pick(n)(self.wc_key, self.wc_fn, wc_key, wc_fn)  # "contact exists"
         self.wc_i, self.wc_w, self.wc_key, self.wc_fs = wc_i, wc_w, wc_key, wc_fs
-        self.wc_fn = np.zeros(wc_i.shape[0])
+        self.wc_fn = wc_fn
         self.wc_fx = np.zeros(wc_i.shape[0])
         self.wc_fy = np.zeros(wc_i.shape[0])
         self.w_start = np.searchsorted(wc_i, np.arange(n + 1)).astype(np.int64)

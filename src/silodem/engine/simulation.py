@@ -82,7 +82,7 @@ class Simulation:
         wall_forces.pick(n)(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                     p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
                     w.ax, w.ay, w.bx, w.by, w.vx, w.vy, w.kn, w.ks, w.mu, w.active,
-                    w.cap_a, w.cap_b, law.zeta, law.allow_tension, dt)
+                    w.cap_a, w.cap_b, w.one_sided, law.zeta, law.allow_tension, dt)
         gather_forces.pick(n)(n, p.radius, nb.i_start, nb.j_start, nb.j_pairs,
                       nb.pair_fx, nb.pair_fy, nb.pair_fs,
                       nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs, p.fx, p.fy, p.torque)

@@ -9,6 +9,10 @@ containers of a silo the faces of the two segments cover every grain near such a
 Walls are never deleted, only deactivated (the gate under the outlet is withdrawn that way),
 so a wall's index is permanent and contact history can be keyed on it.  A wall may translate
 with a constant velocity ``(vx, vy)`` [m/s].
+
+A one-sided wall has an inside: the left of the direction A -> B.  Its face pushes grains
+towards the inside even when a grain's centre has been pressed past the line (soft contacts,
+fast impacts), instead of letting it tunnel through; silo walls are one-sided.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ class Walls:
         self.active = np.zeros(0, dtype=np.bool_)
         self.cap_a = np.zeros(0, dtype=np.bool_)
         self.cap_b = np.zeros(0, dtype=np.bool_)
+        self.one_sided = np.zeros(0, dtype=np.bool_)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -46,8 +51,12 @@ class Walls:
         ks: float,
         mu: float,
         velocity: tuple[float, float] = (0.0, 0.0),
+        one_sided: bool = False,
     ) -> int:
-        """Add a segment from ``a`` to ``b`` [m] with contact stiffnesses [N/m] and friction [-]."""
+        """Add a segment from ``a`` to ``b`` [m] with contact stiffnesses [N/m] and friction [-];
+        ``one_sided``: the inside is the left of a -> b."""
+        if len(self.names) >= 1024:
+            raise ValueError("at most 1024 walls (contact keys reserve 10 bits for the wall)")
         if name in self.names:
             raise ValueError(f"duplicate wall name {name!r}")
         if np.hypot(b[0] - a[0], b[1] - a[1]) <= 0.0:
@@ -61,6 +70,7 @@ class Walls:
         self.active = np.append(self.active, True)
         self.cap_a = np.append(self.cap_a, True)
         self.cap_b = np.append(self.cap_b, True)
+        self.one_sided = np.append(self.one_sided, bool(one_sided))
         self.update_caps()
         return len(self.names) - 1
 

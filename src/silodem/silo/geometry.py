@@ -81,13 +81,14 @@ def build_walls(cfg: Config) -> Walls:
     walls = Walls()
     B, top, zj = shape.width, shape.wall_top, shape.junction
     xl, xr = shape.outlet_left, shape.outlet_right
-    walls.add("left_wall", (0.0, zj), (0.0, top), kn, ks, mu)
-    walls.add("right_wall", (B, zj), (B, top), kn, ks, mu)
+    # one-sided walls, each directed so that the inside of the silo is on its left
+    walls.add("left_wall", (0.0, top), (0.0, zj), kn, ks, mu, one_sided=True)
+    walls.add("right_wall", (B, zj), (B, top), kn, ks, mu, one_sided=True)
     if shape.kind == "hopper":
-        walls.add("left_hopper", (xl, 0.0), (0.0, zj), kn, ks, mu)
-        walls.add("right_hopper", (xr, 0.0), (B, zj), kn, ks, mu)
+        walls.add("left_hopper", (0.0, zj), (xl, 0.0), kn, ks, mu, one_sided=True)
+        walls.add("right_hopper", (xr, 0.0), (B, zj), kn, ks, mu, one_sided=True)
     else:
-        walls.add("left_floor", (0.0, 0.0), (xl, 0.0), kn, ks, mu)
-        walls.add("right_floor", (xr, 0.0), (B, 0.0), kn, ks, mu)
-    walls.add(GATE, (xl, 0.0), (xr, 0.0), kn, ks, mu)
+        walls.add("left_floor", (0.0, 0.0), (xl, 0.0), kn, ks, mu, one_sided=True)
+        walls.add("right_floor", (xr, 0.0), (B, 0.0), kn, ks, mu, one_sided=True)
+    walls.add(GATE, (xl, 0.0), (xr, 0.0), kn, ks, mu, one_sided=True)
     return walls

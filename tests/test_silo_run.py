@@ -1,0 +1,166 @@
+"""A whole fill -> settle -> discharge run on a small silo: conservation, reproducibility, output."""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+import silodem.jit
+from silodem.config import Config
+from silodem.errors import InputError
+from silodem.run import run_simulation
+from silodem.scenario_files import load_config, quick_variant
+from silodem.silo.checks import estimate_overlap
+from silodem.silo.geometry import build_walls, silo_shape
+from silodem.silo.procedure import SiloRun
+
+
+def small(kind: str = "hopper", **sets) -> Config:
+    cfg = quick_variant(load_config("paper-case2" if kind == "hopper" else "paper-case1"))
+    data = cfg.model_dump()
+    data["fill"]["n_particles"] = 120
+    data["discharge"]["max_time"] = 4.0
+    for key, value in sets.items():
+        section, name = key.split("__")
+        data[section][name] = value
+    return Config.model_validate(data)
+
+
+@pytest.fixture(scope="module")
+def hopper_run():
+    run = SiloRun(small())
+    run.run()
+    return run
+
+
+def test_mass_is_conserved_through_the_run(hopper_run):
+    run = hopper_run
+    poured = run.radii[: run.events["n_poured"]]
+    m = run.cfg.material
+    mass0 = float(np.sum(m.density * math.pi * poured**2 * m.thickness))
+    remaining = run.sim.particles.total_mass()
+    assert remaining + run.discharged_mass == pytest.approx(mass0, rel=1e-12)
+    assert run.events["n_poured"] == 120
+    assert run.discharged_count + run.sim.particles.n == 120
+
+
+def test_grains_stay_inside_the_silo_until_the_gate_opens(hopper_run):
+    snap = hopper_run.snapshots["settled"]
+    shape = hopper_run.shape
+    x, y, r = snap.particles["x"], snap.particles["y"], snap.particles["radius"]
+    assert np.all(y + r > 0.0)  # nothing has passed the gate
+    for xi, yi in zip(x, y):
+        lo, hi = shape.inner_x_range(min(yi, shape.wall_top))
+        assert lo - 0.05 < xi < hi + 0.05
+    # the settled fill is at rest by the configured criterion, and the walls carry its weight
+    assert hopper_run.events["settle_criterion_value"] < hopper_run.cfg.settle.threshold
+    m = hopper_run.cfg.material
+    weight = np.sum(m.density * np.pi * r**2 * m.thickness) * hopper_run.cfg.gravity
+    assert np.sum(snap.wall_contacts["fy"]) == pytest.approx(weight, rel=1e-2)
+
+
+def test_discharge_ends_for_a_stated_reason(hopper_run):
+    ev = hopper_run.events
+    assert ev["discharge_end_reason"] in {"fraction", "time", "clog"}
+    if ev["discharge_end_reason"] == "fraction":
+        assert ev["discharged_fraction"] >= hopper_run.cfg.discharge.stop_fraction
+
+
+def test_same_seed_gives_bit_identical_results():
+    a, b = SiloRun(small(discharge__max_time=1.0)), SiloRun(small(discharge__max_time=1.0))
+    a.run()
+    b.run()
+    for key in ("x", "y", "vx", "vy", "omega", "radius"):
+        assert np.array_equal(a.snapshots["final"].particles[key], b.snapshots["final"].particles[key])
+    c = SiloRun(small(discharge__max_time=1.0).model_copy(update={"seed": 99}))
+    c.run()
+    assert not np.array_equal(a.snapshots["settled"].particles["x"],
+                              c.snapshots["settled"].particles["x"])
+
+
+def test_parallel_kernels_give_the_same_bits_as_serial(monkeypatch):
+    import numba
+
+    cfg = small(discharge__enabled=False, fill__n_particles=80)
+    serial = SiloRun(cfg)
+    serial.run()
+    monkeypatch.setattr(silodem.jit, "PARALLEL_MIN_GRAINS", 1)
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    parallel = SiloRun(cfg)
+    parallel.run()
+    for key in ("x", "y", "omega"):
+        assert np.array_equal(serial.snapshots["final"].particles[key],
+                              parallel.snapshots["final"].particles[key])
+
+
+def test_clog_is_detected_and_reported_not_hung():
+    """An outlet barely wider than two grains arches at once: the run must stop and say so."""
+    cfg = small(silo__outlet_width=0.3, discharge__clog_time=0.5,
+                discharge__max_time=20.0, material__friction_deg=40.0)
+    run = SiloRun(cfg)
+    run.run()
+    assert run.events["discharge_end_reason"] == "clog"
+    assert any("clogged" in w for w in run.warnings)
+    assert run.events["discharge_time"] < 20.0
+
+
+def test_results_folder_layout(tmp_path):
+    summary = run_simulation(small(discharge__max_time=1.0), tmp_path, progress=False)
+    assert (tmp_path / "config.toml").is_file()
+    assert (tmp_path / "final.png").stat().st_size > 10_000
+    with h5py.File(tmp_path / "results.h5") as h5:
+        ts = h5["timeseries"]
+        for key in ("time", "kinetic_energy", "n_particles", "discharged_mass"):
+            assert ts[key].shape == ts["time"].shape and ts[key].shape[0] > 10
+        assert np.all(np.diff(ts["time"][:]) > 0)
+        final = h5["final/particles"]
+        n = final["x"].shape[0]
+        for key in ("x", "y", "vx", "vy", "omega", "radius"):
+            assert final[key].shape == (n,)
+        c = h5["final/contacts"]
+        assert c["i"].shape == c["fn"].shape and np.all(c["i"][:] < n) and np.all(c["j"][:] < n)
+        assert load_config(str(tmp_path / "config.toml")) == small(discharge__max_time=1.0)
+    assert any("results" in line for line in summary.lines())
+
+
+def test_time_step_above_the_stability_limit_is_refused():
+    cfg = small(time__dt=1.0)
+    with pytest.raises(InputError, match="exceeds the stability limit"):
+        SiloRun(cfg)
+
+
+def test_paper_case1_stiffness_warns_with_the_numbers():
+    """Table 1: k_n = 5e4 N/m under ~5 m of 1607 kg/m^3 grains.  Hand check of the estimate:
+    Janssen with K = 0.4, mu_w = tan 26.5 deg, B = 3.4 m, rho_b = 0.82*1607."""
+    cfg = load_config("paper-case1")
+    est = estimate_overlap(cfg)
+    rho_b, mu_w, B, K = 0.82 * 1607.0, math.tan(math.radians(26.5)), 3.4, 0.4
+    a = 2 * K * mu_w / B
+    sigma = rho_b * 9.81 / a * (1 - math.exp(-a * est.fill_height))
+    assert est.sigma_v == pytest.approx(sigma, rel=1e-12)
+    assert est.overlap == pytest.approx(sigma * 0.2 / 2.5e4, rel=1e-12)
+    assert est.overlap_fraction > 1.0  # overlaps of the order of the radius, and more
+    assert est.recommended_kn == pytest.approx(2 * sigma * 0.2 / (0.01 * 0.1), rel=1e-12)
+    run = SiloRun(cfg)
+    assert any("soft contacts" in w and "material.kn >=" in w for w in run.warnings)
+    assert not SiloRun(load_config("paper-case2")).warnings
+
+
+def test_geometry_places_the_junction_where_the_paper_has_it():
+    cfg = load_config("paper-case2")
+    shape = silo_shape(cfg)
+    assert shape.junction == pytest.approx(1.2, rel=1e-12)  # (3.4 - 1.0)/2 * tan 45
+    walls = build_walls(cfg)
+    assert walls.names == ["left_wall", "right_wall", "left_hopper", "right_hopper", "gate"]
+    # the gate's ends are shared with the hopper walls, so they are not contact points
+    g = walls.index("gate")
+    assert not walls.cap_a[g] and not walls.cap_b[g]
+    h = walls.index("left_hopper")
+    assert (walls.bx[h], walls.by[h]) == (shape.outlet_left, 0.0)
+    assert not walls.cap_b[h]
+    walls.set_active("gate", False)
+    assert walls.cap_b[h]  # the outlet edge becomes a free end
+    assert not walls.cap_a[h]  # the junction stays shared with the vertical wall
