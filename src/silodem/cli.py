@@ -14,7 +14,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from silodem.errors import InputError, one_line
+from silodem.errors import InputError, UnstableRunError, one_line
 from silodem.scenario_files import (
     DEFAULT_SCENARIO,
     config_to_toml,
@@ -200,6 +200,8 @@ def main(argv: list[str] | None = None) -> None:
     except InputError as exc:
         message = str(exc)
         _error(message if message.startswith("config error:") else f"error: {message}")
+    except UnstableRunError as exc:
+        _error(f"run stopped: {exc}", 3)
     except no_args as exc:
         sys.stdout.write(exc.ctx.get_help() + "\n")
         raise SystemExit(0) from None

@@ -194,3 +194,8 @@ def format_validation_error(
     else:
         text = f"config error: {dotted}: {msg}"
     return one_line(f"{text}{got}{more}")
+
+
+class UnstableRunError(RuntimeError):
+    """The simulation became unphysical (non-finite values, a grain thrown out of the domain).
+    The CLI reports it as one line with exit code 3."""

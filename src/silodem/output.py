@@ -47,7 +47,8 @@ def _write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
 
 
 def write_results(run: SiloRun, path: Path, config_toml: str) -> None:
-    """results.h5: attributes, /timeseries, /walls, /events, /settled and /final snapshots."""
+    """results.h5: attributes, one group per recorder (/timeseries ...), /walls, /events,
+    /warnings, and the /settled and /final snapshots."""
     tmp, commit = _atomic(path)
     with h5py.File(tmp, "w") as h5:
         h5.attrs["silodem_version"] = __version__
@@ -56,10 +57,8 @@ def write_results(run: SiloRun, path: Path, config_toml: str) -> None:
         h5.attrs["dt"] = run.dt
         h5.attrs["dt_crit"] = run.dt_crit
         h5.attrs["config_toml"] = config_toml
-        ts = h5.create_group("timeseries")
-        for key, arr in run.series.as_arrays().items():
-            ts.create_dataset(key, data=arr)
-        ts.attrs["phase_names"] = "fill,settle,discharge"
+        for rec in run.recorders:
+            rec.write(h5.create_group(rec.name))
         w = run.walls
         wg = h5.create_group("walls")
         wg.create_dataset("name", data=np.array(w.names, dtype=h5py.string_dtype()))

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from silodem.engine.contact import closest_point
+from silodem.errors import UnstableRunError
 from silodem.jit import kernel, njit, prange
 
 UID_SPAN = np.int64(1) << np.int64(31)  # pair key = min_uid * UID_SPAN + max_uid
@@ -172,7 +173,7 @@ class NeighborList:
         ncx = int((xmax - xmin) / cell_size) + 1
         ncy = int((ymax - ymin) / cell_size) + 1
         if ncx * ncy > _MAX_CELLS_PER_GRAIN * max(n, 1) + 4096:
-            raise FloatingPointError(
+            raise UnstableRunError(
                 f"grains spread over {xmax - xmin:.3g} m x {ymax - ymin:.3g} m: a grain has "
                 "escaped the domain (unstable run?)"
             )

@@ -21,6 +21,7 @@ from silodem.engine.integrate import leapfrog
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
+from silodem.errors import UnstableRunError
 
 
 class Simulation:
@@ -90,7 +91,7 @@ class Simulation:
                           p.mass, p.inv_mass, p.inv_inertia, p.x_ref, p.y_ref,
                           self.gravity, law.local_damping, dt)
         if not np.isfinite(max_d2):
-            raise FloatingPointError(
+            raise UnstableRunError(
                 f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
                 "the run is unstable; reduce the time step"
             )

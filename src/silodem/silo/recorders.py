@@ -1,0 +1,117 @@
+"""Recorders: what a run samples while it goes, without ever changing its state (HOOMD's writers).
+
+A recorder is called every ``every_steps(dt)`` steps with the run (``record``), is told when a
+phase ends (``phase_ended``), and writes what it gathered into its own group of results.h5
+(``write``).  ``state``/``restore`` let a checkpoint carry a recorder's data.  The built-in
+``TimeSeries`` is one; measurements (stress circles, wall profiles...) add more.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from silodem.engine import quantities as q
+
+if TYPE_CHECKING:
+    import h5py
+
+    from silodem.silo.procedure import SiloRun
+
+
+class Recorder:
+    """Base class: sample every ``interval`` seconds of simulated time."""
+
+    name = "recorder"
+
+    def __init__(self, interval: float) -> None:
+        if interval <= 0:
+            raise ValueError(f"{self.name}: interval must be positive")
+        self.interval = float(interval)
+
+    def every_steps(self, dt: float) -> int:
+        return max(1, round(self.interval / dt))
+
+    def record(self, run: SiloRun) -> None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def phase_ended(self, run: SiloRun, phase: str) -> None:
+        """Called when ``phase`` ends (before the next one begins)."""
+
+    def write(self, group: h5py.Group) -> None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def state(self) -> dict[str, Any]:
+        """Everything needed to continue recording after a checkpoint (arrays or scalars)."""
+        return {}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Inverse of ``state``."""
+
+
+PHASE_CODES = {"fill": 0, "settle": 1, "discharge": 2, "done": 3}
+
+
+class TimeSeries(Recorder):
+    """Time, phase, kinetic energy, grains in the silo, discharged mass, contacts, force ratio."""
+
+    name = "timeseries"
+    columns = ("time", "phase", "kinetic_energy", "n_particles", "discharged_mass", "n_contacts",
+               "n_wall_contacts", "force_ratio")
+    units = ("s", "-", "J", "-", "kg", "-", "-", "-")
+
+    def __init__(self, interval: float) -> None:
+        super().__init__(interval)
+        self.rows: list[tuple[float, ...]] = []
+
+    def record(self, run: SiloRun) -> None:
+        sim = run.sim
+        ngg, ngw = q.contact_count(sim)
+        ratio = q.unbalanced_force_ratio(sim) if sim.particles.n else 0.0
+        self.rows.append((sim.time, PHASE_CODES[run.phase], sim.particles.kinetic_energy(),
+                          sim.particles.n, run.state.discharged_mass, ngg, ngw,
+                          ratio if math.isfinite(ratio) else np.nan))
+
+    def as_arrays(self) -> dict[str, np.ndarray]:
+        data = np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
+        return {name: data[:, k] for k, name in enumerate(self.columns)}
+
+    def write(self, group: h5py.Group) -> None:
+        for (key, arr), unit in zip(self.as_arrays().items(), self.units):
+            ds = group.create_dataset(key, data=arr)
+            ds.attrs["unit"] = unit
+        group.attrs["phase_codes"] = "fill=0,settle=1,discharge=2"
+
+    def state(self) -> dict[str, Any]:
+        return {"rows": np.array(self.rows, dtype=float).reshape(-1, len(self.columns))}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        self.rows = [tuple(row) for row in np.asarray(state["rows"]).tolist()]
+
+
+@dataclass
+class Snapshot:
+    """A copy of the grains and contacts at one moment (arrays over the live grains)."""
+
+    time: float
+    particles: dict[str, np.ndarray]
+    contacts: dict[str, np.ndarray]
+    wall_contacts: dict[str, np.ndarray]
+    walls_active: np.ndarray  # which walls were in place [bool per wall]
+
+
+def take_snapshot(run: SiloRun) -> Snapshot:
+    """Grains (position, velocity, spin, radius, uid, contact force), touching contacts with
+    their forces (indices into the snapshot's grain arrays) and the walls in place."""
+    sim, p = run.sim, run.sim.particles
+    parts = {k: p.view(k).copy() for k in ("x", "y", "vx", "vy", "omega", "radius", "uid",
+                                            "fx", "fy")}
+    gc = q.grain_contacts(sim)
+    wc = q.wall_contacts(sim)
+    contacts = {"i": gc.i, "j": gc.j, "fn": gc.fn, "fs": gc.fs, "fx": gc.fx, "fy": gc.fy}
+    wall_contacts = {"grain": wc.grain, "wall": wc.wall, "fn": wc.fn, "fs": wc.fs,
+                     "fx": wc.fx, "fy": wc.fy}
+    return Snapshot(sim.time, parts, contacts, wall_contacts, run.walls.active.copy())
