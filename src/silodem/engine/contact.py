@@ -92,39 +92,43 @@ def linear_law(overlap, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt):
 
 
 @kernel
-def pair_forces(pair_i, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
                 x, y, vx, vy, omega, radius, inv_mass,
                 kn, ks, mu, zeta, allow_tension, dt):
-    """Grain-grain contacts of the candidate list: updates the shear history ``pair_fs`` and
-    writes the normal force and the force vector on j (``pair_fn, pair_fx, pair_fy``)."""
-    for k in prange(pair_i.shape[0]):
-        i = pair_i[k]
-        j = pair_j[k]
-        dx = x[j] - x[i]
-        dy = y[j] - y[i]
-        rsum = radius[i] + radius[j]
-        d2 = dx * dx + dy * dy
-        if d2 >= rsum * rsum:
-            pair_fs[k] = 0.0
-            pair_fn[k] = 0.0
-            pair_fx[k] = 0.0
-            pair_fy[k] = 0.0
-            continue
-        d = math.sqrt(d2)
-        nx = dx / d
-        ny = dy / d
-        # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
-        rvx = vx[j] - vx[i] + omega[j] * radius[j] * ny + omega[i] * radius[i] * ny
-        rvy = vy[j] - vy[i] - omega[j] * radius[j] * nx - omega[i] * radius[i] * nx
-        v_n = rvx * nx + rvy * ny
-        v_t = -rvx * ny + rvy * nx
-        m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
-        cn = 2.0 * zeta * math.sqrt(kn * m_eff)
-        fn, fs = linear_law(rsum - d, v_n, v_t, pair_fs[k], kn, ks, cn, mu, allow_tension, dt)
-        pair_fs[k] = fs
-        pair_fn[k] = fn
-        pair_fx[k] = fn * nx - fs * ny
-        pair_fy[k] = fn * ny + fs * nx
+    """Grain-grain contacts of the candidate list, grain by grain (CSR ``i_start``): updates the
+    shear history ``pair_fs`` and writes the normal force and the force on j."""
+    for i in prange(n):
+        xi = x[i]
+        yi = y[i]
+        ri = radius[i]
+        for k in range(i_start[i], i_start[i + 1]):
+            j = pair_j[k]
+            dx = x[j] - xi
+            dy = y[j] - yi
+            rsum = ri + radius[j]
+            d2 = dx * dx + dy * dy
+            if d2 >= rsum * rsum:
+                pair_fs[k] = 0.0
+                pair_fn[k] = 0.0
+                pair_fx[k] = 0.0
+                pair_fy[k] = 0.0
+                continue
+            d = math.sqrt(d2)
+            nx = dx / d
+            ny = dy / d
+            # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
+            spin = omega[j] * radius[j] + omega[i] * ri
+            rvx = vx[j] - vx[i] + spin * ny
+            rvy = vy[j] - vy[i] - spin * nx
+            v_n = rvx * nx + rvy * ny
+            v_t = -rvx * ny + rvy * nx
+            m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
+            cn = 2.0 * zeta * math.sqrt(kn * m_eff)
+            fn, fs = linear_law(rsum - d, v_n, v_t, pair_fs[k], kn, ks, cn, mu, allow_tension, dt)
+            pair_fs[k] = fs
+            pair_fn[k] = fn
+            pair_fx[k] = fn * nx - fs * ny
+            pair_fy[k] = fn * ny + fs * nx
 
 
 @njit
@@ -197,31 +201,3 @@ def wall_forces(wc_i, wc_w, wc_fs, wc_fn, wc_fx, wc_fy,
         wc_fn[k] = fn
         wc_fx[k] = fn * nx - fs * ny
         wc_fy[k] = fn * ny + fs * nx
-
-
-@kernel
-def gather_forces(n, radius, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
-                  w_start, wc_fx, wc_fy, wc_fs, fx, fy, torque):
-    """Sum the contact forces and torques on each grain, in a fixed order (no races, and the
-    same bits for any number of threads).  Pairs where the grain is i are the contiguous range
-    ``i_start[p]:i_start[p+1]``; pairs where it is j are listed in ``j_pairs``."""
-    for p in prange(n):
-        sx = 0.0
-        sy = 0.0
-        ss = 0.0
-        for k in range(i_start[p], i_start[p + 1]):
-            sx -= pair_fx[k]
-            sy -= pair_fy[k]
-            ss += pair_fs[k]
-        for q in range(j_start[p], j_start[p + 1]):
-            k = j_pairs[q]
-            sx += pair_fx[k]
-            sy += pair_fy[k]
-            ss += pair_fs[k]
-        for k in range(w_start[p], w_start[p + 1]):
-            sx += wc_fx[k]
-            sy += wc_fy[k]
-            ss += wc_fs[k]
-        fx[p] = sx
-        fy[p] = sy
-        torque[p] = -radius[p] * ss

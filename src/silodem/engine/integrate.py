@@ -1,9 +1,14 @@
-"""Central-difference (leap-frog) integration, the paper's eqs. (6)-(9).
+"""Central-difference (leap-frog) integration, the paper's eqs. (6)-(9), fused with the gather
+of the contact forces on each grain.
 
 Velocities live at half steps: with the forces F(t) of positions x(t),
 
     v(t + dt/2) = v(t - dt/2) + (F(t)/m + g) dt,       omega(t + dt/2) = omega(t - dt/2) + M(t)/I dt
     x(t + dt)   = x(t) + v(t + dt/2) dt
+
+F(t), M(t) are summed per grain in a fixed order (its pairs as i, its pairs as j, its wall
+contacts), so the result has the same bits for any number of threads.  The torque of a contact
+on each of its grains is -r * F_s (see ``silodem.engine.contact``).
 
 PFC local damping (Itasca PFC2D manual, "local damping"): with alpha > 0 each component of the
 unbalanced force (contacts + gravity) and of the moment is reduced by alpha*|F| in the direction
@@ -22,23 +27,50 @@ _CHUNKS = 64
 
 
 @kernel
-def leapfrog(n, x, y, vx, vy, omega, fx, fy, torque, mass, inv_mass, inv_inertia,
-             x_ref, y_ref, gravity, alpha, dt):
-    """Advance the first ``n`` grains by one step; return the largest squared displacement
-    from the reference positions of the last neighbour-list build [m^2]."""
+def gather_and_leapfrog(n, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
+                        w_start, wc_fx, wc_fy, wc_fs,
+                        x, y, vx, vy, omega, fx, fy, torque, radius, mass, inv_mass, inv_inertia,
+                        x_ref, y_ref, gravity, alpha, dt):
+    """Sum the contact forces on each of the first ``n`` grains (stored in ``fx, fy, torque``),
+    advance them one step, and return the displacements since the last neighbour-list build:
+    (largest squared displacement [m^2] (inf if a position is not finite), and the bounding box
+    min dx, max dx, min dy, max dy of the displacement vectors [m])."""
     chunk_max = np.zeros(_CHUNKS)
+    box = np.zeros((_CHUNKS, 4))
     size = (n + _CHUNKS - 1) // _CHUNKS
     for c in prange(_CHUNKS):
         m2 = 0.0
+        lox = np.inf
+        hix = -np.inf
+        loy = np.inf
+        hiy = -np.inf
         for p in range(c * size, min(n, (c + 1) * size)):
-            ftx = fx[p]
-            fty = fy[p] - mass[p] * gravity
-            mz = torque[p]
+            sx = 0.0
+            sy = 0.0
+            ss = 0.0
+            for k in range(i_start[p], i_start[p + 1]):
+                sx -= pair_fx[k]
+                sy -= pair_fy[k]
+                ss += pair_fs[k]
+            for q in range(j_start[p], j_start[p + 1]):
+                k = j_pairs[q]
+                sx += pair_fx[k]
+                sy += pair_fy[k]
+                ss += pair_fs[k]
+            for k in range(w_start[p], w_start[p + 1]):
+                sx += wc_fx[k]
+                sy += wc_fy[k]
+                ss += wc_fs[k]
+            mz = -radius[p] * ss
+            fx[p] = sx
+            fy[p] = sy
+            torque[p] = mz
+            fty = sy - mass[p] * gravity
             if alpha > 0.0:
-                ftx -= alpha * abs(ftx) * np.sign(vx[p])
+                sx -= alpha * abs(sx) * np.sign(vx[p])
                 fty -= alpha * abs(fty) * np.sign(vy[p])
                 mz -= alpha * abs(mz) * np.sign(omega[p])
-            vx[p] += ftx * inv_mass[p] * dt
+            vx[p] += sx * inv_mass[p] * dt
             vy[p] += fty * inv_mass[p] * dt
             omega[p] += mz * inv_inertia[p] * dt
             x[p] += vx[p] * dt
@@ -46,7 +78,16 @@ def leapfrog(n, x, y, vx, vy, omega, fx, fy, torque, mass, inv_mass, inv_inertia
             ddx = x[p] - x_ref[p]
             ddy = y[p] - y_ref[p]
             d2 = ddx * ddx + ddy * ddy
-            if d2 > m2 or math.isnan(d2):
+            if not d2 <= m2:  # also catches NaN
                 m2 = d2 if not math.isnan(d2) else np.inf
+            lox = min(lox, ddx)
+            hix = max(hix, ddx)
+            loy = min(loy, ddy)
+            hiy = max(hiy, ddy)
         chunk_max[c] = m2
-    return chunk_max.max()
+        box[c, 0] = lox
+        box[c, 1] = hix
+        box[c, 2] = loy
+        box[c, 3] = hiy
+    return (chunk_max.max(), box[:, 0].min(), box[:, 1].max(), box[:, 2].min(),
+            box[:, 3].max())

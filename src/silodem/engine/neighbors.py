@@ -1,14 +1,19 @@
 """Neighbour search: a cell list builds a Verlet list of candidate contacts with a skin.
 
-At each rebuild the grains are sorted by cell (spatial sorting: neighbours sit close in memory),
-then every pair closer than r_i + r_j + skin is listed once (i < j), and every grain closer than
-r + skin to an active wall gets a grain-wall candidate.  The list stays valid while no grain has
-moved more than skin/2 since the rebuild (two grains then close by at most ``skin``); the
-integrator reports the largest displacement and the simulation rebuilds when it passes skin/2.
+At each rebuild every pair closer than r_i + r_j + skin is listed once (i < j), grouped by i
+(CSR: the candidates of grain i are ``pair_j[i_start[i]:i_start[i+1]]``), and every grain closer
+than r + skin to an active wall (3r + skin for one-sided walls) gets a grain-wall candidate,
+grouped by grain the same way (``w_start``).  The list stays valid while no grain has moved more
+than skin/2 since the rebuild (two grains then close by at most ``skin``); the integrator reports
+the largest displacement and the simulation rebuilds when it passes skin/2.
 
-Contact history (the shear force) is keyed by the permanent grain ``uid`` (and wall index), so
-it survives the rebuild, the reordering and the compaction of the arrays: the old keys are sorted
-once and each new candidate finds its history by binary search, O(P log P).
+At each rebuild the grains are first reordered by cell (spatial sorting: neighbours sit close
+in memory, and each cell is a contiguous index range, which the half-stencil search needs).
+
+Contact history (shear force) survives the rebuild, the reordering and the removal of grains
+without any search over all contacts: the last rebuild remembered, for each permanent grain
+``uid``, the grain's index then (``slot_of_uid``); a new candidate (a, b) finds its old entry
+by looking through the few old candidates of grain min(old a, old b), O(P) in all.
 """
 
 from __future__ import annotations
@@ -19,61 +24,144 @@ from silodem.engine.contact import closest_point
 from silodem.errors import UnstableRunError
 from silodem.jit import kernel, njit, prange
 
-UID_SPAN = np.int64(1) << np.int64(31)  # pair key = min_uid * UID_SPAN + max_uid
-WALL_SPAN = np.int64(1024)  # wall contact key = uid * WALL_SPAN + wall index
 _MAX_CELLS_PER_GRAIN = 64
 
 
 @njit
-def cell_sort(n, x, y, xmin, ymin, cell_size, ncx, ncy):
-    """Counting sort of the grains by cell (row-major).  Returns ``order`` (new index k holds
-    old index order[k]) and ``cell_start`` (grains of cell c are order[cell_start[c]:...])."""
+def cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy):
+    """Counting sort of the grains by cell (row-major).  Returns ``cell_start`` and
+    ``members``: the grains of cell c are members[cell_start[c]:cell_start[c+1]]."""
     ncell = ncx * ncy
     cell = np.empty(n, dtype=np.int64)
-    count = np.zeros(ncell + 1, dtype=np.int64)
+    start = np.zeros(ncell + 1, dtype=np.int64)
     for p in range(n):
         cx = min(max(int((x[p] - xmin) / cell_size), 0), ncx - 1)
         cy = min(max(int((y[p] - ymin) / cell_size), 0), ncy - 1)
         c = cy * ncx + cx
         cell[p] = c
-        count[c + 1] += 1
+        start[c + 1] += 1
     for c in range(ncell):
-        count[c + 1] += count[c]
-    cell_start = count.copy()
-    fill = count[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    members = np.empty(n, dtype=np.int64)
     for p in range(n):
         c = cell[p]
-        order[fill[c]] = p
+        members[fill[c]] = p
         fill[c] += 1
-    return order, cell_start
+    return start, members
 
 
 @kernel
-def _pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, skin,
-              counts, pair_j, pair_key, offsets, fill):
-    """Count (fill=False) or write (fill=True) the candidates j > i of every grain i; the grains
-    must already be in cell order so that cell c holds indices cell_start[c]:cell_start[c+1]."""
+def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, skin,
+              counts, buf, stride):
+    """The candidates j > i of every grain i, written to ``buf[i*stride : i*stride+stride]``
+    (only the first ``stride`` of them; ``counts[i]`` is the true number).
+
+    The grains must be sorted by cell (row-major), so that cell c holds the index range
+    cell_start[c]:cell_start[c+1]; then a half stencil (the grain's own cell after i, and the
+    cells east, north-west, north and north-east, all of higher index) finds each pair once."""
     for i in prange(n):
         cx = min(max(int((x[i] - xmin) / cell_size), 0), ncx - 1)
         cy = min(max(int((y[i] - ymin) / cell_size), 0), ncy - 1)
-        k = offsets[i] if fill else 0
-        for ny in range(max(cy - 1, 0), min(cy + 2, ncy)):
-            for nx in range(max(cx - 1, 0), min(cx + 2, ncx)):
-                c = ny * ncx + nx
-                for j in range(max(cell_start[c], i + 1), cell_start[c + 1]):
-                    dx = x[j] - x[i]
-                    dy = y[j] - y[i]
-                    cut = radius[i] + radius[j] + skin
-                    if dx * dx + dy * dy < cut * cut:
-                        if fill:
-                            pair_j[k] = j
-                            a = min(uid[i], uid[j])
-                            b = max(uid[i], uid[j])
-                            pair_key[k] = a * UID_SPAN + b
-                        k += 1
+        k = 0
+        base = i * stride
+        last = stride - 1
+        xi = x[i]
+        yi = y[i]
+        ri = radius[i] + skin
+        for s in range(5):
+            if s == 0:
+                nx, ny = cx, cy
+            elif s == 1:
+                nx, ny = cx + 1, cy
+            else:
+                nx, ny = cx + s - 3, cy + 1
+            if nx < 0 or nx >= ncx or ny >= ncy:
+                continue
+            c = ny * ncx + nx
+            first = i + 1 if s == 0 else cell_start[c]
+            for j in range(first, cell_start[c + 1]):
+                dx = x[j] - xi
+                dy = y[j] - yi
+                cut = ri + radius[j]
+                # branch-free: always write, advance only for a candidate
+                buf[base + min(k, last)] = j
+                k += dx * dx + dy * dy < cut * cut
+        counts[i] = k
+
+
+@kernel
+def _compact(n, buf, stride, start, out):
+    """Copy each grain's candidates from the strided buffer to the CSR array."""
+    for i in prange(n):
+        base = i * stride
+        o = start[i]
+        for k in range(start[i + 1] - o):
+            out[o + k] = buf[base + k]
+
+
+@kernel
+def _wall_candidates_of(n, x, y, radius, w_ax, w_ay, w_bx, w_by, w_active, w_one_sided, skin,
+                        counts, wc_w, offsets, fill):
+    """Count or write the walls near each grain (r + skin; 3r + skin for one-sided walls)."""
+    for p in prange(n):
+        k = offsets[p] if fill else 0
+        for w in range(w_ax.shape[0]):
+            reach = 3.0 * radius[p] + skin
+            if (w_active[w] and x[p] > min(w_ax[w], w_bx[w]) - reach
+                    and x[p] < max(w_ax[w], w_bx[w]) + reach
+                    and y[p] > min(w_ay[w], w_by[w]) - reach
+                    and y[p] < max(w_ay[w], w_by[w]) + reach):
+                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
+                cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
+                if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
+                    if fill:
+                        wc_w[k] = w
+                    k += 1
         if not fill:
-            counts[i] = k
+            counts[p] = k
+
+
+@kernel
+def _carry_pairs(n, uid, slot_of_uid, i_start, pair_j, pair_fs,
+                 old_i_start, old_pair_j, old_pair_fs):
+    """Shear force of each new candidate from the old list (0 for a new pair)."""
+    nslot = slot_of_uid.shape[0]
+    for a in prange(n):
+        oa = slot_of_uid[uid[a]] if uid[a] < nslot else -1
+        for k in range(i_start[a], i_start[a + 1]):
+            fs = 0.0
+            if oa >= 0:
+                ub = uid[pair_j[k]]
+                ob = slot_of_uid[ub] if ub < nslot else -1
+                if ob >= 0:
+                    lo = min(oa, ob)
+                    hi = max(oa, ob)
+                    for q in range(old_i_start[lo], old_i_start[lo + 1]):
+                        if old_pair_j[q] == hi:
+                            fs = old_pair_fs[q]
+                            break
+            pair_fs[k] = fs
+
+
+@kernel
+def _carry_walls(n, uid, slot_of_uid, w_start, wc_w, wc_fs, wc_fn,
+                 old_w_start, old_wc_w, old_wc_fs, old_wc_fn):
+    """Shear and normal force ("the contact exists") of each new grain-wall candidate."""
+    nslot = slot_of_uid.shape[0]
+    for a in prange(n):
+        oa = slot_of_uid[uid[a]] if uid[a] < nslot else -1
+        for k in range(w_start[a], w_start[a + 1]):
+            fs = 0.0
+            fn = 0.0
+            if oa >= 0:
+                for q in range(old_w_start[oa], old_w_start[oa + 1]):
+                    if old_wc_w[q] == wc_w[k]:
+                        fs = old_wc_fs[q]
+                        fn = old_wc_fn[q]
+                        break
+            wc_fs[k] = fs
+            wc_fn[k] = fn
 
 
 @njit
@@ -93,56 +181,26 @@ def _csr_by(index, n):
     return start, out
 
 
-@njit
-def _wall_candidates(n, x, y, radius, uid, w_ax, w_ay, w_bx, w_by, w_active, w_one_sided, skin):
-    """Grain-wall pairs closer than r + skin (3r + skin for one-sided walls, whose contacts may
-    persist with the centre pressed behind the line)."""
-    count = 0
-    for p in range(n):
-        for w in range(w_ax.shape[0]):
-            if w_active[w]:
-                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
-                cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
-                if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
-                    count += 1
-    wc_i = np.empty(count, dtype=np.int64)
-    wc_w = np.empty(count, dtype=np.int64)
-    wc_key = np.empty(count, dtype=np.int64)
-    k = 0
-    for p in range(n):
-        for w in range(w_ax.shape[0]):
-            if w_active[w]:
-                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
-                cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
-                if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
-                    wc_i[k] = p
-                    wc_w[k] = w
-                    wc_key[k] = uid[p] * WALL_SPAN + w
-                    k += 1
-    return wc_i, wc_w, wc_key
-
-
-@kernel
-def transfer_history(old_key, old_val, new_key, new_val):
-    """new_val[k] = old_val of the old candidate with the same key, else 0."""
-    order = np.argsort(old_key)
-    sorted_key = old_key[order]
-    m = sorted_key.shape[0]
-    for k in prange(new_key.shape[0]):
-        pos = np.searchsorted(sorted_key, new_key[k])
-        if pos < m and sorted_key[pos] == new_key[k]:
-            new_val[k] = old_val[order[pos]]
-        else:
-            new_val[k] = 0.0
+def _two_pass(fn, n, args, counts_dtype=np.int64):
+    """Run a count/fill kernel pair; return (start, filled array)."""
+    counts = np.zeros(n, dtype=counts_dtype)
+    dummy = np.zeros(0, dtype=np.int64)
+    fn(*args, counts, dummy, dummy, False)
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    out = np.empty(int(start[-1]), dtype=np.int64)
+    fn(*args, counts, out, start, True)
+    return start, out
 
 
 class NeighborList:
     """Verlet list of grain-grain and grain-wall candidates, with their contact state.
 
-    Per grain pair k: ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N] (history), normal
-    force ``pair_fn`` [N] and force on j ``pair_fx, pair_fy`` [N] of the last step.
-    Per grain-wall candidate k: ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise
-    (force on the grain).
+    Per grain pair k (grouped by i): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N]
+    (history), normal force ``pair_fn`` [N] and force on j ``pair_fx, pair_fy`` [N] of the last
+    step; ``j_start, j_pairs`` list the pairs by their second grain.  Per grain-wall candidate
+    k (grouped by grain): ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force
+    on the grain).
     """
 
     def __init__(self, skin: float) -> None:
@@ -151,13 +209,58 @@ class NeighborList:
         self.skin = float(skin)
         self.rebuilds = 0
         empty_i = np.zeros(0, dtype=np.int64)
-        self.pair_i = self.pair_j = self.pair_key = empty_i
+        self.pair_j = empty_i
         self.pair_fs = self.pair_fn = self.pair_fx = self.pair_fy = np.zeros(0)
         self.i_start = self.j_start = np.zeros(1, dtype=np.int64)
         self.j_pairs = empty_i
-        self.wc_i = self.wc_w = self.wc_key = empty_i
+        self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
         self.w_start = np.zeros(1, dtype=np.int64)
+        self.slot_of_uid = np.zeros(0, dtype=np.int64)
+        self._pair_i: np.ndarray | None = empty_i
+        self._wc_i: np.ndarray | None = empty_i
+        self._stride = 12  # room per grain in the search buffer (grows if a grain needs more)
+        self._buf = np.zeros(0, dtype=np.int64)
+
+    # first grain of each candidate, expanded from the CSR starts on demand (measurements only)
+    @property
+    def pair_i(self) -> np.ndarray:
+        if self._pair_i is None:
+            self._pair_i = np.repeat(np.arange(self.i_start.size - 1), np.diff(self.i_start))
+        return self._pair_i
+
+    @pair_i.setter
+    def pair_i(self, value: np.ndarray) -> None:
+        self._pair_i = value
+
+    @property
+    def wc_i(self) -> np.ndarray:
+        if self._wc_i is None:
+            self._wc_i = np.repeat(np.arange(self.w_start.size - 1), np.diff(self.w_start))
+        return self._wc_i
+
+    @wc_i.setter
+    def wc_i(self, value: np.ndarray) -> None:
+        self._wc_i = value
+
+    def _list_pairs(self, n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start):
+        """Candidate pairs in CSR form (i_start, pair_j), in one pass over the cells."""
+        while True:
+            stride = self._stride
+            if self._buf.size < n * stride:
+                self._buf = np.empty(n * stride, dtype=np.int64)
+            counts = np.empty(n, dtype=np.int64)
+            _pairs_of.pick(n)(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start,
+                              self.skin, counts, self._buf, stride)
+            most = int(counts.max()) if n else 0
+            if most <= stride:
+                break
+            self._stride = most + 4  # a crowded grain: widen the buffer and search again
+        start = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(counts, out=start[1:])
+        out = np.empty(int(start[-1]), dtype=np.int64)
+        _compact.pick(n)(n, self._buf, stride, start, out)
+        return start, out
 
     def rebuild(self, particles, walls) -> None:
         """Sort the grains by cell, list the candidates, carry the contact history over."""
@@ -170,6 +273,8 @@ class NeighborList:
             ymin, ymax = float(y.min()), float(y.max())
         else:
             xmin = xmax = ymin = ymax = 0.0
+        if not np.isfinite(xmax - xmin + ymax - ymin):
+            raise UnstableRunError("non-finite grain position: the run is unstable")
         ncx = int((xmax - xmin) / cell_size) + 1
         ncy = int((ymax - ymin) / cell_size) + 1
         if ncx * ncy > _MAX_CELLS_PER_GRAIN * max(n, 1) + 4096:
@@ -177,45 +282,39 @@ class NeighborList:
                 f"grains spread over {xmax - xmin:.3g} m x {ymax - ymin:.3g} m: a grain has "
                 "escaped the domain (unstable run?)"
             )
-        order, cell_start = cell_sort(n, x, y, xmin, ymin, cell_size, ncx, ncy)
-        p.permute(order)
+        cell_start, members = cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy)
+        p.permute(members)  # sort the grains by cell
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
-        counts = np.zeros(n, dtype=np.int64)
-        dummy = np.zeros(0, dtype=np.int64)
-        pairs_of = _pairs_of.pick(n)
-        pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin,
-                 counts, dummy, dummy, dummy, False)
-        i_start = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(counts, out=i_start[1:])
-        npairs = int(i_start[-1])
-        pair_j = np.empty(npairs, dtype=np.int64)
-        pair_key = np.empty(npairs, dtype=np.int64)
-        pairs_of(n, x, y, radius, uid, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin,
-                 counts, pair_j, pair_key, i_start, True)
-        pair_i = np.repeat(np.arange(n, dtype=np.int64), counts)
-        pair_fs = np.empty(npairs)
-        transfer_history.pick(n)(self.pair_key, self.pair_fs, pair_key, pair_fs)
-        self.pair_i, self.pair_j, self.pair_key, self.pair_fs = pair_i, pair_j, pair_key, pair_fs
-        self.pair_fn = np.zeros(npairs)
-        self.pair_fx = np.zeros(npairs)
-        self.pair_fy = np.zeros(npairs)
-        self.i_start = i_start
+        i_start, pair_j = self._list_pairs(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy,
+                                           cell_start)
+        pair_fs = np.empty(pair_j.size)
+        _carry_pairs.pick(n)(n, uid, self.slot_of_uid, i_start, pair_j, pair_fs,
+                             self.i_start, self.pair_j, self.pair_fs)
+
+        w_start, wc_w = _two_pass(
+            _wall_candidates_of.pick(n), n,
+            (n, x, y, radius, walls.ax, walls.ay, walls.bx, walls.by, walls.active,
+             walls.one_sided, self.skin))
+        wc_fs = np.empty(wc_w.size)
+        wc_fn = np.empty(wc_w.size)
+        _carry_walls.pick(n)(n, uid, self.slot_of_uid, w_start, wc_w, wc_fs, wc_fn,
+                             self.w_start, self.wc_w, self.wc_fs, self.wc_fn)
+
+        self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
+        self.pair_fn = np.zeros(pair_j.size)
+        self.pair_fx = np.zeros(pair_j.size)
+        self.pair_fy = np.zeros(pair_j.size)
         self.j_start, self.j_pairs = _csr_by(pair_j, n)
+        self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
+        self.wc_fx = np.zeros(wc_w.size)
+        self.wc_fy = np.zeros(wc_w.size)
+        self._pair_i = None
+        self._wc_i = np.repeat(np.arange(n, dtype=np.int64), np.diff(w_start))
 
-        wc_i, wc_w, wc_key = _wall_candidates(n, x, y, radius, uid, walls.ax, walls.ay,
-                                              walls.bx, walls.by, walls.active, walls.one_sided,
-                                              self.skin)
-        wc_fs = np.empty(wc_i.shape[0])
-        wc_fn = np.empty(wc_i.shape[0])
-        transfer_history.pick(n)(self.wc_key, self.wc_fs, wc_key, wc_fs)
-        transfer_history.pick(n)(self.wc_key, self.wc_fn, wc_key, wc_fn)  # "contact exists"
-        self.wc_i, self.wc_w, self.wc_key, self.wc_fs = wc_i, wc_w, wc_key, wc_fs
-        self.wc_fn = wc_fn
-        self.wc_fx = np.zeros(wc_i.shape[0])
-        self.wc_fy = np.zeros(wc_i.shape[0])
-        self.w_start = np.searchsorted(wc_i, np.arange(n + 1)).astype(np.int64)
-
+        slot = np.full(p.next_uid, -1, dtype=np.int64)
+        slot[uid] = np.arange(n, dtype=np.int64)
+        self.slot_of_uid = slot
         p.x_ref[:n] = x
         p.y_ref[:n] = y
         self.rebuilds += 1

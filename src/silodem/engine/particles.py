@@ -94,9 +94,13 @@ class Particles:
 
     def permute(self, order: np.ndarray) -> None:
         """Reorder the live particles: new index k holds old index ``order[k]``."""
-        for name in (*_FLOAT_FIELDS, "uid"):
+        n = self.n
+        tmp = np.empty(n)
+        for name in _FLOAT_FIELDS:
             arr = getattr(self, name)
-            arr[: self.n] = arr[order]
+            np.take(arr[:n], order, out=tmp)
+            arr[:n] = tmp
+        self.uid[:n] = self.uid[:n][order]
 
     # --- read-only views and derived quantities (never change state) -------------------
     def view(self, name: str) -> np.ndarray:

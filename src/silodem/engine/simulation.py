@@ -2,12 +2,13 @@
 
 One step, in the order the code runs it (``Simulation.step``):
 
-1. rebuild the neighbour list if a grain moved more than skin/2, or grains/walls changed;
+1. rebuild the neighbour list if two grains may have closed in by ``skin`` or a grain may have
+   reached a wall since the last build (see ``_list_expired``), or grains/walls changed;
 2. grain-grain contact forces (contact law on every candidate pair);
 3. grain-wall contact forces;
-4. gather: sum the forces and torques on each grain;
-5. integrate (leap-frog, gravity, optional local damping), note the largest displacement;
-6. move the walls that have a velocity; advance the clock.
+4. per grain: gather the forces and torques of its contacts, then integrate (leap-frog,
+   gravity, optional local damping); note the largest displacement;
+5. move the walls that have a velocity; advance the clock.
 
 Nothing else changes the state inside a step: measurements read the arrays between steps.
 """
@@ -16,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from silodem.engine.contact import GrainLaw, gather_forces, pair_forces, wall_forces
-from silodem.engine.integrate import leapfrog
+from silodem.engine.contact import GrainLaw, pair_forces, wall_forces
+from silodem.engine.integrate import gather_and_leapfrog
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
@@ -49,6 +50,7 @@ class Simulation:
         self._stale = True  # the neighbour list must be rebuilt before the next force pass
         self._drift = 0.0  # largest grain displacement since the last rebuild [m]
         self._wall_drift = 0.0
+        self._spread = (0.0, 0.0, 0.0, 0.0)  # bounding box of the displacements [m]
 
     # --- changes of the system between steps -------------------------------------------------
     def invalidate(self) -> None:
@@ -72,24 +74,23 @@ class Simulation:
     # --- the timestep ------------------------------------------------------------------------
     def step(self) -> None:
         p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
-        if self._stale or self._drift + self._wall_drift > 0.5 * nb.skin:
+        if self._stale or self._list_expired():
             nb.rebuild(p, w)
             self._stale = False
             self._wall_drift = 0.0
         n = p.n
-        pair_forces.pick(n)(nb.pair_i, nb.pair_j, nb.pair_fs, nb.pair_fn, nb.pair_fx, nb.pair_fy,
-                    p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
-                    law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
+        pair_forces.pick(n)(n, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn, nb.pair_fx,
+                            nb.pair_fy, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
+                            law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
         wall_forces.pick(n)(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
-                    p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
-                    w.ax, w.ay, w.bx, w.by, w.vx, w.vy, w.kn, w.ks, w.mu, w.active,
-                    w.cap_a, w.cap_b, w.one_sided, law.zeta, law.allow_tension, dt)
-        gather_forces.pick(n)(n, p.radius, nb.i_start, nb.j_start, nb.j_pairs,
-                      nb.pair_fx, nb.pair_fy, nb.pair_fs,
-                      nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs, p.fx, p.fy, p.torque)
-        max_d2 = leapfrog.pick(n)(n, p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque,
-                          p.mass, p.inv_mass, p.inv_inertia, p.x_ref, p.y_ref,
-                          self.gravity, law.local_damping, dt)
+                            p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
+                            w.ax, w.ay, w.bx, w.by, w.vx, w.vy, w.kn, w.ks, w.mu, w.active,
+                            w.cap_a, w.cap_b, w.one_sided, law.zeta, law.allow_tension, dt)
+        max_d2, *self._spread = gather_and_leapfrog.pick(n)(
+            n, nb.i_start, nb.j_start, nb.j_pairs, nb.pair_fx, nb.pair_fy, nb.pair_fs,
+            nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs,
+            p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius, p.mass, p.inv_mass,
+            p.inv_inertia, p.x_ref, p.y_ref, self.gravity, law.local_damping, dt)
         if not np.isfinite(max_d2):
             raise UnstableRunError(
                 f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
@@ -99,6 +100,22 @@ class Simulation:
         self._wall_drift += w.advance(dt)
         self.time += dt
         self.steps += 1
+
+    def _list_expired(self) -> bool:
+        """Whether the Verlet list may miss a contact.
+
+        A pair (i, j) left out at the build was at least r_i + r_j + skin apart; it has closed
+        in by at most |D_i - D_j| (D = displacement since the build), which is at most
+        min(2 max|D|, diagonal of the bounding box of all D).  The second bound is the sharper
+        one when the grains move together (a falling column, a discharging bulk), and keeps the
+        list twice as long as the usual max|D| < skin/2 when part of the grains is at rest.
+        A grain-wall candidate is kept within r + skin, so a wall is safe while
+        max|D| + wall drift < skin."""
+        skin = self.neighbors.skin
+        lox, hix, loy, hiy = self._spread
+        diagonal = float(np.hypot(hix - lox, hiy - loy)) if hix >= lox else 0.0
+        return (min(2.0 * self._drift, diagonal) >= skin
+                or self._drift + self._wall_drift >= skin)
 
     def run(self, n_steps: int) -> None:
         for _ in range(int(n_steps)):

@@ -1,0 +1,189 @@
+"""The performance benchmark: a dense, steadily discharging flat-bottomed silo.
+
+It is built to match ``benchmarks/lammps-silo2d.in`` (a copy of the project's reference deck
+``shared/bench/lammps-silo2d.in``) so that silodem and LAMMPS do the same work:
+
+* box 0 <= x <= W = 0.22 NX, grains on a square lattice of spacing 0.22 m in
+  0.11 <= x <= W - 0.11, 0.2 <= y <= H - 0.4 with H = 0.22 * 1.6 * NY, diameters uniform in
+  [0.18, 0.22] m, density 835 kg/m^3, unit thickness (paper case 2);
+* vertical walls x = 0 and x = W, a floor at y = 0 in two pieces with a centred slot of width
+  1.2 m, the floor pieces 0.2 m thick (their inner ends are walls too);
+* contact stiffness k_n = k_s = 5e6 N/m (grain stiffness 1e7 N/m in series), friction
+  tan 25 deg between grains and tan 24 deg with the walls, restitution 0.5;
+* grains leaving through the slot re-enter at the top (LAMMPS: periodic y over [-2, H]);
+* dt = 2e-4 s; SETTLE untimed steps (fall, settle, start of flow; compilation happens here),
+  then STEPS timed steps.
+
+Throughput is reported as particle-steps per second: N * STEPS / (wall time of the timed steps).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import resource
+import shutil
+import subprocess
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from silodem.engine.contact import GrainLaw, damping_ratio_from_restitution
+from silodem.engine.particles import Particles
+from silodem.engine.simulation import Simulation
+from silodem.engine.walls import Walls
+
+SPACING = 0.22  # lattice spacing [m]
+Y_BOTTOM = -2.0  # lower end of the periodic direction in the deck [m]
+DT = 2.0e-4  # [s]
+K_CONTACT = 5.0e6  # [N/m]
+SLOT = 1.2  # outlet width [m]
+WRAP_EVERY = 50  # steps between re-insertion checks
+
+
+@dataclass
+class BenchResult:
+    code: str
+    n: int
+    threads: int
+    steps: int
+    seconds: float
+    particle_steps_per_s: float
+    peak_memory_bytes: int
+    nx: int
+    ny: int
+
+    def line(self) -> str:
+        return (f"{self.code:8s} n = {self.n:8d}  threads/ranks = {self.threads}  "
+                f"steps = {self.steps}  {self.seconds:8.3f} s  "
+                f"{self.particle_steps_per_s / 1e6:8.3f} M particle-steps/s")
+
+
+def lattice_size(n: int) -> tuple[int, int]:
+    """(NX, NY) with NY = 2 NX whose lattice holds about n grains (NX=100 -> 31,700)."""
+    nx = max(4, round(math.sqrt(n / 3.17)))
+    return nx, 2 * nx
+
+
+def deck_lattice(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Lattice sites of the deck's `create_atoms` (lattice sq 0.22, origin 0.5 0.5)."""
+    width = nx * SPACING
+    top = ny * SPACING * 1.6
+    xs = SPACING * (np.arange(nx + 1) + 0.5)
+    ys = SPACING * (np.arange(int(top / SPACING) + 1) + 0.5)
+    eps = 1e-9
+    xs = xs[(xs >= 0.11 - eps) & (xs <= width - 0.11 + eps)]
+    ys = ys[(ys >= 0.2 - eps) & (ys <= top - 0.4 + eps)]
+    gx, gy = np.meshgrid(xs, ys)
+    return gx.ravel(), gy.ravel(), width, top
+
+
+def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05) -> tuple[Simulation, float, float]:
+    x, y, width, top = deck_lattice(nx, ny)
+    rng = np.random.default_rng(seed)
+    radius = 0.5 * (0.18 + 0.04 * rng.random(x.size))
+    p = Particles(x.size)
+    p.add(x, y, radius, 835.0)
+    k_grain = 2 * K_CONTACT  # two equal grains in series give K_CONTACT
+    k_wall = 2 * K_CONTACT  # grain in series with wall gives K_CONTACT
+    mu_g, mu_w = math.tan(math.radians(25.0)), math.tan(math.radians(24.0))
+    w = Walls()
+    kw = k_grain * k_wall / (k_grain + k_wall)
+    xl, xr = width / 2 - SLOT / 2, width / 2 + SLOT / 2
+    w.add("left", (0.0, top), (0.0, Y_BOTTOM), kw, kw, mu_w, one_sided=True)
+    w.add("right", (width, Y_BOTTOM), (width, top), kw, kw, mu_w, one_sided=True)
+    w.add("floor_left", (0.0, 0.0), (xl, 0.0), kw, kw, mu_w, one_sided=True)
+    w.add("slot_left", (xl, 0.0), (xl, -0.2), kw, kw, mu_w, one_sided=True)
+    w.add("slot_right", (xr, -0.2), (xr, 0.0), kw, kw, mu_w, one_sided=True)
+    w.add("floor_right", (xr, 0.0), (width, 0.0), kw, kw, mu_w, one_sided=True)
+    law = GrainLaw(kn=K_CONTACT, ks=K_CONTACT, mu=mu_g, zeta=damping_ratio_from_restitution(0.5))
+    sim = Simulation(p, w, law, dt=DT, gravity=9.81, skin=skin)
+    return sim, width, top
+
+
+def _wrap(sim: Simulation, top: float) -> None:
+    """Grains below the periodic boundary re-enter at the top (the deck's periodic y)."""
+    y = sim.particles.view("y")
+    low = y < Y_BOTTOM
+    if np.any(low):
+        y[low] += top - Y_BOTTOM
+        sim.invalidate()
+
+
+def advance(sim: Simulation, top: float, steps: int) -> None:
+    done = 0
+    while done < steps:
+        chunk = min(WRAP_EVERY, steps - done)
+        sim.run(chunk)
+        _wrap(sim, top)
+        done += chunk
+
+
+def run_silodem(n: int, threads: int, steps: int, settle: int) -> BenchResult:
+    import numba
+
+    numba.set_num_threads(threads)
+    nx, ny = lattice_size(n)
+    sim, _, top = build(nx, ny)
+    advance(sim, top, settle)
+    t0 = time.perf_counter()
+    advance(sim, top, steps)
+    seconds = time.perf_counter() - t0
+    n_real = sim.particles.n
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    return BenchResult("silodem", n_real, threads, steps, seconds, n_real * steps / seconds,
+                       peak, nx, ny)
+
+
+def deck_path() -> Path:
+    return Path(str(resources.files("silodem") / "benchmarks" / "lammps-silo2d.in"))
+
+
+_LOOP = re.compile(r"Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms")
+
+
+def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchResult:
+    """Run the reference deck with Debian's `lmp` (and `mpirun -np ranks` for ranks > 1)."""
+    lmp = shutil.which("lmp") or shutil.which("lmp_serial") or shutil.which("lmp_mpi")
+    if lmp is None:
+        raise FileNotFoundError("LAMMPS not found: install Debian's package (apt-get install lammps)")
+    cmd = [lmp, "-in", str(deck_path()), "-var", "NX", str(nx), "-var", "NY", str(ny),
+           "-var", "STEPS", str(steps), "-var", "SETTLE", str(settle), "-log", "none"]
+    if ranks > 1:
+        mpirun = shutil.which("mpirun")
+        if mpirun is None:
+            raise FileNotFoundError("mpirun not found (Debian package openmpi-bin)")
+        cmd = [mpirun, "--allow-run-as-root", "--oversubscribe", "-np", str(ranks), *cmd]
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, check=False,
+                              env={**os.environ, "OMP_NUM_THREADS": "1"})
+    loops = _LOOP.findall(proc.stdout)
+    if proc.returncode != 0 or len(loops) < 2:
+        tail = (proc.stdout + proc.stderr)[-800:]
+        raise RuntimeError(f"LAMMPS failed (exit {proc.returncode}): {tail}")
+    seconds, procs, nsteps, atoms = loops[-1]
+    seconds, nsteps, atoms = float(seconds), int(nsteps), int(atoms)
+    return BenchResult("lammps", atoms, int(procs), nsteps, seconds, atoms * nsteps / seconds,
+                       0, nx, ny)
+
+
+def bench(n: int, threads: int, steps: int, settle: int, lammps: bool) -> list[BenchResult]:
+    results = [run_silodem(n, threads, steps, settle)]
+    if lammps:
+        r = results[0]
+        results.append(run_lammps(r.nx, r.ny, threads, steps, settle))
+    return results
+
+
+def as_json(results: list[BenchResult]) -> str:
+    first = asdict(results[0])
+    if len(results) > 1:
+        first["lammps"] = asdict(results[1])
+        first["ratio_vs_lammps"] = results[0].particle_steps_per_s / results[1].particle_steps_per_s
+    return json.dumps(first)
