@@ -7,6 +7,7 @@ stderr and exit code 2, never a traceback: see :func:`main`.
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -14,7 +15,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from silodem.errors import InputError, UnstableRunError, one_line
+from silodem.errors import InputError, RunInterrupted, UnstableRunError, one_line
 from silodem.scenario_files import (
     DEFAULT_SCENARIO,
     config_to_toml,
@@ -90,8 +91,52 @@ def _config(source: str, sets: list[str] | None, quick: bool):
     return quick_variant(cfg) if quick else cfg
 
 
+def _given(ctx: typer.Context, name: str) -> bool:
+    """True when the parameter ``name`` came from the command line (not its default)."""
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name != "DEFAULT"
+
+
+def _check_out(out: Path) -> None:
+    """Refuse an --out that is a file, lies under a file, or holds an unfinished run."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} is a file, not a folder; give a folder for the results "
+                         "(created if missing)")
+    for folder in (out, *out.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise InputError(f"--out {out}: {folder} is a file, not a folder")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise InputError(f"--out {out}: no permission to write in {folder}")
+            break
+    if (out / "checkpoint.h5").exists():
+        raise InputError(f"--out {out} holds an unfinished run (checkpoint.h5); continue it with "
+                         f"'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
+                         "start afresh there")
+
+
+def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
+    given = [flag for name, flag in (("source", "SCENARIO|FILE"), ("sets", "--set"),
+                                     ("quick", "--quick"), ("out", "--out"))
+             if _given(ctx, name)]
+    if given:
+        raise InputError(f"--resume continues a run with the config saved in its checkpoint: "
+                         f"give no {', '.join(given)} with it")
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"--resume {folder} is a file; give the results folder of the run")
+    from silodem.run import resume_simulation  # imports numba: only when running
+
+    console = Console()
+    console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False,
+                  soft_wrap=True)
+    summary = resume_simulation(folder, threads=threads, progress=True)
+    for line in summary.lines():
+        console.print(line, markup=False, highlight=False, soft_wrap=True)
+
+
 @app.command()
 def run(
+    ctx: typer.Context,
     source: SourceArg = DEFAULT_SCENARIO,
     out: Annotated[
         Path | None,
@@ -116,6 +161,17 @@ def run(
         ),
     ] = None,
     quick: QuickOpt = False,
+    resume: Annotated[
+        Path | None,
+        typer.Option(
+            "--resume",
+            metavar="DIR",
+            help="Continue the interrupted run whose results folder is DIR from its "
+            "checkpoint.h5, with the config saved there (give no SCENARIO, --set, --quick or "
+            "--out). It ends exactly as an uninterrupted run would.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Fill a silo with grains, let them settle, then open the outlet and discharge it.
 
@@ -126,10 +182,19 @@ def run(
       silodem run paper-case1 --quick   (the flat silo, small and fast)
 
       silodem run my.toml --set fill.n_particles=300 --out runs/test
+
+      silodem run --resume runs/test    (continue a run stopped by Ctrl-C or a crash)
+
+    Checkpoints are saved while it runs; Ctrl-C (SIGINT) or SIGTERM saves one and stops.
+    Exit codes: 0 done, 2 bad input, 3 unstable run stopped, 130/143 stopped by SIGINT/SIGTERM.
     """
     _check_threads(threads)
+    if resume is not None:
+        _resume(ctx, resume, threads)
+        return
     cfg = _config(source, sets, quick)
     out_dir = out if out is not None else Path("runs") / cfg.name
+    _check_out(out_dir)
 
     from silodem.run import run_simulation  # imports numba: only when running
 
@@ -169,6 +234,79 @@ def show(
     sys.stdout.write(config_to_toml(cfg))
 
 
+@app.command()
+def plot(
+    run_dir: Annotated[
+        Path,
+        typer.Argument(metavar="DIR", help="The results folder of a run (silodem run --out DIR).",
+                       show_default=False),
+    ],
+) -> None:
+    """Re-draw every figure of a run from DIR/results.h5 (nothing is re-run) and write
+    DIR/report.html: one page with the figures, the key numbers and the config, to open in a
+    browser. Figures also go to DIR/figures/*.png. Example:
+
+      silodem plot runs/paper-case2
+    """
+    from silodem.report import write_report  # matplotlib, scipy: only when plotting
+
+    path = write_report(run_dir)
+    Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
+
+
+@app.command()
+def animate(
+    run_dir: Annotated[
+        Path,
+        typer.Argument(metavar="DIR", help="The results folder of a run (silodem run --out DIR).",
+                       show_default=False),
+    ],
+    color: Annotated[
+        str,
+        typer.Option("--color", "-c", metavar="velocity|force|coordination",
+                     help="Colour the grains by speed, by the sum of their contact normal "
+                     "forces, or by their number of contacts."),
+    ] = "velocity",
+    fmt: Annotated[
+        str | None,
+        typer.Option("--format", "-f", metavar="mp4|gif",
+                     help="Video format. Default: from --out's suffix, else mp4.",
+                     show_default=False),
+    ] = None,
+    fps: Annotated[
+        int, typer.Option("--fps", metavar="N", help="Frames per second of the video (1-60).")
+    ] = 10,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", metavar="FILE",
+                     help="Where to write the video. Default: DIR/animation.mp4 (or .gif).",
+                     show_default=False),
+    ] = None,
+) -> None:
+    """Make a video of a run's filling and discharge from its saved frames.
+
+    Grains are drawn to scale and coloured, the force chains drawn with a width that grows with
+    the normal force. One video frame per saved frame (output.frame_interval). Examples:
+
+      silodem animate runs/paper-case2
+
+      silodem animate runs/test --color force --format gif --fps 15
+    """
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import Progress as Bar
+
+    from silodem.viz.animate import plan_animation, render_animation  # matplotlib: when used
+
+    plan = plan_animation(run_dir, out, color=color, fmt=fmt, fps=fps)
+    with Bar(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+             console=Console(stderr=True), transient=False) as bar:
+        task = bar.add_task("frames", total=len(plan.frames))
+        result = render_animation(plan, lambda done, _: bar.update(task, completed=done))
+    Console().print(f"animation: {result.frames} frames ({result.width}x{result.height} px, "
+                    f"{fps} fps) in {result.seconds:.1f} s -> {result.path}", markup=False,
+                    highlight=False, soft_wrap=True)
+
+
 def _error(message: str, code: int = 2) -> None:
     sys.stderr.write(one_line(message) + "\n")
     sys.stderr.flush()
@@ -202,6 +340,8 @@ def main(argv: list[str] | None = None) -> None:
         _error(message if message.startswith("config error:") else f"error: {message}")
     except UnstableRunError as exc:
         _error(f"run stopped: {exc}", 3)
+    except RunInterrupted as exc:
+        _error(f"interrupted: {exc}", exc.exit_code)
     except no_args as exc:
         sys.stdout.write(exc.ctx.get_help() + "\n")
         raise SystemExit(0) from None

@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
 
 
 class Material(_Strict):
@@ -119,7 +119,9 @@ class Fill(_Strict):
         description="'pour': rain grains from a band under the top of the walls at `rate`; "
         "'loose': place all grains at once on a jittered lattice, then let them fall",
     )
-    n_particles: int = Field(gt=0, description="number of grains to put in the silo [-]")
+    n_particles: int = Field(
+        gt=0, le=10_000_000, description="number of grains to put in the silo [-]"
+    )
     rate: float = Field(200.0, gt=0, description="pouring rate [grains/s] (method 'pour')")
     band_height: float = Field(
         0.6, gt=0, description="height of the pouring band under the wall top [m]"
@@ -167,6 +169,107 @@ class Output(_Strict):
 
     sample_interval: float = Field(0.02, gt=0, description="time-series sampling interval [s]")
     png: bool = Field(True, description="draw the final state with its force network")
+    frame_interval: float = Field(
+        0.1, gt=0, description="interval between the frames (grains, contacts, walls) saved to "
+        "results.h5 /frames for 'silodem animate' [s]"
+    )
+    vtk_interval: float | None = Field(
+        None, gt=0, description="interval between the ParaView (VTK) files written to "
+        "DIR/vtk/ [s]; unset: none"
+    )
+
+
+class Checkpoint(_Strict):
+    """Checkpoints: the full state, saved so that an interrupted run resumes exactly."""
+
+    enabled: bool = Field(
+        True, description="write checkpoint.h5 while the run goes (results.h5 is refreshed at "
+        "the same moments either way)"
+    )
+    every_steps: int = Field(
+        20000, ge=1, description="write a checkpoint once this many time steps have passed "
+        "since the last one [-]"
+    )
+    every_wall_seconds: float = Field(
+        600.0, gt=0, description="also write one once this much wall-clock time has passed "
+        "since the last one [s]"
+    )
+
+
+class Measure(_Strict):
+    """Measurements and report (docs/measurements.md): stress circles, wall profiles, flow."""
+
+    interval: float = Field(0.02, gt=0, description="measurement sampling interval [s]")
+    window: float = Field(
+        1.0, gt=0, description="averaging window [s]: the last `window` s of settling give the "
+        "'after filling' profiles, `window` s of discharge the 'during discharge' ones"
+    )
+    discharge_delay: float = Field(
+        0.5, ge=0, description="the discharge window starts this long after the gate opens [s]"
+    )
+    wall_bin: float | None = Field(
+        None, gt=0, description="bin length along the walls and height of the profile bins "
+        "[m]; unset: two mean grain diameters"
+    )
+    strip_width: float | None = Field(
+        None, gt=0, description="width of the near-wall strips whose Love-Weber stress gives "
+        "the stress along the walls [m]; unset: two mean grain diameters"
+    )
+    coordination_band: float | None = Field(
+        None, gt=0, description="height of the band across the silo, centred on the "
+        "cell-hopper junction, where the coordination number of Fig. 2 is counted [m]; unset: "
+        "four mean grain diameters"
+    )
+    switch_zone_half_height: float | None = Field(
+        None, gt=0, description="the switch zone is the junction height +- this [m]; its peak "
+        "wall stress is reported; unset: two mean grain diameters"
+    )
+    circle_names: list[str] | None = Field(
+        None, description="names of the measurement circles [-]; unset (with circle_x, "
+        "circle_z, circle_radius): three circles at the switch zone"
+    )
+    circle_x: list[float] | None = Field(
+        None, description="x of each circle's centre, from the left wall [m]"
+    )
+    circle_z: list[float] | None = Field(
+        None, description="z of each circle's centre, above `circle_z_from` [m]"
+    )
+    circle_radius: list[float] | None = Field(None, description="radius of each circle [m]")
+    circle_z_from: Literal["outlet", "junction"] = Field(
+        "junction", description="circle_z is measured from the outlet or from the junction"
+    )
+    grid_cell: float | None = Field(
+        None, gt=0, description="cell size of the velocity field grid [m]; unset: one mean "
+        "grain diameter"
+    )
+    mass_flow_index_threshold: float = Field(
+        0.3, gt=0, le=1, description="flow is mass flow when v_wall / v_centre above the "
+        "junction exceeds this [-] (Johanson's mass flow index)"
+    )
+    report: bool = Field(True, description="write report.html with every figure after a run")
+
+    @model_validator(mode="after")
+    def _check(self) -> Measure:
+        lists = {"circle_names": self.circle_names, "circle_x": self.circle_x,
+                 "circle_z": self.circle_z, "circle_radius": self.circle_radius}
+        given = [k for k, v in lists.items() if v is not None]
+        if not given:
+            return self
+        if len(given) != len(lists):
+            missing = ", ".join(f"measure.{k}" for k in lists if k not in given)
+            raise ValueError(f"measurement circles need all four lists; missing: {missing}")
+        sizes = {len(v) for v in lists.values()}
+        if len(sizes) != 1:
+            raise ValueError("measure.circle_names, circle_x, circle_z and circle_radius must "
+                             "have the same length")
+        if len(set(self.circle_names)) != len(self.circle_names):
+            raise ValueError("measure.circle_names must be unique")
+        for key in ("circle_x", "circle_z", "circle_radius"):
+            if not all(math.isfinite(v) for v in lists[key]):
+                raise ValueError(f"measure.{key} must hold finite numbers")
+        if any(r <= 0 for r in self.circle_radius):
+            raise ValueError("measure.circle_radius must hold positive radii [m]")
+        return self
 
 
 class Config(_Strict):
@@ -184,6 +287,8 @@ class Config(_Strict):
     discharge: Discharge = Discharge()
     time: TimeStep = TimeStep()
     output: Output = Output()
+    measure: Measure = Measure()
+    checkpoint: Checkpoint = Checkpoint()
 
     @model_validator(mode="after")
     def _check(self) -> Config:

@@ -199,3 +199,17 @@ def format_validation_error(
 class UnstableRunError(RuntimeError):
     """The simulation became unphysical (non-finite values, a grain thrown out of the domain).
     The CLI reports it as one line with exit code 3."""
+
+
+class RunInterrupted(Exception):
+    """A run stopped cleanly on a signal (SIGINT, SIGTERM) after saving a checkpoint.
+
+    ``signum`` is the signal; the CLI exits with code ``128 + signum`` (130, 143)."""
+
+    def __init__(self, message: str, signum: int) -> None:
+        super().__init__(one_line(message))
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum

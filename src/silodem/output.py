@@ -24,7 +24,24 @@ from silodem.silo.procedure import SiloRun, Snapshot
 
 def _atomic(path: Path):
     tmp = path.with_name(f".{path.name}.tmp")
-    return tmp, lambda: os.replace(tmp, path)
+
+    def commit() -> None:  # flush the data to the disk, rename over the old file, flush that
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+        try:  # make the rename itself durable (not possible on every system)
+            fd = os.open(path.parent, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        except OSError:
+            pass
+
+    return tmp, commit
 
 
 def write_text(path: Path, text: str) -> None:
@@ -46,11 +63,19 @@ def _write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
             g.create_dataset(key, data=arr)
 
 
-def write_results(run: SiloRun, path: Path, config_toml: str) -> None:
+def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "complete") -> None:
     """results.h5: attributes, one group per recorder (/timeseries ...), /walls, /events,
-    /warnings, and the /settled and /final snapshots."""
+    /warnings, and the /settled and /final snapshots (those taken so far).
+
+    ``status``: "complete" at the end of a run; "running", "interrupted" or "unstable" when
+    written before the end (checkpoints, docs/reliability.md); attributes ``phase``, ``time``
+    and ``steps`` say how far the run had come."""
     tmp, commit = _atomic(path)
     with h5py.File(tmp, "w") as h5:
+        h5.attrs["status"] = status
+        h5.attrs["phase"] = run.state.phase
+        h5.attrs["time"] = run.sim.time
+        h5.attrs["steps"] = run.sim.steps
         h5.attrs["silodem_version"] = __version__
         h5.attrs["scenario"] = run.cfg.name
         h5.attrs["seed"] = run.cfg.seed

@@ -10,9 +10,13 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
+from silodem.measure.recorders import recorders_for
 from silodem.output import draw_state, write_results, write_text
-from silodem.silo.procedure import Progress, SiloRun
+from silodem.safety import RunGuard, check_numbers
+from silodem.silo.frames import FramesRecorder
+from silodem.silo.procedure import PHASES, Progress, SiloRun
 
 
 @dataclass
@@ -51,15 +55,22 @@ def _set_threads(threads: int | None) -> None:
 
 
 def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = None,
-                   progress: bool = True) -> RunSummary:
-    """Run ``cfg`` and write its results folder ``out_dir``; return a summary."""
+                   progress: bool = True,
+                   resume_from: LoadedCheckpoint | None = None) -> RunSummary:
+    """Run ``cfg`` and write its results folder ``out_dir``; return a summary.
+
+    Checkpoints, SIGINT/SIGTERM and unstable runs: see ``silodem.safety`` and
+    docs/reliability.md.  ``resume_from``: continue from this checkpoint (resume_simulation)."""
     from silodem.scenario_files import config_to_toml
 
+    check_numbers(cfg)
     _set_threads(threads)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     toml_text = config_to_toml(cfg)
     write_text(out / "config.toml", toml_text)
+    guard = RunGuard(out, toml_text, cfg, resume_from)
+    recorders = [FramesRecorder.from_config(cfg, out), *recorders_for(cfg)]
     t0 = time.perf_counter()
     if progress:
         from rich.console import Console
@@ -73,24 +84,49 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
             task = bar.add_task("compiling kernels...", total=3, phase="start")
 
             def show(pr: Progress) -> None:
-                bar.update(task, completed=("fill", "settle", "discharge").index(pr.phase),
+                bar.update(task, completed=PHASES.index(pr.phase),
                            phase=pr.phase,
                            description=f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
                            f"{pr.steps_per_s:8.0f} steps/s  {pr.detail}")
 
-            run = SiloRun(cfg, on_progress=show)
+            run = SiloRun(cfg, on_progress=show, recorders=recorders)
             for w in run.warnings:
                 console.print(f"[yellow]warning:[/] {w}")
-            run.run()
+            guard.drive(run)
             bar.update(task, completed=3)
     else:
-        run = SiloRun(cfg)
-        run.run()
+        run = SiloRun(cfg, recorders=recorders)
+        guard.drive(run)
     write_results(run, out / "results.h5", toml_text)
+    guard.completed()
     if cfg.output.png:
         draw_state(run, run.snapshots["settled"], out / "settled.png",
                    f"{cfg.name}: end of settling, t = {run.snapshots['settled'].time:.2f} s")
         draw_state(run, run.snapshots["final"], out / "final.png",
                    f"{cfg.name}: end of run, t = {run.snapshots['final'].time:.2f} s")
+    if cfg.measure.report:
+        _write_report(out, run.warnings)
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                       dict(run.events), list(run.warnings))
+
+
+def _write_report(out: Path, warnings: list[str]) -> None:
+    """report.html with every figure (silodem.report); results.h5 is already safe, so a
+    failure here is reported as a warning with the command that retries it."""
+    from silodem.report import write_report
+
+    try:
+        write_report(out)
+    except Exception as exc:  # noqa: BLE001 - the run's results are written; say so, go on
+        warnings.append(f"report.html not written ({type(exc).__name__}: {exc}); retry with "
+                        f"'silodem plot {out}'")
+
+
+def resume_simulation(out_dir: Path | str, *, threads: int | None = None,
+                      progress: bool = True) -> RunSummary:
+    """Continue the interrupted run whose results folder is ``out_dir`` from its
+    checkpoint.h5, with the config saved in it; it ends bit-identical to an uninterrupted run
+    (docs/reliability.md).  A missing or unreadable checkpoint raises CheckpointError."""
+    checkpoint = read_checkpoint(out_dir)
+    return run_simulation(checkpoint.config, out_dir, threads=threads, progress=progress,
+                          resume_from=checkpoint)

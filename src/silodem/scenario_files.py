@@ -77,18 +77,32 @@ def _parse_toml(text: str, where: str) -> dict[str, Any]:
         raise InputError(f"{where}: malformed TOML: {exc}") from None
 
 
+def _path_kind(path: Path) -> str:
+    """'file', 'other' (exists, not a regular file) or 'missing' (also for impossible names)."""
+    try:
+        if path.is_file():
+            return "file"
+        return "other" if path.exists() else "missing"
+    except (OSError, ValueError):  # name too long, embedded NUL...
+        return "missing"
+
+
 def _read_source(source: str) -> dict[str, Any]:
     """The raw dict of an embedded scenario or of a TOML file."""
+    files = _scenario_files()
+    names = ", ".join(files)
+    if not source.strip():
+        raise InputError(f"empty scenario name: give an embedded scenario ({names}) or the "
+                         "path of a .toml file")
     path = Path(source)
-    if path.is_file():
+    kind = _path_kind(path)
+    if kind == "file":
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"cannot read {source}: {exc}") from None
         return _parse_toml(text, str(source))
-    files = _scenario_files()
-    names = ", ".join(files)
-    if path.exists():
+    if kind == "other":
         raise InputError(f"{source} is not a file (give a .toml file or one of: {names})")
     if source in files:
         return _parse_toml(files[source].read_text(encoding="utf-8"), f"scenario {source}")
@@ -100,7 +114,7 @@ def _read_source(source: str) -> dict[str, Any]:
     hint = did_you_mean(source, files)
     hint_text = f" (did you mean '{hint}'?)" if hint else ""
     raise InputError(
-        f"unknown scenario '{source}'{hint_text}; embedded scenarios: {names}; "
+        f"unknown scenario '{_short(source)}'{hint_text}; embedded scenarios: {names}; "
         f"or give a path to a .toml file"
     )
 

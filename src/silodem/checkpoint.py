@@ -1,0 +1,362 @@
+"""Checkpoints: the whole state of a silo run in one HDF5 file, written atomically, read back
+exactly (docs/reliability.md).
+
+A checkpoint is taken between two chunks of the procedure (never inside a time step) and holds
+everything the run needs to go on as if it had never stopped:
+
+* ``/particles``, ``/walls``, ``/neighbors``, ``/simulation``: every array and number of the
+  engine's objects (the grain arrays up to their capacity, the whole Verlet list with its
+  contact history, the walls with their active flags, the clock and the rebuild trigger);
+* ``/run``: the procedure state, the random generator's bit-generator state, the grain radii
+  drawn at the start, events, warnings and the snapshots taken so far;
+* ``/recorders/<name>``: what each recorder's ``state()`` returned;
+* the attributes of ``/``: format, silodem version, config (TOML), reason, step, time, phase.
+
+The engine objects are saved attribute by attribute (``vars``), so an array added to them later
+is saved too; an attribute of a kind this module cannot store is an error at the first
+checkpoint, never a silently incomplete file.
+
+Values are stored as HDF5 datasets: arrays as they are, numbers and booleans as scalar
+datasets, dicts as groups, other values (strings, lists, None) as JSON text in a string dataset
+(Python's JSON writes floats with the shortest repr that reads back to the same double).  The
+attribute ``silodem_kind`` tells how to read a node back; every value comes back exact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+import os
+import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import h5py
+import numpy as np
+from pydantic import ValidationError
+
+from silodem import __version__
+from silodem.config import Config
+from silodem.errors import InputError, format_validation_error
+
+if TYPE_CHECKING:
+    from silodem.silo.procedure import SiloRun
+
+CHECKPOINT_NAME = "checkpoint.h5"
+FAILURE_NAME = "failure.h5"
+FORMAT = "silodem-checkpoint"
+FORMAT_VERSION = 1
+
+_KIND = "silodem_kind"  # attribute naming how a dataset or group is decoded
+_SCALARS = {"bool": bool, "int": int, "float": float}  # scalar datasets -> Python values
+# attributes of the engine objects that are other objects (saved on their own) or derived from
+# the config (rebuilt identically by SiloRun(cfg))
+_SIM_OBJECTS = ("particles", "walls", "neighbors", "law")
+
+
+class CheckpointError(InputError):
+    """A checkpoint that is missing, unreadable or of another format (exit code 2)."""
+
+
+# --- atomic files --------------------------------------------------------------------------
+
+
+def fsync_path(path: Path) -> None:
+    """Flush a written file (or a folder's entries) to the disk."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def atomic_file(path: Path | str) -> Iterator[Path]:
+    """Yield a temporary name in the folder of ``path``; on success, fsync it and rename it
+    onto ``path`` (``os.replace``), so ``path`` is always either the old or the new file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        yield tmp
+        fsync_path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with suppress(OSError):
+            tmp.unlink()
+        raise
+    with suppress(OSError):  # make the rename itself durable (not possible everywhere)
+        fsync_path(path.parent)
+
+
+# --- encoding values -----------------------------------------------------------------------
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"cannot store a {type(obj).__name__} in a checkpoint")
+
+
+def _is_tree(value: Any) -> bool:
+    """True for values stored as a group: dicts, and lists holding arrays or dicts."""
+    if isinstance(value, dict):
+        return True
+    if isinstance(value, list | tuple):
+        return any(isinstance(v, np.ndarray) or _is_tree(v) for v in value)
+    return False
+
+
+def put(group: h5py.Group, name: str, value: Any) -> None:
+    """Store ``value`` under ``name`` (see the module docstring for the encoding)."""
+    if "/" in name or not name:
+        raise TypeError(f"checkpoint: bad name {name!r}")
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind == "U":
+            ds = group.create_dataset(name, data=value.astype(object),
+                                      dtype=h5py.string_dtype())
+            ds.attrs[_KIND] = "str_array"
+        elif value.dtype.kind in "biufc":
+            group.create_dataset(name, data=value)
+        else:
+            raise TypeError(f"checkpoint: cannot store an array of dtype {value.dtype} ({name})")
+    elif isinstance(value, dict):
+        sub = group.create_group(name, track_order=True)
+        sub.attrs[_KIND] = "dict"
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise TypeError(f"checkpoint: dict keys must be strings ({name}: {key!r})")
+            put(sub, key, item)
+    elif isinstance(value, list | tuple) and _is_tree(value):
+        sub = group.create_group(name, track_order=True)
+        sub.attrs[_KIND] = "list"
+        for k, item in enumerate(value):
+            put(sub, str(k), item)
+    elif isinstance(value, bool | np.bool_):
+        group.create_dataset(name, data=np.bool_(value)).attrs[_KIND] = "bool"
+    elif isinstance(value, int | np.integer) and -(2**63) <= int(value) < 2**63:
+        group.create_dataset(name, data=np.int64(value)).attrs[_KIND] = "int"
+    elif isinstance(value, float | np.floating):
+        group.create_dataset(name, data=np.float64(value)).attrs[_KIND] = "float"
+    else:
+        text = json.dumps(value, default=_json_default)
+        ds = group.create_dataset(name, data=text, dtype=h5py.string_dtype())
+        ds.attrs[_KIND] = "json"
+
+
+def get(node: h5py.Group | h5py.Dataset) -> Any:
+    """Inverse of :func:`put`."""
+    kind = node.attrs.get(_KIND, "")
+    if isinstance(node, h5py.Dataset):
+        if kind == "json":
+            return json.loads(node.asstr()[()])
+        if kind in _SCALARS:
+            return _SCALARS[kind](node[()])
+        if kind == "str_array":
+            return np.array(node.asstr()[()], dtype=str)
+        return node[()]
+    if kind == "list":
+        return [get(node[str(k)]) for k in range(len(node))]
+    return {key: get(child) for key, child in node.items()}
+
+
+def _plain(value: Any) -> bool:
+    """Values an engine object's attribute may hold to be saved."""
+    if isinstance(value, np.ndarray | np.generic | bool | int | float | str | type(None)):
+        return True
+    if isinstance(value, list | tuple):
+        return all(_plain(v) for v in value)
+    return False
+
+
+def object_state(obj: Any, skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Every attribute of ``obj`` (arrays and plain values), except ``skip``."""
+    out: dict[str, Any] = {}
+    for name, value in vars(obj).items():
+        if name in skip:
+            continue
+        if not _plain(value):
+            raise TypeError(
+                f"checkpoint: {type(obj).__name__}.{name} holds a {type(value).__name__}, "
+                "which silodem.checkpoint cannot save; teach object_state about it"
+            )
+        out[name] = value
+    return out
+
+
+def restore_object(obj: Any, state: dict[str, Any]) -> None:
+    """Set the attributes saved by :func:`object_state` (arrays are fresh copies)."""
+    for name, value in state.items():
+        if isinstance(value, np.ndarray):
+            value = np.ascontiguousarray(value)
+        setattr(obj, name, value)
+
+
+# --- saving --------------------------------------------------------------------------------
+
+
+def _dataclass_state(obj: Any) -> dict[str, Any]:
+    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
+
+
+def _recorder_keys(run: SiloRun) -> list[str]:
+    names = [rec.name for rec in run.recorders]
+    return [name if names.count(name) == 1 else f"{name}.{k}" for k, name in enumerate(names)]
+
+
+def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason: str,
+                    attrs: dict[str, Any] | None = None) -> None:
+    """Write the whole state of ``run`` to ``path`` atomically (temporary file, fsync, rename).
+
+    Call it between two chunks of the procedure (a chunk hook), never inside a step."""
+    sim = run.sim
+    with atomic_file(path) as tmp, h5py.File(tmp, "w", track_order=True) as h5:
+        h5.attrs["format"] = FORMAT
+        h5.attrs["format_version"] = FORMAT_VERSION
+        h5.attrs["silodem_version"] = __version__
+        h5.attrs["created"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+        h5.attrs["reason"] = reason
+        h5.attrs["scenario"] = run.cfg.name
+        h5.attrs["step"] = int(sim.steps)
+        h5.attrs["time"] = float(sim.time)
+        h5.attrs["phase"] = run.state.phase
+        h5.attrs["n_particles"] = int(sim.particles.n)
+        for key, val in (attrs or {}).items():
+            h5.attrs[key] = val
+        put(h5, "config_toml", config_toml)
+        put(h5, "particles", object_state(sim.particles))
+        put(h5, "walls", object_state(sim.walls))
+        put(h5, "neighbors", object_state(sim.neighbors))
+        put(h5, "simulation", object_state(sim, skip=_SIM_OBJECTS))
+        put(h5, "run", {
+            "state": _dataclass_state(run.state),
+            "rng": json.dumps(run.rng.bit_generator.state),
+            "radii": np.asarray(run.radii),
+            "events": json.dumps(run.events, default=_json_default),
+            "warnings": list(run.warnings),
+            "snapshots": {name: _dataclass_state(s) for name, s in run.snapshots.items()},
+        })
+        recorders = h5.create_group("recorders", track_order=True)
+        for key, rec in zip(_recorder_keys(run), run.recorders):
+            put(recorders, key, rec.state())
+        h5.flush()
+
+
+# --- loading -------------------------------------------------------------------------------
+
+
+def config_from_toml(text: str, where: str) -> Config:
+    """The validated Config of a TOML text; InputError (one line) when it is not valid."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CheckpointError(f"{where}: malformed config TOML: {exc}") from None
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        detail = format_validation_error(exc, data, model=Config)
+        raise CheckpointError(f"{where}: the config it holds is not valid for this silodem: "
+                              f"{detail}") from None
+
+
+@dataclasses.dataclass
+class LoadedCheckpoint:
+    """A checkpoint read into memory: its config and everything to restore a SiloRun."""
+
+    path: Path
+    config: Config
+    config_toml: str
+    attrs: dict[str, Any]
+    data: dict[str, Any]
+
+    @property
+    def step(self) -> int:
+        return int(self.attrs["step"])
+
+    @property
+    def time(self) -> float:
+        return float(self.attrs["time"])
+
+    def restore(self, run: SiloRun) -> None:
+        """Put the saved state into ``run``, a fresh ``SiloRun`` built from ``self.config``
+        (with the same recorders): afterwards it continues exactly as the saved run would."""
+        from silodem.silo.recorders import Snapshot
+
+        if run.cfg != self.config:
+            raise ValueError("restore: the run was built from another config than the "
+                             "checkpoint's")
+        d, sim = self.data, run.sim
+        restore_object(sim.particles, d["particles"])
+        restore_object(sim.walls, d["walls"])
+        restore_object(sim.neighbors, d["neighbors"])
+        restore_object(sim, d["simulation"])
+        r = d["run"]
+        run.state = type(run.state)(**r["state"])
+        rng_state = json.loads(r["rng"])
+        if rng_state.get("bit_generator") != type(run.rng.bit_generator).__name__:
+            raise CheckpointError(f"{self.path}: random generator {rng_state.get('bit_generator')}"
+                                  f" is not this silodem's {type(run.rng.bit_generator).__name__}")
+        run.rng.bit_generator.state = rng_state
+        run.radii = np.ascontiguousarray(r["radii"])
+        run.events = json.loads(r["events"])
+        run.warnings = list(r["warnings"])
+        run.snapshots = {name: Snapshot(**snap) for name, snap in r["snapshots"].items()}
+        saved = d.get("recorders", {})
+        for key, rec in zip(_recorder_keys(run), run.recorders):
+            if key in saved:
+                rec.restore(saved[key])
+            else:
+                run.warnings.append(f"resume: recorder '{key}' was not in the checkpoint; it "
+                                    "holds only what it recorded after the resume")
+        for key in saved.keys() - set(_recorder_keys(run)):
+            run.warnings.append(f"resume: the checkpoint's recorder '{key}' is not part of this "
+                                "run; its data is dropped")
+
+
+def _results_complete(folder: Path) -> bool:
+    try:
+        with h5py.File(folder / "results.h5", "r") as h5:
+            return h5.attrs.get("status", "complete") == "complete"
+    except OSError:
+        return False
+
+
+def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
+    """Read ``where`` (a results folder, or a checkpoint file).  Every problem (missing folder
+    or file, unreadable or foreign file, other format version, invalid config) raises
+    :class:`CheckpointError` with a one-line message."""
+    where = Path(where)
+    if where.is_dir():
+        path = where / CHECKPOINT_NAME
+        if not path.exists():
+            if _results_complete(where):
+                raise CheckpointError(f"the run in {where} has finished (results.h5 is complete);"
+                                      " there is nothing to resume")
+            raise CheckpointError(f"no {CHECKPOINT_NAME} in {where}: nothing to resume (give the "
+                                  "results folder of an interrupted run)")
+    elif where.exists():
+        path = where
+    else:
+        raise CheckpointError(f"{where} does not exist (give the results folder of an "
+                              "interrupted run)")
+    try:
+        with h5py.File(path, "r") as h5:
+            attrs = {k: (v.item() if isinstance(v, np.generic) else v)
+                     for k, v in h5.attrs.items()}
+            if attrs.get("format") != FORMAT:
+                raise CheckpointError(f"{path} is not a silodem checkpoint")
+            if attrs.get("format_version") != FORMAT_VERSION:
+                raise CheckpointError(
+                    f"{path} has checkpoint format {attrs.get('format_version')} (written by "
+                    f"silodem {attrs.get('silodem_version')}); this silodem {__version__} reads "
+                    f"format {FORMAT_VERSION}")
+            data = {key: get(node) for key, node in h5.items()}
+    except CheckpointError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise CheckpointError(f"{path} cannot be read as a checkpoint ({exc})") from None
+    toml_text = data.pop("config_toml")
+    cfg = config_from_toml(toml_text, str(path))
+    return LoadedCheckpoint(path, cfg, toml_text, attrs, data)

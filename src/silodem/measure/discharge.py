@@ -1,0 +1,95 @@
+"""Discharge: mass flow rate, flow pattern (mass flow / funnel flow) and dead zones.
+
+* Steady discharge rate W [kg/s]: least-squares slope of the discharged mass m(t) over the
+  part of the discharge where m is between ``lo`` and ``hi`` of its final value (the start-up
+  after the gate opens and the emptying end are left out); its uncertainty is the standard
+  error of the slopes of ``blocks`` consecutive blocks of that interval (batch means), which,
+  unlike the residuals of one fit, is not fooled by the correlation of successive samples.
+* Mass flow index MFI = v_wall / v_axis [-]: mean vertical velocity of the grains within one
+  diameter of the walls over that on the axis, in a band above the junction (the floor of a
+  flat silo), while the free surface is well above the band.  Mass flow when MFI exceeds a
+  threshold (0.3: Johanson's index as used by Ketterhagen et al. 2009, Powder Technol. 195).
+* Dead zone: grains that were in the silo when the gate opened, never left and never moved
+  more than a mean grain radius from their place.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RateEstimate:
+    """Steady discharge rate [kg/s] with standard error [kg/s] over [t0, t1] [s]."""
+
+    rate: float
+    err: float
+    t0: float
+    t1: float
+
+
+def steady_rate(t, m, lo: float = 0.15, hi: float = 0.75, blocks: int = 5) -> RateEstimate:
+    """Steady discharge rate from the discharged mass m(t) [kg] at times t [s] (see module)."""
+    t = np.asarray(t, dtype=float)
+    m = np.asarray(m, dtype=float)
+    nan = RateEstimate(float("nan"), float("nan"), float("nan"), float("nan"))
+    if t.size < 3 or not np.isfinite(m).any() or np.nanmax(m) <= 0:
+        return nan
+    total = np.nanmax(m)
+    sel = (m >= lo * total) & (m <= hi * total)
+    if sel.sum() < 3:
+        return nan
+    ts, ms = t[sel], m[sel]
+    rate = float(np.polyfit(ts, ms, 1)[0])
+    edges = np.linspace(ts[0], ts[-1], blocks + 1)
+    slopes = []
+    for a, b in itertools.pairwise(edges):
+        k = (ts >= a) & (ts <= b)
+        if k.sum() >= 3 and np.ptp(ts[k]) > 0:
+            slopes.append(np.polyfit(ts[k], ms[k], 1)[0])
+    err = float(np.std(slopes, ddof=1) / np.sqrt(len(slopes))) if len(slopes) > 1 else float(
+        "nan")
+    return RateEstimate(rate, err, float(ts[0]), float(ts[-1]))
+
+
+def flow_rate_series(t, m, width: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+    """Mass flow rate [kg/s] against time: slope of m(t) [kg] over a sliding window of
+    ``width`` seconds (a difference of the mass at the window's ends)."""
+    t = np.asarray(t, dtype=float)
+    m = np.asarray(m, dtype=float)
+    if t.size < 2:
+        return np.zeros(0), np.zeros(0)
+    half = 0.5 * width
+    a = np.searchsorted(t, t - half)
+    b = np.clip(np.searchsorted(t, t + half, side="right") - 1, 0, t.size - 1)
+    ok = t[b] > t[a]
+    rate = np.full(t.size, np.nan)
+    rate[ok] = (m[b[ok]] - m[a[ok]]) / (t[b[ok]] - t[a[ok]])
+    return t, rate
+
+
+def mass_flow_index(v_wall, v_axis, level, band_top: float, margin: float) -> float:
+    """MFI = mean(v_wall) / mean(v_axis) [-] over the samples whose free surface ``level`` [m]
+    is above ``band_top + margin`` and where both velocities are measured (NaN if none)."""
+    v_wall, v_axis, level = (np.asarray(v, dtype=float) for v in (v_wall, v_axis, level))
+    ok = np.isfinite(v_wall) & np.isfinite(v_axis) & (level > band_top + margin)
+    if not ok.any():
+        return float("nan")
+    va = float(np.mean(v_axis[ok]))
+    return float(np.mean(v_wall[ok]) / va) if va != 0 else float("nan")
+
+
+def dead_zone(exit_time, max_displacement, radius) -> np.ndarray:
+    """True for the grains that never left and never moved more than ``radius`` [m]."""
+    return np.isnan(np.asarray(exit_time)) & (np.asarray(max_displacement) < radius)
+
+
+def classify_flow(mfi: float, dead_fraction: float, threshold: float = 0.3) -> str:
+    """'mass flow' when MFI >= threshold and no dead zone (< 1 % of the grains), else
+    'funnel flow'; 'unknown' when the MFI could not be measured."""
+    if not np.isfinite(mfi):
+        return "unknown"
+    return "mass flow" if mfi >= threshold and dead_fraction < 0.01 else "funnel flow"

@@ -1,0 +1,383 @@
+"""The measurement recorder of a run (docs/measurements.md, layout in docs/output.md).
+
+``recorders_for(cfg)`` gives the recorders ``SiloRun`` samples; here one ``MeasureRecorder``
+(group ``/measure`` of results.h5) every ``measure.interval`` seconds of simulated time.  Each
+sample reads the run once (:mod:`silodem.measure.frame`) and feeds three parts:
+
+* circles:  Love-Weber stress, porosity, coordination number in each measurement circle, and
+            the coordination number of the band across the junction (Fig. 2);
+* profiles: normal and shear stress in bins along every wall; Love-Weber stress in near-wall
+            strips along both edges of the silo and in full-width slices, binned in z;
+* flow:     from the gate opening on: when each grain leaves, how far it moved (dead zones),
+            the mean velocity field on a grid over the discharge window, the velocities near the
+            walls and on the axis above the junction (mass flow index), and a snapshot of the
+            grains and contacts in the middle of the discharge window (force network, Fig. 5).
+
+Nothing here changes the run.  ``state``/``restore`` carry all gathered data through a
+checkpoint (a flat dict of NumPy arrays and scalars).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from silodem.config import Config
+from silodem.measure import regions
+from silodem.measure.frame import Frame, frame_from_sim
+from silodem.measure.stress import circle_measure, region_stress
+from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
+from silodem.silo.geometry import build_walls, silo_shape
+from silodem.silo.recorders import PHASE_CODES, Recorder, Snapshot, take_snapshot
+
+if TYPE_CHECKING:
+    import h5py
+
+    from silodem.silo.procedure import SiloRun
+
+DISCHARGE = PHASE_CODES["discharge"]
+
+
+def _stack(rows: list, shape: tuple[int, ...]) -> np.ndarray:
+    return np.array(rows, dtype=float).reshape((len(rows), *shape))
+
+
+def _dataset(group, name: str, data, unit: str | None = None, **attrs) -> None:
+    arr = np.asarray(data)
+    kw = {"compression": "gzip", "compression_opts": 4} if arr.size > 4096 else {}
+    ds = group.create_dataset(name, data=arr, **kw)
+    if unit is not None:
+        ds.attrs["unit"] = unit
+    for k, v in attrs.items():
+        ds.attrs[k] = v
+
+
+class _CirclesPart:
+    def __init__(self, cfg: Config, shape) -> None:
+        self.circles = regions.circles_for(cfg, shape)
+        self.band = regions.junction_band(cfg, shape)
+        self.band_area = shape.area_below(self.band[1]) - shape.area_below(self.band[0])
+        self.thickness = cfg.material.thickness
+        self.rows: dict[str, list] = {k: [] for k in ("stress", "porosity", "coordination",
+                                                      "count", "band")}
+
+    def record(self, fr: Frame) -> None:
+        nc = len(self.circles)
+        stress, por, coord, cnt = np.full((nc, 3), np.nan), np.full(nc, np.nan), \
+            np.full(nc, np.nan), np.zeros(nc)
+        for k, c in enumerate(self.circles):
+            m = circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, c.x, c.z, c.radius,
+                               c.area_inside, self.thickness)
+            stress[k], por[k], coord[k], cnt[k] = m["stress"], m["porosity"], \
+                m["coordination"], m["count"]
+        inb = (fr.z >= self.band[0]) & (fr.z < self.band[1])
+        nb = int(inb.sum())
+        band_stress = region_stress(fr.moments, inb, self.band_area, self.thickness)
+        band = [fr.counts[inb].mean() if nb else np.nan, nb, *band_stress]
+        for key, val in zip(self.rows, (stress, por, coord, cnt, band)):
+            self.rows[key].append(val)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        nc = len(self.circles)
+        shapes = {"stress": (nc, 3), "porosity": (nc,), "coordination": (nc,), "count": (nc,),
+                  "band": (5,)}
+        return {k: _stack(v, shapes[k]) for k, v in self.rows.items()}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        for k in self.rows:
+            self.rows[k] = list(np.asarray(state[f"circles.{k}"]))
+
+    def write(self, g: h5py.Group) -> None:
+        import h5py
+
+        a = self.arrays()
+        c = g.create_group("circles")
+        c.create_dataset("name", data=np.array([x.name for x in self.circles],
+                                               dtype=h5py.string_dtype()))
+        for key in ("x", "z", "radius", "area_inside"):
+            _dataset(c, key, [getattr(x, key) for x in self.circles],
+                     "m^2" if key == "area_inside" else "m")
+        _dataset(c, "stress", a["stress"], "Pa",
+                 components="xx,zz,xz; compression positive (Love-Weber, PFC normalisation)")
+        _dataset(c, "porosity", a["porosity"], "-")
+        _dataset(c, "coordination", a["coordination"], "-")
+        _dataset(c, "count", a["count"], "-")
+        b = g.create_group("band")
+        b.attrs["z_lo"], b.attrs["z_hi"] = self.band
+        _dataset(b, "coordination", a["band"][:, 0], "-")
+        _dataset(b, "count", a["band"][:, 1], "-")
+        _dataset(b, "stress", a["band"][:, 2:], "Pa", components="xx,zz,xz")
+
+
+class _ProfilesPart:
+    def __init__(self, cfg: Config, shape, walls) -> None:
+        self.walls = walls
+        self.shape = shape
+        self.bins = wall_bins(walls.ax, walls.ay, walls.bx, walls.by, regions.bin_length(cfg))
+        self.z_edges = regions.profile_edges(cfg, shape)
+        self.width = regions.strip_width(cfg)
+        dz = np.diff(self.z_edges)
+        self.strip_area = self.width * dz
+        self.slice_area = np.array([shape.area_below(b) - shape.area_below(a)
+                                    for a, b in zip(self.z_edges[:-1], self.z_edges[1:])])
+        self.thickness = cfg.material.thickness
+        self.normal: list = []
+        self.shear: list = []
+        self.left: list = []
+        self.right: list = []
+        self.slices: list = []
+
+    def record(self, fr: Frame) -> None:
+        w = self.walls
+        sn, tau = wall_stress(self.bins, w.ax, w.ay, fr.w_wall, fr.w_cx, fr.w_cz, fr.w_fx,
+                              fr.w_fz, self.thickness)
+        self.normal.append(sn)
+        self.shear.append(tau)
+        dl, dr = regions.edge_distance(self.shape, fr.x, fr.z)
+        args = (fr.moments, fr.z)
+        self.left.append(binned_stress(*args, dl < self.width, self.z_edges, self.strip_area,
+                                       self.thickness))
+        self.right.append(binned_stress(*args, dr < self.width, self.z_edges, self.strip_area,
+                                        self.thickness))
+        self.slices.append(binned_stress(*args, np.ones(fr.n, bool), self.z_edges,
+                                         self.slice_area, self.thickness))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        nb, nz = self.bins.wall.size, self.z_edges.size - 1
+        return {"normal": _stack(self.normal, (nb,)), "shear": _stack(self.shear, (nb,)),
+                "left": _stack(self.left, (nz, 3)), "right": _stack(self.right, (nz, 3)),
+                "slices": _stack(self.slices, (nz, 3))}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        for k in ("normal", "shear", "left", "right", "slices"):
+            setattr(self, k, list(np.asarray(state[f"profiles.{k}"])))
+
+    def write(self, g: h5py.Group) -> None:
+        a = self.arrays()
+        b = self.bins
+        wg = g.create_group("wall_bins")
+        _dataset(wg, "wall", b.wall, "-")
+        for key in ("s0", "s1", "x", "z"):
+            _dataset(wg, key, getattr(b, key), "m")
+        _dataset(wg, "tangent", b.tangent, "-")
+        _dataset(wg, "normal_vector", b.normal, "-")
+        _dataset(wg, "normal", a["normal"], "Pa",
+                 meaning="pressure of the grains on the wall, per bin")
+        _dataset(wg, "shear", a["shear"], "Pa",
+                 meaning="shear traction on the wall along its tangent A->B, per bin")
+        pg = g.create_group("profiles")
+        _dataset(pg, "z_edges", self.z_edges, "m")
+        pg.attrs["strip_width"] = self.width
+        for key in ("left", "right", "slices"):
+            _dataset(pg, key, a[key], "Pa", components="xx,zz,xz; compression positive")
+
+
+class _FlowPart:
+    def __init__(self, cfg: Config, shape) -> None:
+        m = cfg.measure
+        self.shape = shape
+        self.delay, self.window = m.discharge_delay, m.window
+        self.d = regions.mean_diameter(cfg)
+        cell = m.grid_cell or self.d
+        self.x_edges = np.linspace(0.0, shape.width, max(1, round(shape.width / cell)) + 1)
+        self.z_edges = np.linspace(0.0, shape.wall_top, max(1, round(shape.wall_top / cell)) + 1)
+        self.mfi_band = (np.nan, np.nan)  # set when the gate opens, from the fill level
+        self.t_open = np.nan
+        self.uid0 = np.zeros(0, dtype=np.int64)
+        self.x0 = self.z0 = self.r0 = self.exit_time = self.max_disp = np.zeros(0)
+        shape2 = (self.x_edges.size - 1, self.z_edges.size - 1)
+        self.grid = np.zeros((3, *shape2))  # sum vx, sum vz, count
+        self.grid_samples = 0
+        self.mfi_rows: list = []
+        self.snapshot: Snapshot | None = None
+
+    def start(self, run: SiloRun) -> None:
+        """The gate opens: note every grain's place; fit the mass-flow-index band (one
+        diameter above the junction, a third of the remaining fill, between one diameter and
+        B/2 high) under the free surface."""
+        p = run.sim.particles
+        self.t_open = run.sim.time
+        lo = regions.reference_height(self.shape, 0.0) + self.d
+        height = float(np.clip((run.fill_level() - lo) / 3.0, self.d, 0.5 * self.shape.width))
+        self.mfi_band = (lo, lo + height)
+        self.uid0 = p.view("uid").copy()
+        self.x0, self.z0, self.r0 = p.view("x").copy(), p.view("y").copy(), \
+            p.view("radius").copy()
+        self.exit_time = np.full(self.uid0.size, np.nan)
+        self.max_disp = np.zeros(self.uid0.size)
+
+    def record(self, run: SiloRun, fr: Frame) -> None:
+        if not np.isfinite(self.t_open):
+            return
+        t = fr.time - self.t_open
+        order = np.argsort(fr.uid)
+        pos = np.searchsorted(fr.uid[order], self.uid0)
+        pos = np.clip(pos, 0, max(fr.n - 1, 0))
+        idx = order[pos] if fr.n else pos
+        present = (fr.uid[idx] == self.uid0) if fr.n else np.zeros(self.uid0.size, bool)
+        present &= fr.z[idx] >= 0.0 if fr.n else present
+        gone = ~present & np.isnan(self.exit_time)
+        self.exit_time[gone] = t
+        if fr.n:
+            k = idx[present]
+            disp = np.hypot(fr.x[k] - self.x0[present], fr.z[k] - self.z0[present])
+            self.max_disp[present] = np.maximum(self.max_disp[present], disp)
+        if fr.n == 0:
+            return
+        if self.delay <= t <= self.delay + self.window:
+            self._grid(fr)
+            if self.snapshot is None and t >= self.delay + 0.5 * self.window:
+                self.snapshot = take_snapshot(run)
+        self._mfi(fr, t)
+
+    def _grid(self, fr: Frame) -> None:
+        ix = np.searchsorted(self.x_edges, fr.x, side="right") - 1
+        iz = np.searchsorted(self.z_edges, fr.z, side="right") - 1
+        ok = (ix >= 0) & (ix < self.grid.shape[1]) & (iz >= 0) & (iz < self.grid.shape[2])
+        flat = ix[ok] * self.grid.shape[2] + iz[ok]
+        size = self.grid.shape[1] * self.grid.shape[2]
+        for c, w in enumerate((fr.vx[ok], fr.vz[ok], np.ones(int(ok.sum())))):
+            self.grid[c] += np.bincount(flat, weights=w, minlength=size).reshape(
+                self.grid.shape[1:])
+        self.grid_samples += 1
+
+    def _mfi(self, fr: Frame, t: float) -> None:
+        lo, hi = self.mfi_band
+        band = (fr.z >= lo) & (fr.z < hi)
+        dl, dr = regions.edge_distance(self.shape, fr.x, fr.z)
+        near = band & ((dl < self.d) | (dr < self.d))
+        axis = band & (np.abs(fr.x - 0.5 * self.shape.width) < self.d)
+        tops = np.sort(fr.z + fr.r)[-min(5, fr.n):]
+        self.mfi_rows.append((t, fr.vz[near].mean() if near.any() else np.nan,
+                              fr.vz[axis].mean() if axis.any() else np.nan, near.sum(),
+                              axis.sum(), float(np.mean(tops))))
+
+    def state(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"flow.t_open": self.t_open, "flow.uid0": self.uid0,
+                               "flow.x0": self.x0, "flow.z0": self.z0, "flow.r0": self.r0,
+                               "flow.exit_time": self.exit_time, "flow.max_disp": self.max_disp,
+                               "flow.grid": self.grid, "flow.grid_samples": self.grid_samples,
+                               "flow.mfi": _stack(self.mfi_rows, (6,)),
+                               "flow.mfi_band": np.array(self.mfi_band)}
+        if self.snapshot is not None:
+            s = self.snapshot
+            out["flow.snap.time"] = s.time
+            out["flow.snap.walls_active"] = s.walls_active
+            for sub in ("particles", "contacts", "wall_contacts"):
+                for key, arr in getattr(s, sub).items():
+                    out[f"flow.snap.{sub}.{key}"] = arr
+        return out
+
+    def restore(self, state: dict[str, Any]) -> None:
+        self.t_open = float(state["flow.t_open"])
+        for key in ("uid0", "x0", "z0", "r0", "exit_time", "max_disp", "grid"):
+            setattr(self, key, np.array(state[f"flow.{key}"]))
+        self.grid_samples = int(state["flow.grid_samples"])
+        self.mfi_band = tuple(float(v) for v in state["flow.mfi_band"])
+        self.mfi_rows = [tuple(r) for r in np.asarray(state["flow.mfi"]).tolist()]
+        if "flow.snap.time" in state:
+            parts: dict[str, dict[str, np.ndarray]] = {"particles": {}, "contacts": {},
+                                                        "wall_contacts": {}}
+            for key, val in state.items():
+                if key.startswith("flow.snap.") and key.count(".") == 3:
+                    _, _, sub, name = key.split(".")
+                    parts[sub][name] = np.array(val)
+            self.snapshot = Snapshot(float(state["flow.snap.time"]), parts["particles"],
+                                     parts["contacts"], parts["wall_contacts"],
+                                     np.array(state["flow.snap.walls_active"]))
+
+    def write(self, g: h5py.Group) -> None:
+        f = g.create_group("flow")
+        f.attrs["t_open"] = self.t_open
+        f.attrs["window_start"] = self.delay
+        f.attrs["window"] = self.window
+        f.attrs["mfi_band_lo"], f.attrs["mfi_band_hi"] = self.mfi_band
+        _dataset(f, "uid", self.uid0, "-")
+        _dataset(f, "x0", self.x0, "m")
+        _dataset(f, "z0", self.z0, "m")
+        _dataset(f, "r0", self.r0, "m")
+        _dataset(f, "exit_time", self.exit_time, "s", meaning="time after the gate opened at "
+                 "which the grain left (NaN: still inside)")
+        _dataset(f, "max_displacement", self.max_disp, "m")
+        grid = f.create_group("grid")
+        _dataset(grid, "x_edges", self.x_edges, "m")
+        _dataset(grid, "z_edges", self.z_edges, "m")
+        count = self.grid[2]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            _dataset(grid, "vx", np.where(count > 0, self.grid[0] / count, np.nan), "m/s")
+            _dataset(grid, "vz", np.where(count > 0, self.grid[1] / count, np.nan), "m/s")
+            _dataset(grid, "occupancy", count / max(self.grid_samples, 1), "-",
+                     meaning="mean number of grain centres in the cell per sample")
+        grid.attrs["samples"] = self.grid_samples
+        mfi = _stack(self.mfi_rows, (6,))
+        m = f.create_group("mass_flow_index")
+        for k, (key, unit) in enumerate((("time", "s"), ("v_wall", "m/s"), ("v_axis", "m/s"),
+                                         ("n_wall", "-"), ("n_axis", "-"), ("level", "m"))):
+            _dataset(m, key, mfi[:, k], unit)
+        if self.snapshot is not None:
+            s = self.snapshot
+            sg = g.create_group("discharge_snapshot")
+            sg.attrs["time"] = s.time
+            sg.create_dataset("walls_active", data=s.walls_active)
+            for sub in ("particles", "contacts", "wall_contacts"):
+                h = sg.create_group(sub)
+                for key, arr in getattr(s, sub).items():
+                    h.create_dataset(key, data=arr)
+
+
+class MeasureRecorder(Recorder):
+    """Circles, wall and edge profiles, and discharge flow, sampled every ``measure.interval``."""
+
+    name = "measure"
+
+    def __init__(self, cfg: Config) -> None:
+        super().__init__(cfg.measure.interval)
+        shape = silo_shape(cfg)
+        walls = build_walls(cfg)
+        self.circles = _CirclesPart(cfg, shape)
+        self.profiles = _ProfilesPart(cfg, shape, walls)
+        self.flow = _FlowPart(cfg, shape)
+        self.rows: list[tuple[float, float, float]] = []  # time, step, phase
+
+    def record(self, run: SiloRun) -> None:
+        fr = frame_from_sim(run.sim)
+        phase = PHASE_CODES[run.phase]
+        self.rows.append((fr.time, fr.step, phase))
+        self.circles.record(fr)
+        self.profiles.record(fr)
+        if phase == DISCHARGE:
+            self.flow.record(run, fr)
+
+    def phase_ended(self, run: SiloRun, phase: str) -> None:
+        if phase == "settle" and run.cfg.discharge.enabled:
+            self.flow.start(run)
+
+    def state(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"rows": _stack(self.rows, (3,))}
+        out.update({f"circles.{k}": v for k, v in self.circles.arrays().items()})
+        out.update({f"profiles.{k}": v for k, v in self.profiles.arrays().items()})
+        out.update(self.flow.state())
+        return out
+
+    def restore(self, state: dict[str, Any]) -> None:
+        self.rows = [tuple(r) for r in np.asarray(state["rows"]).tolist()]
+        self.circles.restore(state)
+        self.profiles.restore(state)
+        self.flow.restore(state)
+
+    def write(self, group: h5py.Group) -> None:
+        rows = _stack(self.rows, (3,))
+        _dataset(group, "time", rows[:, 0], "s")
+        _dataset(group, "step", rows[:, 1].astype(np.int64), "-")
+        _dataset(group, "phase", rows[:, 2].astype(np.int8), "-",
+                 codes="fill=0,settle=1,discharge=2")
+        group.attrs["interval"] = self.interval
+        self.circles.write(group)
+        self.profiles.write(group)
+        self.flow.write(group)
+
+
+def recorders_for(cfg: Config) -> list[Recorder]:
+    """The measurement recorders a run of ``cfg`` needs (pass to ``SiloRun(recorders=...)``)."""
+    return [MeasureRecorder(cfg)]

@@ -1,0 +1,128 @@
+"""Stress profiles along the walls and through the silo.
+
+Wall stresses: each wall segment A->B is cut into bins of equal length (about ``bin_len``);
+a grain-wall contact falls in the bin of its contact point.  With f the force of the wall ON
+the grain [N], t the unit tangent A->B, n_in the wall's inner normal (the left of A->B) and the
+bin length L_b [m] and grain thickness t_g [m]:
+
+    normal stress  sigma_n = sum f . n_in / (L_b t_g)    [Pa]  (pressure on the wall, >= 0)
+    shear stress   tau     = sum (-f) . t  / (L_b t_g)   [Pa]  (traction ON the wall along A->B)
+
+so that sum over bins of (sigma_n (-n_in) + tau t) L_b t_g is the total force of the grains on
+the wall.  On the silo's vertical walls sigma_n is the horizontal stress sigma_h.
+
+Profiles through the grains use the Love-Weber stress (``stress``) of the grains whose centres
+lie in horizontal bins: near-wall strips of width w along the left and right edges of the silo
+(they follow the hopper walls below the junction), and full-width slices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class WallBins:
+    """Bins along every wall: per bin its wall, start/end along the wall [m], length [m] and
+    centre (x, z) [m]; per wall its unit tangent and inner normal."""
+
+    wall: np.ndarray
+    s0: np.ndarray
+    s1: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    tangent: np.ndarray  # (n_walls, 2)
+    normal: np.ndarray  # (n_walls, 2), inner normal
+
+    @property
+    def length(self) -> np.ndarray:
+        return self.s1 - self.s0
+
+    def of_wall(self, w: int) -> np.ndarray:
+        return np.flatnonzero(self.wall == w)
+
+
+def wall_bins(ax, ay, bx, by, bin_len: float) -> WallBins:
+    """Cut each wall into round(L / bin_len) (at least 1) equal bins."""
+    ax, ay, bx, by = (np.asarray(v, dtype=float) for v in (ax, ay, bx, by))
+    length = np.hypot(bx - ax, by - ay)
+    tangent = np.column_stack([(bx - ax) / length, (by - ay) / length])
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    wall, s0, s1 = [], [], []
+    for w, L in enumerate(length):
+        k = max(1, round(L / bin_len))
+        edges = np.linspace(0.0, L, k + 1)
+        wall += [w] * k
+        s0 += list(edges[:-1])
+        s1 += list(edges[1:])
+    wall_a, s0_a, s1_a = np.array(wall, dtype=np.int64), np.array(s0), np.array(s1)
+    mid = 0.5 * (s0_a + s1_a)
+    return WallBins(wall_a, s0_a, s1_a, ax[wall_a] + mid * tangent[wall_a, 0],
+                    ay[wall_a] + mid * tangent[wall_a, 1], tangent, normal)
+
+
+def contact_bins(bins: WallBins, ax, ay, w_wall, w_cx, w_cy) -> np.ndarray:
+    """Bin index of each grain-wall contact (contact point (w_cx, w_cy) on wall w_wall)."""
+    t = bins.tangent[w_wall]
+    s = (w_cx - ax[w_wall]) * t[:, 0] + (w_cy - ay[w_wall]) * t[:, 1]
+    first = np.searchsorted(bins.wall, np.arange(bins.tangent.shape[0]))
+    count = np.bincount(bins.wall, minlength=bins.tangent.shape[0])
+    L = bins.s1[first + count - 1]
+    k = np.floor(s / L[w_wall] * count[w_wall]).astype(np.int64)
+    return first[w_wall] + np.clip(k, 0, count[w_wall] - 1)
+
+
+def wall_stress(bins: WallBins, ax, ay, w_wall, w_cx, w_cy, w_fx, w_fy,
+                thickness: float) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma_n, tau) per bin [Pa] from the grain-wall contacts (force ON the grain, [N])."""
+    nb = bins.wall.size
+    if len(w_wall) == 0:
+        return np.zeros(nb), np.zeros(nb)
+    b = contact_bins(bins, ax, ay, w_wall, w_cx, w_cy)
+    nrm, tan = bins.normal[w_wall], bins.tangent[w_wall]
+    fn = w_fx * nrm[:, 0] + w_fy * nrm[:, 1]
+    ft = -(w_fx * tan[:, 0] + w_fy * tan[:, 1])
+    area = bins.length * thickness
+    return (np.bincount(b, weights=fn, minlength=nb) / area,
+            np.bincount(b, weights=ft, minlength=nb) / area)
+
+
+def wall_force_from_profile(bins: WallBins, sigma_n, tau, thickness: float) -> np.ndarray:
+    """Force of the grains on each wall (n_walls, 2) [N] rebuilt from binned stresses."""
+    area = bins.length * thickness
+    fx = (-sigma_n * bins.normal[bins.wall, 0] + tau * bins.tangent[bins.wall, 0]) * area
+    fy = (-sigma_n * bins.normal[bins.wall, 1] + tau * bins.tangent[bins.wall, 1]) * area
+    nw = bins.tangent.shape[0]
+    return np.column_stack([np.bincount(bins.wall, weights=fx, minlength=nw),
+                            np.bincount(bins.wall, weights=fy, minlength=nw)])
+
+
+def binned_stress(moments, z, mask, z_edges, areas, thickness: float) -> np.ndarray:
+    """Love-Weber stress (xx, zz, xz) [Pa] of the grains in ``mask`` binned by centre height
+    ``z`` into ``z_edges``; ``areas`` [m^2] is the area of each bin's region.  Shape (nbins, 3);
+    NaN where a bin has no area."""
+    nb = len(z_edges) - 1
+    k = np.searchsorted(z_edges, z, side="right") - 1
+    ok = mask & (k >= 0) & (k < nb)
+    out = np.empty((nb, 3))
+    m = moments[ok]
+    kk = k[ok]
+    parts = [m[:, 0, 0], m[:, 1, 1], 0.5 * (m[:, 0, 1] + m[:, 1, 0])]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(areas > 0, -1.0 / (np.asarray(areas) * thickness), np.nan)
+    for c, vals in enumerate(parts):
+        out[:, c] = np.bincount(kk, weights=vals, minlength=nb)[:nb] * scale
+    return out
+
+
+def peak_in_zone(z, values, z_lo: float, z_hi: float) -> tuple[float, float]:
+    """(largest value, its z) among the points with z_lo <= z <= z_hi; (nan, nan) if none."""
+    z = np.asarray(z, dtype=float)
+    v = np.asarray(values, dtype=float)
+    sel = (z >= z_lo) & (z <= z_hi) & np.isfinite(v)
+    if not np.any(sel):
+        return float("nan"), float("nan")
+    k = np.argmax(np.where(sel, v, -np.inf))
+    return float(v[k]), float(z[k])

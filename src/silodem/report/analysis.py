@@ -1,0 +1,339 @@
+"""From results.h5 to the numbers and curves of the report: time windows, wall and edge
+profiles, the Janssen fit, the hopper theory, the switch-zone peak, the evolution at the switch
+zone, and the discharge (rate, flow pattern, dead zones).  Units SI, stresses compressive
+positive [Pa]."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from silodem import theory as th
+from silodem.measure import discharge as dis
+from silodem.measure import regions
+from silodem.measure.wall_profiles import peak_in_zone
+from silodem.report.load import Results
+from silodem.silo.geometry import silo_shape
+
+SETTLE, DISCHARGE = 1, 2
+
+
+@dataclass
+class EdgeProfile:
+    """Time-averaged wall stresses along the left and right edges of the silo (vertical wall +
+    hopper wall or floor), and their mean over both sides (sorted by z)."""
+
+    z: np.ndarray  # bin centres [m]
+    sigma_n: np.ndarray  # wall normal stress, both sides averaged [Pa]
+    tau_down: np.ndarray  # downward shear traction on the wall [Pa]
+    on_vertical: np.ndarray  # bin on a vertical wall [bool]
+    sides: dict[str, tuple[np.ndarray, np.ndarray]]  # side -> (z, sigma_n)
+
+
+@dataclass
+class Analysis:
+    res: Results
+    geom: dict[str, float]
+    windows: dict[str, tuple[float, float]]
+    surface: dict[str, float]
+    rho_b: float
+    edge: dict[str, EdgeProfile] = field(default_factory=dict)
+    strips: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    janssen: dict[str, th.JanssenFit] = field(default_factory=dict)  # mu_w = tan(phi_P)
+    janssen_free: th.JanssenFit | None = None  # K and mu_w fitted after filling
+    mu_mobilised: dict[str, float] = field(default_factory=dict)
+    hopper: dict[str, Any] = field(default_factory=dict)
+    peaks: dict[str, tuple[float, float]] = field(default_factory=dict)
+    switch: tuple[float, float] = (0.0, 0.0)
+    change: dict[str, dict[str, float]] = field(default_factory=dict)
+    flow: dict[str, Any] = field(default_factory=dict)
+    numbers: list[tuple[str, str, str]] = field(default_factory=list)
+
+    @property
+    def measured(self) -> bool:
+        return self.res.group("measure") is not None
+
+
+def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[float, float]]]:
+    m = res.group("measure")
+    cfg = res.cfg.measure
+    t, phase = m["time"], m["phase"]
+    settle_t = t[phase == SETTLE]
+    t_open = float(res.events.get("discharge_start_time",
+                                  settle_t.max() if settle_t.size else t.max()))
+    fill = (t >= t_open - cfg.window) & (t <= t_open) & (phase == SETTLE)
+    d0 = t_open + cfg.discharge_delay
+    dwin = (phase == DISCHARGE) & (t >= d0) & (t <= d0 + cfg.window)
+    return ({"fill": fill, "discharge": dwin},
+            {"fill": (t_open - cfg.window, t_open), "discharge": (d0, d0 + cfg.window)})
+
+
+def surface_height(snap: dict[str, Any] | None, width: float, d: float) -> float:
+    """Mean height of the free surface [m]: the top of the highest grain in each column of
+    width d across the silo, averaged over the columns."""
+    if snap is None or snap["particles"]["x"].size == 0:
+        return float("nan")
+    p = snap["particles"]
+    x, top = p["x"], p["y"] + p["radius"]
+    cols = np.clip((x / d).astype(int), 0, max(int(width / d) - 1, 0))
+    tops = [top[cols == c].max() for c in np.unique(cols)]
+    return float(np.mean(tops))
+
+
+def bulk_density(snap: dict[str, Any] | None, cfg, shape, surface: float) -> float:
+    """Mass per volume of the grains in the cell [kg/m^3], between the junction (+1 diameter)
+    and the surface (-1 diameter); in the whole silo if that band is too thin."""
+    if snap is None:
+        return float("nan")
+    p = snap["particles"]
+    d = regions.mean_diameter(cfg)
+    mass = cfg.material.density * math.pi * p["radius"] ** 2 * cfg.material.thickness
+    lo, hi = shape.junction + d, surface - d
+    if hi - lo < 2 * d:
+        lo, hi = 0.0, surface
+    sel = (p["y"] >= lo) & (p["y"] < hi)
+    area = shape.area_below(hi) - shape.area_below(lo)
+    return float(mass[sel].sum() / (area * cfg.material.thickness)) if area > 0 else float("nan")
+
+
+def _edge(res: Results, mask: np.ndarray) -> EdgeProfile | None:
+    m = res.group("measure", "wall_bins")
+    if m is None or not mask.any():
+        return None
+    names = list(res.group("walls")["name"])
+    tang = m["tangent"]
+    normal = m["normal"][mask].mean(axis=0)
+    shear = m["shear"][mask].mean(axis=0)
+    sides: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+    for side in ("left", "right"):
+        ws = [names.index(n) for n in (f"{side}_wall", f"{side}_hopper") if n in names]
+        sel = np.isin(m["wall"], ws)
+        z = m["z"][sel]
+        ty = tang[m["wall"][sel], 1]
+        down = -shear[sel] * np.sign(np.where(ty == 0, 1.0, ty))
+        vertical = np.abs(ty) > 0.999
+        order = np.argsort(z)
+        sides[side] = (z[order], normal[sel][order], down[order], vertical[order])
+    (zl, nl, dl, vl), (zr, nr, dr, _) = sides["left"], sides["right"]
+    if zl.size == zr.size and np.allclose(zl, zr, atol=1e-6):
+        z, sn, td = zl, 0.5 * (nl + nr), 0.5 * (dl + dr)
+    else:
+        z, sn, td = zl, nl, dl
+    return EdgeProfile(z, sn, td, vl, {s: (v[0], v[1]) for s, v in sides.items()})
+
+
+def _strips(res: Results, mask: np.ndarray) -> dict[str, np.ndarray] | None:
+    p = res.group("measure", "profiles")
+    if p is None or not mask.any():
+        return None
+    ze = p["z_edges"]
+    near = 0.5 * (np.nanmean(p["left"][mask], axis=0) + np.nanmean(p["right"][mask], axis=0))
+    slices = np.nanmean(p["slices"][mask], axis=0)
+    return {"z": 0.5 * (ze[:-1] + ze[1:]), "near_xx": near[:, 0], "near_zz": near[:, 1],
+            "slice_xx": slices[:, 0], "slice_zz": slices[:, 1]}
+
+
+def analyse(res: Results) -> Analysis:
+    """Every derived number and curve of the report."""
+    cfg = res.cfg
+    shape = silo_shape(cfg)
+    d = regions.mean_diameter(cfg)
+    alpha = th.alpha_from_theta(cfg.silo.hopper_angle_from_horizontal_deg)
+    apex = th.apex_below_outlet(cfg.silo.outlet_width, alpha) if shape.kind == "hopper" else 0.0
+    geom = {"B": shape.width, "z_j": shape.junction, "D": cfg.silo.outlet_width,
+            "top": shape.wall_top, "alpha": alpha, "apex": apex, "d": d,
+            "t": cfg.material.thickness, "g": cfg.gravity,
+            "mu_wall": math.tan(math.radians(cfg.walls.friction_deg))}
+    settled, dsnap = res.snapshot("settled"), res.snapshot("discharge")
+    surface = {"fill": surface_height(settled, shape.width, d),
+               "discharge": surface_height(dsnap, shape.width, d)}
+    rho_b = bulk_density(settled, cfg, shape, surface["fill"])
+    a = Analysis(res, geom, {}, surface, rho_b)
+    a.switch = regions.switch_zone(cfg, shape)
+    if not a.measured:
+        return a
+    masks, a.windows = _window_masks(res)
+    for key, mask in masks.items():
+        edge = _edge(res, mask)
+        if edge is not None:
+            a.edge[key] = edge
+            a.peaks[key] = peak_in_zone(edge.z, edge.sigma_n, *a.switch)
+        strips = _strips(res, mask)
+        if strips is not None:
+            a.strips[key] = strips
+    _fit_theory(a, shape)
+    _evolution_change(a, masks)
+    _flow(a, shape)
+    _numbers(a)
+    return a
+
+
+def _fit_theory(a: Analysis, shape) -> None:
+    """Janssen K per window (mu_w = tan(phi_P), the paper's assumption of fully mobilised wall
+    friction), a free (K, mu_w) fit after filling, the mobilised wall friction, and the hopper
+    slice solutions with q = the measured mean vertical stress just above the junction."""
+    g = a.geom
+    for key, e in a.edge.items():
+        surface = a.surface[key]
+        if not np.isfinite(surface) or not np.isfinite(a.rho_b):
+            continue
+        depth = surface - e.z
+        cell = e.on_vertical & (e.z > a.switch[1]) & (depth > 0.5 * g["d"])
+        sn = e.sigma_n[cell]
+        if cell.sum() < 2 or np.sum(sn) <= 0:
+            continue
+        a.mu_mobilised[key] = float(np.sum(e.tau_down[cell]) / np.sum(sn))
+        try:
+            a.janssen[key] = th.fit_janssen(depth[cell], sn, a.rho_b, g["g"], g["B"],
+                                            mu_w=g["mu_wall"])
+            if key == "fill":
+                a.janssen_free = th.fit_janssen(depth[cell], sn, a.rho_b, g["g"], g["B"])
+        except (ValueError, RuntimeError):
+            pass
+    strips = a.strips.get("fill")
+    if shape.kind != "hopper" or strips is None or not np.isfinite(a.rho_b):
+        return
+    above = np.flatnonzero(strips["z"] > g["z_j"])
+    if above.size == 0 or not np.isfinite(strips["slice_zz"][above[0]]):
+        return
+    gamma = a.rho_b * g["g"]
+    q = float(strips["slice_zz"][above[0]])
+    H = g["z_j"] + g["apex"]
+    z = np.linspace(0.0, g["z_j"], 60)
+    h = z + g["apex"]
+    mu_h = g["mu_wall"]
+    hop = {"z": z, "q": q, "H": H, "mu": mu_h,
+           "planar": th.hopper_sigma_v(h, H, q, gamma, g["alpha"], mu_h, 1.0, True),
+           "conical": th.hopper_sigma_v(h, H, q, gamma, g["alpha"], mu_h, 1.0, False)}
+    e = a.edge.get("fill")
+    on_hopper = (~e.on_vertical & (e.z < g["z_j"]) & np.isfinite(e.sigma_n)) if e else None
+    if on_hopper is not None and on_hopper.sum() >= 2:
+        from scipy.optimize import minimize_scalar
+
+        zh, sh = e.z[on_hopper], e.sigma_n[on_hopper]
+
+        def err(D):
+            pred = th.hopper_wall_normal(zh + g["apex"], H, q, gamma, g["alpha"], mu_h, D, True)
+            return float(np.sum((pred - sh) ** 2))
+
+        D = float(minimize_scalar(err, bounds=(0.2, 5.0), method="bounded").x)
+        hop["D_fit"] = D
+        hop["planar_D"] = th.hopper_wall_normal(h, H, q, gamma, g["alpha"], mu_h, D, True)
+    a.hopper = hop
+
+
+def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
+    c = a.res.group("measure", "circles")
+    if c is None:
+        return
+    stress = c["stress"]
+    for k, name in enumerate(c["name"]):
+        row = {}
+        for comp, label in ((0, "sigma_h"), (1, "sigma_v")):
+            f = np.nanmean(stress[masks["fill"], k, comp]) if masks["fill"].any() else np.nan
+            dd = np.nanmean(stress[masks["discharge"], k, comp]) if masks[
+                "discharge"].any() else np.nan
+            row[label + "_fill"], row[label + "_discharge"] = float(f), float(dd)
+            row[label + "_change_pct"] = float(100.0 * (dd - f) / f) if f else float("nan")
+        a.change[str(name)] = row
+    if "fill" in a.peaks and "discharge" in a.peaks:
+        f, dd = a.peaks["fill"][0], a.peaks["discharge"][0]
+        a.change["wall peak"] = {"sigma_h_fill": f, "sigma_h_discharge": dd,
+                                 "sigma_h_change_pct": 100.0 * (dd - f) / f if f else np.nan}
+
+
+def _flow(a: Analysis, shape) -> None:
+    res, cfg = a.res, a.res.cfg
+    ts = res.group("timeseries")
+    if ts is None or "discharge_start_time" not in res.events:
+        return
+    t0 = float(res.events["discharge_start_time"])
+    sel = ts["phase"] == DISCHARGE
+    t, mass = ts["time"][sel] - t0, ts["discharged_mass"][sel]
+    rate = dis.steady_rate(t, mass)
+    a.flow.update(t=t, mass=mass, rate=rate, series=dis.flow_rate_series(t, mass))
+    f = res.group("measure", "flow")
+    if f is None or f["uid"].size == 0:
+        return
+    band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
+    mi = f["mass_flow_index"]
+    mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
+                              band_hi - band_lo)
+    dead = dis.dead_zone(f["exit_time"], f["max_displacement"], 0.5 * a.geom["d"])
+    dead_frac = float(dead.mean()) if dead.size else float("nan")
+    a.flow.update(mfi=mfi, dead=dead, dead_fraction=dead_frac,
+                  pattern=dis.classify_flow(mfi, dead_frac, cfg.measure.mass_flow_index_threshold))
+    if np.isfinite(rate.rate) and np.isfinite(a.rho_b):
+        a.flow["beverloo_C"] = th.beverloo_2d_C(rate.rate, cfg.silo.outlet_width, a.geom["d"],
+                                                a.rho_b, cfg.gravity, 1.5, a.geom["t"])
+
+
+def _fmt(v: float, digits: int = 4) -> str:
+    if v is None or not np.isfinite(v):
+        return "n/a"
+    return f"{v:.{digits}g}"
+
+
+def _pa(v: float) -> str:
+    return f"{v:,.0f}" if v is not None and np.isfinite(v) else "n/a"
+
+
+def _numbers(a: Analysis) -> None:
+    n = a.numbers
+    g = a.geom
+    n.append(("cell width B / outlet D / junction z_j",
+              f"{g['B']:.3g} / {g['D']:.3g} / {g['z_j']:.3g}", "m"))
+    if a.res.cfg.silo.kind == "hopper":
+        n.append(("hopper half-angle from the vertical alpha (= 90 - theta)",
+                  f"{g['alpha']:.3g}", "deg"))
+    n.append(("free surface after filling", _fmt(a.surface["fill"]), "m"))
+    n.append(("bulk density rho_b (cell)", _fmt(a.rho_b), "kg/m^3"))
+    n.append(("switch zone", f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))
+    for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
+        if key in a.peaks:
+            v, z = a.peaks[key]
+            n.append((f"switch-zone peak of the wall normal stress, {label}",
+                      f"{_pa(v)} at z = {_fmt(z, 3)} m", "Pa"))
+    for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
+        if key in a.mu_mobilised:
+            what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell walls, {label} "
+                    f"(tan phi_P = {_fmt(g['mu_wall'], 3)})")
+            n.append((what, _fmt(a.mu_mobilised[key], 3), "-"))
+        if key in a.janssen:
+            j = a.janssen[key]
+            n.append((f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)",
+                      f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}", "-"))
+    if a.janssen_free is not None:
+        j = a.janssen_free
+        n.append(("Janssen free fit after filling: K, mu_w", f"{_fmt(j.K, 3)}, {_fmt(j.mu_w, 3)}",
+                  "-"))
+    if "fill" in a.janssen and "fill" in a.peaks:
+        v, z = a.peaks["fill"]
+        jan = th.janssen_sigma_h(a.surface["fill"] - z, a.rho_b, g["g"], g["B"],
+                                 a.janssen["fill"].K, g["mu_wall"])
+        n.append(("switch-zone peak / Janssen sigma_h at its height, after filling",
+                  _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
+    if "q" in a.hopper:
+        n.append(("measured mean vertical stress q on the junction (hopper theory input)",
+                  _pa(a.hopper["q"]), "Pa"))
+    if "D_fit" in a.hopper:
+        n.append(("Walker distribution factor D fitted on the hopper walls (planar)",
+                  _fmt(a.hopper["D_fit"], 3), "-"))
+    for name, row in a.change.items():
+        parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
+                 if k.endswith("change_pct")]
+        n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
+    f = a.flow
+    if "rate" in f:
+        r = f["rate"]
+        n.append(("steady discharge rate W", f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}", "kg/s"))
+    if "pattern" in f:
+        n.append(("mass flow index v_wall / v_axis", _fmt(f["mfi"], 3), "-"))
+        n.append(("dead-zone fraction of the grains", _fmt(f["dead_fraction"], 3), "-"))
+        n.append(("flow pattern", f["pattern"], ""))
+    if "beverloo_C" in f:
+        n.append(("Beverloo 2D constant C implied by W (k = 1.5)", _fmt(f["beverloo_C"], 3),
+                  "-"))

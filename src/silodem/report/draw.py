@@ -1,0 +1,101 @@
+"""Drawing helpers shared by the report's figures: walls, grains, force networks, phases."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np
+from matplotlib.collections import LineCollection, PatchCollection
+from matplotlib.patches import Circle
+
+PHASE_COLORS = {0: ("#e8f0fb", "filling"), 1: ("#eef7e8", "settling"),
+                2: ("#fbeee6", "discharge")}
+
+
+def draw_walls(ax, walls: dict[str, Any], active=None) -> None:
+    """Wall segments; withdrawn walls (the open gate) dotted."""
+    act = walls["active"] if active is None else active
+    for k in range(len(walls["ax"])):
+        ax.plot([walls["ax"][k], walls["bx"][k]], [walls["ay"][k], walls["by"][k]],
+                "-" if act[k] else ":", color="k", lw=1.6, zorder=5)
+
+
+def draw_grains(ax, p: dict[str, np.ndarray], color="#e4ddcf", edge="#9c9280", **kw) -> None:
+    circles = [Circle((x, y), r) for x, y, r in zip(p["x"], p["y"], p["radius"])]
+    ax.add_collection(PatchCollection(circles, facecolor=color, edgecolor=edge, linewidth=0.3,
+                                      **kw))
+
+
+def draw_force_network(ax, snap: dict[str, Any], walls: dict[str, Any], fmax: float | None = None,
+                       cmap="inferno_r", max_width: float = 4.0):
+    """Grains, and every touching contact as a line whose width and colour grow with its normal
+    force (grain-grain: between the centres; grain-wall: from the centre to the wall).
+    Returns the line collection (for a colour bar) and the force scale [N]."""
+    p, c, wc = snap["particles"], snap["contacts"], snap["wall_contacts"]
+    draw_grains(ax, p)
+    draw_walls(ax, walls, snap.get("walls_active"))
+    segs, forces = [], []
+    if c["fn"].size:
+        segs.append(np.stack([np.column_stack([p["x"][c["i"]], p["y"][c["i"]]]),
+                              np.column_stack([p["x"][c["j"]], p["y"][c["j"]]])], axis=1))
+        forces.append(c["fn"])
+    if wc["fn"].size:
+        g, w = wc["grain"], wc["wall"]
+        ax_, ay_, bx_, by_ = (walls[k][w] for k in ("ax", "ay", "bx", "by"))
+        ux, uy = bx_ - ax_, by_ - ay_
+        s = np.clip(((p["x"][g] - ax_) * ux + (p["y"][g] - ay_) * uy) / (ux**2 + uy**2), 0, 1)
+        segs.append(np.stack([np.column_stack([p["x"][g], p["y"][g]]),
+                              np.column_stack([ax_ + s * ux, ay_ + s * uy])], axis=1))
+        forces.append(wc["fn"])
+    if not segs:
+        return None, 0.0
+    seg = np.concatenate(segs)
+    f = np.concatenate(forces)
+    scale = float(fmax if fmax else (f.max() or 1.0))
+    lc = LineCollection(seg, linewidths=0.15 + max_width * f / scale, cmap=cmap, zorder=4)
+    lc.set_array(f)
+    lc.set_clim(0.0, scale)
+    ax.add_collection(lc)
+    return lc, scale
+
+
+def shade_phases(ax, x, phase) -> None:
+    """Shade the filling, settling and discharge periods along the x axis (time or steps)."""
+    x = np.asarray(x)
+    phase = np.asarray(phase)
+    if x.size == 0:
+        return
+    seen = set()
+    start = 0
+    for k in range(1, x.size + 1):
+        if k == x.size or phase[k] != phase[start]:
+            code = int(phase[start])
+            color, label = PHASE_COLORS.get(code, ("#ffffff", ""))
+            ax.axvspan(x[start], x[k - 1], color=color, zorder=0,
+                       label=None if code in seen else label)
+            seen.add(code)
+            start = k
+
+
+def rolling_mean(y, n: int) -> np.ndarray:
+    """Centred running mean over n samples (NaN-aware)."""
+    y = np.asarray(y, dtype=float)
+    if n <= 1 or y.size < n:
+        return y
+    ok = np.isfinite(y)
+    k = np.ones(n)
+    num = np.convolve(np.where(ok, y, 0.0), k, mode="same")
+    den = np.convolve(ok.astype(float), k, mode="same")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / den, np.nan)
+
+
+def silo_axes(ax, geom: dict[str, float], margin: float = 0.3) -> None:
+    ax.set_aspect("equal")
+    ax.set_xlim(-margin, geom["B"] + margin)
+    ax.set_ylim(-0.6, geom["top"] + margin)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")

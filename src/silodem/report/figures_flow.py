@@ -1,0 +1,163 @@
+"""Figures of the grains: force networks (the paper's Figs. 4 and 5) and the discharge (flow
+rate, velocity field, dead zones).  Each function returns a matplotlib Figure or None."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from silodem.report.analysis import Analysis
+from silodem.report.draw import draw_force_network, draw_grains, draw_walls, silo_axes
+
+
+def _snaps(a: Analysis) -> list[tuple[str, dict]]:
+    out = []
+    for name, label in (("settled", "after filling"), ("discharge", "during discharge")):
+        s = a.res.snapshot(name)
+        if s is not None:
+            out.append((label + f", t = {s['@attrs'].get('time', np.nan):.2f} s", s))
+    return out
+
+
+def _common_scale(snaps) -> float:
+    f = [np.concatenate([s["contacts"]["fn"], s["wall_contacts"]["fn"]]) for _, s in snaps]
+    f = np.concatenate(f) if f else np.zeros(0)
+    return float(f.max()) if f.size and f.max() > 0 else 1.0
+
+
+def fig_network(a: Analysis) -> Figure | None:
+    """Fig. 5: the contact force network in the whole silo, after filling and during
+    discharge, line width and colour proportional to the normal force (same scale)."""
+    snaps = _snaps(a)
+    if not snaps:
+        return None
+    walls = a.res.group("walls")
+    fmax = _common_scale(snaps)
+    fig = Figure(figsize=(5.2 * len(snaps), 8.2), dpi=110)
+    axes = np.atleast_1d(fig.subplots(1, len(snaps)))
+    lc = None
+    for ax, (title, snap) in zip(axes, snaps):
+        lc, _ = draw_force_network(ax, snap, walls, fmax)
+        silo_axes(ax, a.geom)
+        ax.set_title(f"force network {title}", fontsize=9)
+    if lc is not None:
+        fig.colorbar(lc, ax=list(axes), shrink=0.6, label="normal contact force [N]")
+    return fig
+
+
+def fig_switch_network(a: Analysis) -> Figure | None:
+    """Fig. 4: the force network zoomed on the switch zone, after filling and during
+    discharge (same force scale): does the stress increase or decrease there?"""
+    snaps = _snaps(a)
+    if not snaps:
+        return None
+    walls = a.res.group("walls")
+    g = a.geom
+    zc = 0.5 * (a.switch[0] + a.switch[1])
+    half = max(1.2, 0.5 * (a.switch[1] - a.switch[0]) + 0.6)
+    xs = [(-0.2, min(g["B"], 2 * half) + 0.1)]
+    fmax = _common_scale(snaps)
+    fig = Figure(figsize=(5.5 * len(snaps), 5.6), dpi=110)
+    axes = np.atleast_1d(fig.subplots(1, len(snaps)))
+    lc = None
+    for ax, (title, snap) in zip(axes, snaps):
+        lc, _ = draw_force_network(ax, snap, walls, fmax, max_width=6.0)
+        ax.set_aspect("equal")
+        ax.set_xlim(*xs[0])
+        ax.set_ylim(max(zc - half, -0.3), zc + half)
+        ax.axhspan(*a.switch, color="#f6e7b5", alpha=0.35, zorder=0)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("z [m]")
+        ax.set_title(f"switch zone (left wall), {title}", fontsize=9)
+    if lc is not None:
+        fig.colorbar(lc, ax=list(axes), shrink=0.8, label="normal contact force [N]")
+    return fig
+
+
+def fig_discharge_rate(a: Analysis) -> Figure | None:
+    """Discharged mass and mass flow rate against time, with the steady rate and its error."""
+    f = a.flow
+    if "t" not in f or f["t"].size < 2:
+        return None
+    fig = Figure(figsize=(9, 6.5), dpi=100)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    t, m, r = f["t"], f["mass"], f["rate"]
+    ax1.plot(t, m, color="k", lw=1.5, label="discharged mass")
+    if np.isfinite(r.rate):
+        tt = np.array([r.t0, r.t1])
+        mid = np.interp(0.5 * (r.t0 + r.t1), t, m)
+        ax1.plot(tt, mid + r.rate * (tt - 0.5 * (r.t0 + r.t1)), color="#d62728", lw=2.5,
+                 alpha=0.8, label=f"steady rate W = {r.rate:.4g} +- {r.err:.2g} kg/s")
+    ax1.set_ylabel("mass [kg]")
+    ax1.legend(fontsize=8)
+    ts, rs = f["series"]
+    ax2.plot(ts, rs, color="k", lw=1.2, label="flow rate (0.25 s window)")
+    if np.isfinite(r.rate):
+        ax2.axhspan(r.rate - r.err, r.rate + r.err, color="#d62728", alpha=0.25)
+        ax2.axhline(r.rate, color="#d62728", lw=1.5, label="steady rate +- standard error")
+        ax2.axvspan(r.t0, r.t1, color="0.9", zorder=0, label="interval of the steady fit")
+    ax2.set_xlabel("time since the gate opened [s]")
+    ax2.set_ylabel("mass flow rate [kg/s]")
+    ax2.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def fig_velocity(a: Analysis) -> Figure | None:
+    """Mean velocity field over the discharge window: speed map and arrows."""
+    f = a.res.group("measure", "flow")
+    if f is None or f["grid"]["@attrs"].get("samples", 0) == 0:
+        return None
+    gr = f["grid"]
+    xe, ze, vx, vz = gr["x_edges"], gr["z_edges"], gr["vx"], gr["vz"]
+    occ = gr["occupancy"]
+    speed = np.where(occ > 0.05, np.hypot(vx, vz), np.nan)
+    fig = Figure(figsize=(6.2, 8.2), dpi=100)
+    ax = fig.subplots()
+    pm = ax.pcolormesh(xe, ze, speed.T, cmap="viridis", shading="flat")
+    xc, zc = 0.5 * (xe[:-1] + xe[1:]), 0.5 * (ze[:-1] + ze[1:])
+    X, Z = np.meshgrid(xc, zc, indexing="ij")
+    ok = np.isfinite(speed)
+    ax.quiver(X[ok], Z[ok], vx[ok], vz[ok], color="w", scale_units="xy", angles="xy",
+              width=0.004)
+    draw_walls(ax, a.res.group("walls"))
+    silo_axes(ax, a.geom)
+    w0, w1 = a.windows.get("discharge", (np.nan, np.nan))
+    ax.set_title(f"mean velocity during discharge (t = {w0:.2f}-{w1:.2f} s)\n"
+                 f"flow pattern: {a.flow.get('pattern', 'n/a')}, mass flow index "
+                 f"{a.flow.get('mfi', np.nan):.2f}", fontsize=9)
+    fig.colorbar(pm, ax=ax, shrink=0.6, label="speed [m/s]")
+    return fig
+
+
+def fig_dead_zones(a: Analysis) -> Figure | None:
+    """The grains at the gate opening coloured by the time they left; the dead zone (never
+    left, never moved more than a grain radius) in black."""
+    f = a.res.group("measure", "flow")
+    if f is None or f["uid"].size == 0 or "dead" not in a.flow:
+        return None
+    fig = Figure(figsize=(6.2, 8.2), dpi=100)
+    ax = fig.subplots()
+    p = {"x": f["x0"], "y": f["z0"], "radius": f["r0"]}
+    exit_t = f["exit_time"]
+    left = np.isfinite(exit_t)
+    dead = a.flow.get("dead", np.zeros(exit_t.size, bool))
+    stayed = ~left & ~dead
+    draw_grains(ax, {k: v[stayed] for k, v in p.items()}, color="#cccccc", edge="#999999")
+    draw_grains(ax, {k: v[dead] for k, v in p.items()}, color="k", edge="k")
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Circle
+
+    circles = [Circle((x, y), r) for x, y, r in zip(p["x"][left], p["y"][left],
+                                                       p["radius"][left])]
+    pc = PatchCollection(circles, cmap="plasma", edgecolor="none")
+    pc.set_array(exit_t[left])
+    ax.add_collection(pc)
+    draw_walls(ax, a.res.group("walls"), np.ones(len(a.res.group("walls")["ax"]), bool))
+    silo_axes(ax, a.geom)
+    ax.set_title(f"when each grain left the silo\nblack: dead zone "
+                 f"({100 * a.flow.get('dead_fraction', 0):.1f} % of the grains), grey: still "
+                 "inside at the end", fontsize=9)
+    if left.any():
+        fig.colorbar(pc, ax=ax, shrink=0.6, label="exit time after the gate opened [s]")
+    return fig

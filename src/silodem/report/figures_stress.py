@@ -1,0 +1,248 @@
+"""Figures of stresses and contacts: the paper's Figs. 2, 3a, 3b, 6, 7 and 8, and the wall
+shear.  Each function takes an :class:`~silodem.report.analysis.Analysis` and returns a
+matplotlib Figure (or None when the data is missing)."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from silodem import theory as th
+from silodem.report.analysis import Analysis
+from silodem.report.draw import rolling_mean, shade_phases
+
+PAPER_K = 0.4  # the paper's Janssen coefficient during filling
+
+
+def _zone(ax, a: Analysis) -> None:
+    g = a.geom
+    if g["z_j"] > 0:
+        ax.axhline(g["z_j"], color="0.3", lw=0.8, ls="--", label=f"junction z = {g['z_j']:.2f} m")
+    ax.axhspan(*a.switch, color="#f6e7b5", alpha=0.6, zorder=0, label="switch zone")
+
+
+def fig_coordination(a: Analysis) -> Figure | None:
+    """Fig. 2: coordination number against cycles at the junction and in the circles."""
+    m = a.res.group("measure")
+    if m is None:
+        return None
+    fig = Figure(figsize=(9, 6.4), dpi=100)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    step, phase = m["step"], m["phase"]
+    band = m["band"]
+    for ax in (ax1, ax2):
+        shade_phases(ax, step, phase)
+    lo, hi = band["@attrs"]["z_lo"], band["@attrs"]["z_hi"]
+    ax1.plot(step, band["coordination"], color="k", lw=0.8, alpha=0.35)
+    ax1.plot(step, rolling_mean(band["coordination"], 9), color="k", lw=1.6,
+             label=f"band {lo:.2f} < z < {hi:.2f} m across the silo")
+    ax1.set_ylabel("coordination number C_n [-]")
+    ax1.set_title("(a) at the cell-hopper junction (eq. 10: C_n = sum n_c / N_p)", fontsize=10)
+    c = m["circles"]
+    for k, name in enumerate(c["name"]):
+        ax2.plot(step, rolling_mean(c["coordination"][:, k], 9), lw=1.4, label=str(name))
+    ax2.set_ylabel("C_n [-]")
+    ax2.set_xlabel("cycles (time steps)")
+    ax2.set_title("(b) in the measurement circles", fontsize=10)
+    for ax in (ax1, ax2):
+        ax.axhline(4.0, color="0.5", lw=0.7, ls=":")
+        ax.set_ylim(0, 6.5)
+        ax.legend(fontsize=8, loc="lower right", ncol=2)
+    fig.tight_layout()
+    return fig
+
+
+def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
+    g = a.geom
+    surf = a.surface[key]
+    if not np.isfinite(surf) or not np.isfinite(a.rho_b):
+        return
+    z = np.linspace(g["z_j"], surf, 80)
+    depth = surf - z
+    f = th.janssen_sigma_h if which == "h" else th.janssen_sigma_v
+    j = a.janssen.get(key)
+    if j is not None:
+        ax.plot(f(depth, a.rho_b, g["g"], g["B"], j.K, g["mu_wall"]), z, color="#1f77b4", lw=2,
+                label=f"Janssen 2D, K = {j.K:.2f} fitted, mu_w = tan phi_P")
+    ax.plot(f(depth, a.rho_b, g["g"], g["B"], PAPER_K, g["mu_wall"]), z, color="#1f77b4",
+            lw=1.2, ls="--", label="Janssen 2D, K = 0.4 (paper)")
+    if key == "fill" and a.janssen_free is not None:
+        jf = a.janssen_free
+        ax.plot(f(depth, a.rho_b, g["g"], g["B"], jf.K, max(jf.mu_w, 1e-9)), z, color="#17becf",
+                lw=1.2, ls="-.", label=f"Janssen free fit K = {jf.K:.2f}, mu_w = {jf.mu_w:.2g}")
+    if which == "v":
+        ax.plot(a.rho_b * g["g"] * depth, z, color="0.5", lw=1, ls=":",
+                label="hydrostatic rho_b g depth")
+
+
+def _hopper_curves(ax, a: Analysis, which: str) -> None:
+    h = a.hopper
+    if not h:
+        return
+    ax.plot(h["planar"], h["z"], color="#d62728", lw=2,
+            label="Walker slice, PLANAR wedge (2D), D = 1")
+    ax.plot(h["conical"], h["z"], color="#d62728", lw=1.2, ls="--",
+            label="Walker slice, conical (paper eq. 12), D = 1")
+    if which == "h" and "planar_D" in h:
+        ax.plot(h["planar_D"], h["z"], color="#ff9896", lw=1.5, ls="-.",
+                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)")
+
+
+def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
+    """Figs. 3a (after filling) and 6 (during discharge): horizontal stress along the wall."""
+    e = a.edge.get(key)
+    if e is None:
+        return None
+    fig = Figure(figsize=(7.5, 7.5), dpi=100)
+    ax = fig.subplots()
+    _zone(ax, a)
+    if key == "discharge" and "fill" in a.edge:
+        f = a.edge["fill"]
+        ax.plot(f.sigma_n, f.z, color="0.6", lw=1, marker=".", label="wall, after filling")
+    for side, (z, sn) in e.sides.items():
+        ax.plot(sn, z, ls="none", marker="<" if side == "left" else ">", ms=5, alpha=0.6,
+                label=f"{side} wall")
+    ax.plot(e.sigma_n, e.z, color="k", lw=1.8, marker="o", ms=4,
+            label="wall normal stress (both sides)")
+    s = a.strips.get(key)
+    if s is not None:
+        ax.plot(s["near_xx"], s["z"], color="#2ca02c", lw=1.2, marker="s", ms=3,
+                label="sigma_xx near the walls (Love-Weber strips)")
+    _janssen_curves(ax, a, key, "h")
+    if key == "discharge" and "fill" in a.janssen and np.isfinite(a.surface[key]):
+        g = a.geom
+        z = np.linspace(g["z_j"], a.surface[key], 60)
+        p_he, _ = th.en1991_4_discharge(a.surface[key] - z, a.rho_b * g["g"],
+                                        a.janssen["fill"].K, g["mu_wall"], g["B"] / 2)
+        ax.plot(p_he, z, color="#9467bd", lw=1.4, ls=(0, (5, 2)),
+                label="EN 1991-4 discharge 1.15 p_hf (K of filling)")
+    _hopper_curves(ax, a, "h")
+    if key in a.peaks and np.isfinite(a.peaks[key][0]):
+        v, z = a.peaks[key]
+        ax.plot([v], [z], marker="*", ms=16, color="#e6550d", ls="none",
+                label=f"switch-zone peak {v:,.0f} Pa at z = {z:.2f} m")
+    ax.set_xlabel("horizontal stress sigma_h on the wall (normal stress on the hopper) [Pa]")
+    ax.set_ylabel("z [m]")
+    ax.set_xlim(left=0)
+    ax.set_ylim(0, a.geom["top"])
+    title = "after filling" if key == "fill" else "during discharge"
+    t0, t1 = a.windows.get(key, (np.nan, np.nan))
+    ax.set_title(f"Horizontal stress along the silo wall, {title} (t = {t0:.2f}-{t1:.2f} s)",
+                 fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    return fig
+
+
+def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
+    """Fig. 3b: vertical stress along the wall after filling (Love-Weber)."""
+    s = a.strips.get(key)
+    if s is None:
+        return None
+    fig = Figure(figsize=(7.5, 7.5), dpi=100)
+    ax = fig.subplots()
+    _zone(ax, a)
+    ax.plot(s["near_zz"], s["z"], color="k", lw=1.8, marker="o", ms=4,
+            label="sigma_zz near the walls (Love-Weber strips)")
+    ax.plot(s["slice_zz"], s["z"], color="#2ca02c", lw=1.4, marker="s", ms=3,
+            label="sigma_zz, mean over the cross-section")
+    _janssen_curves(ax, a, key, "v")
+    _hopper_curves(ax, a, "v")
+    ax.set_xlabel("vertical stress sigma_v [Pa]")
+    ax.set_ylabel("z [m]")
+    ax.set_xlim(left=0)
+    ax.set_ylim(0, a.geom["top"])
+    ax.set_title("Vertical stress along the silo wall, after filling", fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    return fig
+
+
+def fig_wall_shear(a: Analysis) -> Figure | None:
+    """Wall shear (friction) along the silo edges, with full mobilisation mu_w sigma_n."""
+    if not a.edge:
+        return None
+    fig = Figure(figsize=(7.5, 6.5), dpi=100)
+    ax = fig.subplots()
+    _zone(ax, a)
+    for key, color in (("fill", "#1f77b4"), ("discharge", "#d62728")):
+        e = a.edge.get(key)
+        if e is None:
+            continue
+        ax.plot(e.tau_down, e.z, color=color, marker="o", ms=4, lw=1.5,
+                label=f"downward shear on the wall, {key}")
+        ax.plot(a.geom["mu_wall"] * e.sigma_n, e.z, color=color, lw=1, ls="--",
+                label=f"tan(phi_P) sigma_n (fully mobilised), {key}")
+    ax.axvline(0, color="0.4", lw=0.6)
+    ax.set_xlabel("wall shear stress [Pa]")
+    ax.set_ylabel("z [m]")
+    ax.set_ylim(0, a.geom["top"])
+    ax.set_title("Wall friction along the silo wall", fontsize=10)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def fig_evolution(a: Analysis) -> Figure | None:
+    """Fig. 7: horizontal and vertical stress and their ratio at the switch zone in time."""
+    m = a.res.group("measure")
+    if m is None:
+        return None
+    t, phase = m["time"], m["phase"]
+    c = m["circles"]
+    n_smooth = max(1, round(0.2 / a.res.cfg.measure.interval))
+    fig = Figure(figsize=(10, 7.5), dpi=100)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    for ax in (ax1, ax2):
+        shade_phases(ax, t, phase)
+    colors = ["#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2"]
+    for k, name in enumerate(c["name"]):
+        col = colors[k % len(colors)]
+        sh = rolling_mean(c["stress"][:, k, 0], n_smooth)
+        sv = rolling_mean(c["stress"][:, k, 1], n_smooth)
+        ax1.plot(t, sh, color=col, lw=1.5, label=f"{name}: sigma_h")
+        ax1.plot(t, sv, color=col, lw=1.2, ls="--", label=f"{name}: sigma_v")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ax2.plot(t, sh / sv, color=col, lw=1.3, label=str(name))
+    wb = a.res.group("measure", "wall_bins")
+    if wb is not None:
+        names = list(a.res.group("walls")["name"])
+        edges = [names.index(n) for n in names if n.endswith(("_wall", "_hopper"))]
+        sel = np.isin(wb["wall"], edges) & (wb["z"] >= a.switch[0]) & (wb["z"] <= a.switch[1])
+        if sel.any():
+            ax1.plot(t, rolling_mean(wb["normal"][:, sel].mean(axis=1), n_smooth), color="k",
+                     lw=1.2, alpha=0.7, label="wall normal stress, switch zone")
+    ax1.set_ylabel("stress [Pa]")
+    ax1.set_ylim(bottom=0)
+    ax1.legend(fontsize=7, ncol=3, loc="upper left")
+    ax1.set_title("Stresses at the switch zone during silo use (running mean over 0.2 s)",
+                  fontsize=10)
+    ax2.set_ylabel("sigma_h / sigma_v [-]")
+    ax2.set_ylim(0, 3)
+    ax2.set_xlabel("time [s]")
+    ax2.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    return fig
+
+
+def fig_change(a: Analysis) -> Figure | None:
+    """Fig. 8: percentage change of the switch-zone stresses from filling to discharge."""
+    if not a.change:
+        return None
+    names = list(a.change)
+    h = [a.change[n].get("sigma_h_change_pct", np.nan) for n in names]
+    v = [a.change[n].get("sigma_v_change_pct", np.nan) for n in names]
+    if not np.isfinite(np.concatenate([h, v])).any():
+        return None
+    fig = Figure(figsize=(8, 4.5), dpi=100)
+    ax = fig.subplots()
+    x = np.arange(len(names))
+    ax.bar(x - 0.2, h, 0.4, label="horizontal stress", color="#1f77b4")
+    ax.bar(x + 0.2, v, 0.4, label="vertical stress", color="#ff7f0e")
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xticks(x, names, fontsize=8)
+    ax.set_ylabel("change, discharge vs end of filling [%]")
+    ax.set_title("Change of the switch-zone stresses from filling to discharge", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,181 @@
+"""report.html: one self-contained page (figures as base64 PNG, no external files or scripts)."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from silodem.report import figures_flow as ff
+from silodem.report import figures_stress as fs
+from silodem.report.analysis import Analysis, analyse
+from silodem.report.load import load_results
+
+
+@dataclass(frozen=True)
+class FigureSpec:
+    name: str  # file name without .png
+    paper: str  # the paper's figure it reproduces ("" if new)
+    caption: str
+    make: Callable[[Analysis], object]
+
+
+FIGURES = [
+    FigureSpec("fig2_coordination", "Fig. 2",
+               "Coordination number C_n = sum(n_c)/N_p (eq. 10) against cycles, in a band across "
+               "the silo at the cell-hopper junction and in the measurement circles. Shading: "
+               "filling, settling, discharge. Ordered packings of equal disks give 4 (square) "
+               "and 6 (triangular), Table 3.", fs.fig_coordination),
+    FigureSpec("fig3a_horizontal_filling", "Fig. 3a",
+               "Horizontal stress along the silo wall after filling (time average over the last "
+               "window of settling): wall normal stress per bin, near-wall Love-Weber sigma_xx, "
+               "Janssen's 2D slot solution (K fitted with mu_w = tan phi_P, and the paper's "
+               "K = 0.4) in the cell, and Walker's slice solution in the hopper: the planar "
+               "(wedge) form that a 2D hopper needs and the paper's conical eq. 12.",
+               lambda a: fs.fig_horizontal(a, "fill")),
+    FigureSpec("fig3b_vertical_filling", "Fig. 3b",
+               "Vertical stress along the silo wall after filling: Love-Weber sigma_zz near the "
+               "walls and over the cross-section, Janssen's sigma_v, the hydrostatic line, and "
+               "the planar and conical hopper solutions.", lambda a: fs.fig_vertical(a, "fill")),
+    FigureSpec("fig4_switch_zone_network", "Fig. 4",
+               "Contact force network at the switch zone after filling and during discharge "
+               "(same force scale): line width and colour grow with the normal force.",
+               ff.fig_switch_network),
+    FigureSpec("fig5_force_network", "Fig. 5",
+               "Intergranular force network in the whole silo after filling and during "
+               "discharge (same force scale); grain-wall contacts are drawn to the wall.",
+               ff.fig_network),
+    FigureSpec("fig6_horizontal_discharge", "Fig. 6",
+               "Horizontal stress along the silo wall during discharge (time average over the "
+               "discharge window), with the filling profile, Janssen's solution (K refitted), "
+               "EN 1991-4's discharge load and the switch-zone peak.",
+               lambda a: fs.fig_horizontal(a, "discharge")),
+    FigureSpec("fig7_switch_zone_evolution", "Fig. 7",
+               "Horizontal and vertical stress at the switch zone (measurement circles) and "
+               "their ratio through filling, settling and discharge.", fs.fig_evolution),
+    FigureSpec("fig8_change", "Fig. 8",
+               "Percentage change of the switch-zone stresses from the end of filling to the "
+               "discharge window.", fs.fig_change),
+    FigureSpec("wall_shear", "",
+               "Wall friction along the silo wall, against its fully mobilised value "
+               "tan(phi_P) sigma_n: Janssen's theory assumes full mobilisation.",
+               fs.fig_wall_shear),
+    FigureSpec("discharge_rate", "",
+               "Discharged mass and mass flow rate; the steady rate is the slope between 15 % "
+               "and 75 % of the discharged mass, its error the standard error of 5 block "
+               "slopes.", ff.fig_discharge_rate),
+    FigureSpec("velocity_field", "",
+               "Mean grain velocity on a grid over the discharge window, and the flow pattern "
+               "(mass flow index = v_wall / v_axis above the junction).", ff.fig_velocity),
+    FigureSpec("dead_zones", "",
+               "Grains at the gate opening coloured by the time they left the silo; the dead "
+               "zone (never left, never moved a grain radius) in black.", ff.fig_dead_zones),
+]
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]:
+    """Render every figure the data allows; write each PNG to ``fig_dir``; return them."""
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    out = []
+    for spec in FIGURES:
+        fig = spec.make(a)
+        if fig is None:
+            (fig_dir / f"{spec.name}.png").unlink(missing_ok=True)  # no stale picture
+            continue
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png")
+        png = buf.getvalue()
+        _atomic_write(fig_dir / f"{spec.name}.png", png)
+        out.append((spec, png))
+    return out
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;
+margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+h1{font-size:1.6em;margin-bottom:.2em}h2{margin-top:1.8em;border-bottom:1px solid #ddd}
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ddd;padding:4px 8px;
+text-align:left;font-size:.92em;vertical-align:top}th{background:#f4f4f4}
+figure{margin:1.5em 0;padding:.5em;border:1px solid #eee;background:#fff}
+figure img{max-width:100%;height:auto;display:block;margin:auto}
+figcaption{font-size:.92em;color:#444;margin-top:.4em}.warn{color:#8a4b00}
+pre{background:#f7f7f7;padding:.8em;overflow:auto;font-size:.85em}
+"""
+
+
+def _table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
+    h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
+                   for r in rows)
+    return f"<table><tr>{h}</tr>{body}</table>"
+
+
+def _event_rows(events: dict) -> list[tuple[str, str]]:
+    out = []
+    for k, v in events.items():
+        if isinstance(v, float | np.floating):
+            v = f"{v:.6g}"
+        out.append((k, str(v)))
+    return out
+
+
+def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]]) -> str:
+    res = a.res
+    cfg = res.cfg
+    title = f"silodem report: {cfg.name}"
+    head = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>")
+    intro = (f"<p>silodem {html.escape(str(res.attrs.get('silodem_version', '?')))}, seed "
+             f"{cfg.seed}, time step {res.attrs.get('dt', float('nan')):.3g} s. Stresses are "
+             "compressive positive [Pa], per unit out-of-plane thickness "
+             f"t = {cfg.material.thickness:g} m. The hopper angle of the config, theta = "
+             f"{cfg.silo.hopper_angle_from_horizontal_deg:g} deg, is measured from the "
+             "horizontal; hopper theory uses alpha = 90 - theta from the vertical.</p>")
+    parts = [head, f"<h1>{html.escape(title)}</h1>",
+             f"<p>{html.escape(cfg.description)}</p>", intro]
+    if res.warnings:
+        parts.append("<h2>Warnings</h2><ul>" + "".join(
+            f"<li class='warn'>{html.escape(w)}</li>" for w in res.warnings) + "</ul>")
+    parts.append("<h2>Key numbers</h2>")
+    parts.append(_table(a.numbers, ("quantity", "value", "unit")) if a.numbers else
+                 "<p>No measurements in this results file (measure recorder absent).</p>")
+    parts.append("<h2>Figures</h2>")
+    parts.append("<p>A 2D silo is a plane-strain slot with a wedge hopper: the hopper curves "
+                 "labelled PLANAR are Walker's slice solution for a wedge (m = 0); the paper's "
+                 "eq. 12 is the conical form (m = 1), which doubles the wall support of a slice "
+                 "and so underestimates the stresses of a 2D hopper (docs/theory.md).</p>")
+    for spec, png in figures:
+        b64 = base64.b64encode(png).decode("ascii")
+        label = f"{spec.paper} equivalent. " if spec.paper else ""
+        parts.append(f"<figure id='{spec.name}'><img alt='{html.escape(spec.name)}' "
+                     f"src='data:image/png;base64,{b64}'><figcaption><b>{html.escape(label)}"
+                     f"</b>{html.escape(spec.caption)}</figcaption></figure>")
+    parts.append("<h2>Run events</h2>" + _table(_event_rows(res.events), ("event", "value")))
+    parts.append("<h2>Configuration</h2><pre>" + html.escape(res.config_toml) + "</pre>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_report(folder: Path | str) -> Path:
+    """Re-render every figure from ``folder``/results.h5 and write ``folder``/report.html."""
+    folder = Path(folder)
+    a = analyse(load_results(folder))
+    figures = render_figures(a, folder / "figures")
+    path = folder / "report.html"
+    _atomic_write(path, build_html(a, figures).encode("utf-8"))
+    return path

@@ -1,0 +1,95 @@
+"""Read a results folder (results.h5 + config) into memory for the figures and the report."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from silodem.config import Config
+from silodem.errors import InputError
+
+
+def _tree(group) -> dict[str, Any]:
+    """A nested dict of an HDF5 group: datasets as NumPy arrays, attributes under '@attrs'."""
+    import h5py
+
+    out: dict[str, Any] = {"@attrs": {k: _plain(v) for k, v in group.attrs.items()}}
+    for key, item in group.items():
+        if isinstance(item, h5py.Group):
+            out[key] = _tree(item)
+        else:
+            data = item[()]
+            if item.dtype.kind in "OS":
+                data = np.array([d.decode() if isinstance(d, bytes) else str(d)
+                                 for d in np.atleast_1d(data)])
+            out[key] = data
+    return out
+
+
+def _plain(value):
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+@dataclass
+class Results:
+    """A run's results: config, attributes, events, warnings and every group of results.h5."""
+
+    folder: Path
+    cfg: Config
+    config_toml: str
+    attrs: dict[str, Any]
+    events: dict[str, Any]
+    warnings: list[str]
+    data: dict[str, Any] = field(repr=False)
+
+    def group(self, *path: str) -> dict[str, Any] | None:
+        node: Any = self.data
+        for p in path:
+            if not isinstance(node, dict) or p not in node:
+                return None
+            node = node[p]
+        return node
+
+    def snapshot(self, name: str) -> dict[str, Any] | None:
+        """'settled', 'final' or 'discharge' (taken by the measurement recorder)."""
+        if name == "discharge":
+            return self.group("measure", "discharge_snapshot")
+        return self.group(name)
+
+
+def load_results(folder: Path | str) -> Results:
+    """Load ``folder``/results.h5; InputError (one line) when it is missing or unreadable."""
+    import h5py
+
+    folder = Path(folder)
+    path = folder / "results.h5"
+    if not folder.is_dir():
+        raise InputError(f"{folder} is not a results folder (no such directory)")
+    if not path.is_file():
+        raise InputError(f"{folder} holds no results.h5 (run 'silodem run --out {folder}' first)")
+    try:
+        with h5py.File(path, "r") as h5:
+            data = _tree(h5)
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc}") from None
+    attrs = data.get("@attrs", {})
+    toml_text = attrs.get("config_toml")
+    if toml_text is None and (folder / "config.toml").is_file():
+        toml_text = (folder / "config.toml").read_text(encoding="utf-8")
+    if toml_text is None:
+        raise InputError(f"{path} holds no config (attribute config_toml)")
+    try:
+        cfg = Config.model_validate(tomllib.loads(toml_text))
+    except Exception as exc:  # noqa: BLE001 - any failure is the file's, reported in one line
+        raise InputError(f"the config saved in {path} does not load: {exc}") from None
+    events = dict(data.get("events", {}).get("@attrs", {}))
+    warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
+    return Results(folder, cfg, toml_text, attrs, events, warnings, data)

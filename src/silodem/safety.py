@@ -1,0 +1,445 @@
+"""Run safety (docs/reliability.md): numbers that give no usable run are refused before it
+starts; a run that becomes unphysical is stopped with a diagnosis; checkpoints are written
+every ``checkpoint.every_steps`` steps and when SIGINT or SIGTERM asks the run to stop.
+
+:class:`RunGuard` drives a ``SiloRun`` and is its chunk hook: between two chunks it checks the
+state, then saves results.h5 and checkpoint.h5 when they are due or when a signal came.
+
+A run is stopped as unstable (exit code 3) when, between two chunks,
+
+* a grain has a non-finite position, velocity or spin;
+* a grain is outside the domain: the silo's bounding box grown by one silo size
+  L = max(cell width, wall height) on every side (grains that slip just through a wall are
+  removed by the procedure and reported as lost; a grain that far away was thrown);
+* the kinetic energy exceeds ``ENERGY_FACTOR`` times the energy the grains in the silo could gain
+  by falling from the wall top to the removal level under the outlet, plus their pouring energy:
+  E_max = 100 * M * (max(g, 9.81 m/s^2) * (z_top - z_remove) + v0^2 / 2);
+
+or when the engine raises :class:`UnstableRunError` inside a step (non-finite position, grains
+spread over a huge area).  The grain to blame is found from the arrays (lowest uid among the
+non-finite ones, else the farthest out, else the most energetic / fastest).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import sys
+import threading
+import time as wallclock
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from silodem import __version__
+from silodem.checkpoint import (
+    CHECKPOINT_NAME,
+    FAILURE_NAME,
+    LoadedCheckpoint,
+    atomic_file,
+    save_checkpoint,
+)
+from silodem.config import Config
+from silodem.errors import InputError, RunInterrupted, UnstableRunError, one_line
+
+if TYPE_CHECKING:
+    from silodem.silo.procedure import SiloRun
+
+ENERGY_FACTOR = 100.0
+MAX_STEPS = 1e12  # a run allowed more steps than this is refused
+STIFFNESS_RANGE = (1e-100, 1e100)  # contact stiffnesses outside are refused [N/m]
+DIAGNOSTIC_NAME = "diagnostic.json"
+RESULTS_NAME = "results.h5"
+_STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
+
+
+# --- before the run ------------------------------------------------------------------------
+
+
+def check_numbers(cfg: Config) -> tuple[float, float]:
+    """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
+    run together (a zero, infinite or NaN time step, or more than ``MAX_STEPS`` steps)."""
+    from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
+    from silodem.silo.geometry import build_walls
+
+    keys = ("material.kn, material.ks, walls.kn, walls.ks, material.density, "
+            "material.radius_min, material.thickness and time.dt")
+    try:
+        with np.errstate(all="ignore"):
+            law = grain_law(cfg)
+            walls = build_walls(cfg)
+            stiffness = [law.kn, law.ks, *walls.kn.tolist(), *walls.ks.tolist()]
+            if not all(STIFFNESS_RANGE[0] <= k <= STIFFNESS_RANGE[1] for k in stiffness):
+                raise InputError(
+                    "the contact stiffnesses (material.kn, material.ks, walls.kn, walls.ks "
+                    f"combined in series) come out as {min(stiffness):.3g} to "
+                    f"{max(stiffness):.3g} N/m; they must lie in {STIFFNESS_RANGE[0]:.0e} to "
+                    f"{STIFFNESS_RANGE[1]:.0e} N/m")
+            dt, dt_crit = choose_time_step(cfg, law, walls.kn, walls.ks)
+            estimate_overlap(cfg)
+    except InputError:
+        raise
+    except (ArithmeticError, ValueError) as exc:
+        raise InputError(f"the grain and wall values give no usable time step ({exc}); "
+                         f"check {keys}") from None
+    if not (math.isfinite(dt) and math.isfinite(dt_crit) and dt > 0):
+        raise InputError(f"the grain and wall values give a time step of {dt:.3g} s (stability "
+                         f"limit {dt_crit:.3g} s), which cannot be used; check {keys}")
+    total = cfg.fill.max_time + cfg.settle.max_time
+    if cfg.discharge.enabled:
+        total += cfg.discharge.max_time
+    if total / dt > MAX_STEPS:
+        raise InputError(
+            f"a time step of {dt:.3g} s would allow {total / dt:.2g} steps in the phase time "
+            f"limits ({total:g} s = fill.max_time + settle.max_time + discharge.max_time), more "
+            f"than {MAX_STEPS:.0e}; check {keys}")
+    return dt, dt_crit
+
+
+# --- finding what went wrong ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Domain:
+    """The box a grain must stay in [m]."""
+
+    xmin: float
+    xmax: float
+    ymin: float
+    ymax: float
+
+    def distance_outside(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        dx = np.maximum(np.maximum(self.xmin - x, x - self.xmax), 0.0)
+        dy = np.maximum(np.maximum(self.ymin - y, y - self.ymax), 0.0)
+        return np.hypot(dx, dy)
+
+    def text(self) -> str:
+        return (f"x in [{self.xmin:.3g}, {self.xmax:.3g}] m, "
+                f"y in [{self.ymin:.3g}, {self.ymax:.3g}] m")
+
+
+def domain_of(run: SiloRun) -> Domain:
+    shape = run.shape
+    size = max(shape.width, shape.wall_top)
+    return Domain(-size, shape.width + size, run.z_remove - size, shape.wall_top + size)
+
+
+def energy_bound(run: SiloRun) -> float:
+    """The largest kinetic energy a stable run may have now [J] (module docstring)."""
+    g = max(run.cfg.gravity, 9.81)
+    height = run.shape.wall_top - run.z_remove
+    v0 = run.cfg.fill.initial_speed
+    return ENERGY_FACTOR * run.sim.particles.total_mass() * (g * height + 0.5 * v0**2)
+
+
+def grain_kinetic_energies(run: SiloRun) -> np.ndarray:
+    p = run.sim.particles
+    v2 = p.view("vx") ** 2 + p.view("vy") ** 2
+    return 0.5 * p.view("mass") * v2 + 0.5 / p.view("inv_inertia") * p.view("omega") ** 2
+
+
+def grain_record(run: SiloRun, index: int) -> dict[str, Any]:
+    """Everything about the live grain ``index``: uid, position, velocity, spin, size, force."""
+    p = run.sim.particles
+    rec: dict[str, Any] = {"uid": int(p.uid[index]), "index": int(index)}
+    for key in ("x", "y", "vx", "vy", "omega", "radius", "mass", "fx", "fy"):
+        rec[key] = float(getattr(p, key)[index])
+    rec["speed"] = float(math.hypot(rec["vx"], rec["vy"]))
+    return rec
+
+
+@dataclass
+class Problem:
+    """What is wrong, with the grain to blame (``index`` into the live grains, or None)."""
+
+    kind: str  # non_finite | outside_domain | energy | engine
+    message: str
+    index: int | None
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+def _where(rec: dict[str, Any]) -> str:
+    return (f"grain uid {rec['uid']} at (x, y) = ({rec['x']:.4g}, {rec['y']:.4g}) m, velocity "
+            f"({rec['vx']:.3g}, {rec['vy']:.3g}) m/s")
+
+
+def find_problem(run: SiloRun) -> Problem | None:
+    """The first unphysical thing in the state of ``run`` (module docstring), or None."""
+    p = run.sim.particles
+    n = p.n
+    if n == 0:
+        return None
+    uid = p.view("uid")
+    bad = np.zeros(n, dtype=bool)
+    for key in _STATE_FIELDS:
+        bad |= ~np.isfinite(p.view(key))
+    when = f"at t = {run.sim.time:.6g} s (step {run.sim.steps}, {run.state.phase})"
+    if np.any(bad):
+        idx = np.flatnonzero(bad)
+        i = int(idx[np.argmin(uid[idx])])
+        rec = grain_record(run, i)
+        fields = [k for k in _STATE_FIELDS if not math.isfinite(rec[k])]
+        return Problem("non_finite", f"non-finite {', '.join(fields)} of {_where(rec)}, {when} "
+                       f"({idx.size} grain(s) with non-finite values)", i,
+                       {"n_non_finite": int(idx.size),
+                        "non_finite_uids": sorted(int(u) for u in uid[idx])[:20]})
+    domain = domain_of(run)
+    out = domain.distance_outside(p.view("x"), p.view("y"))
+    if np.any(out > 0):
+        i = int(np.argmax(out))
+        rec = grain_record(run, i)
+        return Problem("outside_domain", f"{_where(rec)} has left the domain "
+                       f"({domain.text()}), {when}", i,
+                       {"n_outside": int(np.count_nonzero(out > 0))})
+    ke = p.kinetic_energy()
+    bound = energy_bound(run)
+    if not ke <= bound:
+        i = int(np.argmax(grain_kinetic_energies(run)))
+        rec = grain_record(run, i)
+        return Problem("energy", f"kinetic energy {ke:.3g} J exceeds {ENERGY_FACTOR:g} x the "
+                       f"energy the grains can gain by falling and being poured ({bound:.3g} J) "
+                       f"{when}; most energetic: {_where(rec)}", i)
+    return None
+
+
+def blame(run: SiloRun, message: str) -> Problem:
+    """A Problem for an error the engine raised: the grain found by :func:`find_problem`, else
+    the fastest grain."""
+    found = find_problem(run)
+    if found is not None:
+        return Problem("engine", message, found.index,
+                       {"found": found.kind, "found_message": found.message, **found.details})
+    p = run.sim.particles
+    if p.n == 0:
+        return Problem("engine", message, None)
+    speed = np.hypot(p.view("vx"), p.view("vy"))
+    return Problem("engine", message, int(np.argmax(speed)), {"found": "fastest grain"})
+
+
+def _json_safe(value: Any) -> Any:
+    """JSON without NaN/Infinity tokens: non-finite floats become the strings 'nan', 'inf'."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    return value
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    with atomic_file(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(_json_safe(data), fh, indent=2, allow_nan=False)
+        fh.write("\n")
+        fh.flush()
+
+
+# --- the guard -----------------------------------------------------------------------------
+
+
+class _Stopped(UnstableRunError):
+    """An instability already diagnosed and saved (not to be handled twice)."""
+
+
+class RunGuard:
+    """Drives a SiloRun with checkpoints, signal handling and instability checks.
+
+    ``out_dir`` is the results folder, ``config_toml`` the run's config as written to it,
+    ``resume_from`` a checkpoint to continue from (None: a fresh run)."""
+
+    def __init__(self, out_dir: Path | str, config_toml: str, cfg: Config,
+                 resume_from: LoadedCheckpoint | None = None) -> None:
+        self.out = Path(out_dir)
+        self.config_toml = config_toml
+        self.settings = cfg.checkpoint
+        self.resume_from = resume_from
+        self.stop_signal: int | None = None
+        self.save_failed = False
+        self.last_step = 0
+        self.last_wall = wallclock.perf_counter()
+        self.last_checkpoint: tuple[int, float] | None = (
+            (resume_from.step, resume_from.time) if resume_from is not None else None)
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.out / CHECKPOINT_NAME
+
+    @property
+    def results_path(self) -> Path:
+        return self.out / RESULTS_NAME
+
+    # --- driving -----------------------------------------------------------------------------
+    def drive(self, run: SiloRun) -> None:
+        """Restore (when resuming), then run to the end; save on the way (module docstring)."""
+        if self.resume_from is not None:
+            self.resume_from.restore(run)
+        run.chunk_hooks.append(self)
+        self.last_step = run.sim.steps
+        self.last_wall = wallclock.perf_counter()
+        with self.signals():
+            if self.resume_from is None:
+                for stale in (DIAGNOSTIC_NAME, FAILURE_NAME):  # from an earlier failed run
+                    (self.out / stale).unlink(missing_ok=True)
+                self.save(run, "start")
+            try:
+                run.run()
+            except _Stopped:
+                raise
+            except UnstableRunError as exc:
+                self.fail(run, blame(run, str(exc)), during_step=True)
+
+    def __call__(self, run: SiloRun) -> None:
+        """The chunk hook: check the state, then save if a signal came or a save is due."""
+        problem = find_problem(run)
+        if problem is not None:
+            self.fail(run, problem, during_step=False)
+        if run.state.phase == "done":
+            return
+        if self.stop_signal is not None:
+            self.interrupt(run, self.stop_signal)
+        s = self.settings
+        if (run.sim.steps - self.last_step >= s.every_steps
+                or wallclock.perf_counter() - self.last_wall >= s.every_wall_seconds):
+            try:
+                self.save(run, "periodic")
+            except OSError as exc:  # a full disk should not end a run that may still finish
+                self.last_step = run.sim.steps
+                self.last_wall = wallclock.perf_counter()
+                if not self.save_failed:
+                    run.warnings.append(
+                        f"saving results.h5/checkpoint.h5 failed at t = {run.sim.time:.4g} s "
+                        f"({one_line(exc)}); the run goes on and tries again later")
+                self.save_failed = True
+
+    def completed(self) -> None:
+        """The run finished and its results are written: the checkpoint is no longer needed."""
+        self.checkpoint_path.unlink(missing_ok=True)
+
+    # --- saving ------------------------------------------------------------------------------
+    def _write_results(self, run: SiloRun, status: str) -> None:
+        from silodem.output import write_results
+
+        write_results(run, self.results_path, self.config_toml, status=status)
+
+    def save(self, run: SiloRun, reason: str, status: str = "running") -> None:
+        """results.h5 (what the run holds so far), then checkpoint.h5 (if enabled)."""
+        self._write_results(run, status)
+        if self.settings.enabled:
+            save_checkpoint(run, self.checkpoint_path, config_toml=self.config_toml,
+                            reason=reason)
+            self.last_checkpoint = (run.sim.steps, run.sim.time)
+        self.last_step = run.sim.steps
+        self.last_wall = wallclock.perf_counter()
+
+    def interrupt(self, run: SiloRun, signum: int) -> None:
+        name = signal.Signals(signum).name
+        where = (f"at t = {run.sim.time:.4g} s (step {run.sim.steps}, {run.state.phase})")
+        try:
+            self.save(run, name, status="interrupted")
+        except OSError as exc:
+            raise RunInterrupted(f"{name} {where}: saving failed ({one_line(exc)}); the last "
+                                 f"checkpoint, if any, is in {self.checkpoint_path}",
+                                 signum) from None
+        if self.settings.enabled:
+            text = (f"{name} {where}: checkpoint saved to {self.checkpoint_path}; continue with: "
+                    f"silodem run --resume {self.out}")
+        else:
+            text = (f"{name} {where}: partial results in {self.results_path} (checkpoint.enabled "
+                    "is false: the run cannot be resumed)")
+        raise RunInterrupted(text, signum)
+
+    def fail(self, run: SiloRun, problem: Problem, *, during_step: bool) -> None:
+        """Save the state and a diagnosis of an unstable run; raise UnstableRunError (one line)."""
+        notes: list[str] = []
+        failure = self.out / FAILURE_NAME
+        failure_written = False
+        if self.settings.enabled:
+            try:
+                save_checkpoint(run, failure, config_toml=self.config_toml, reason="unstable",
+                                attrs={"during_step": during_step})
+                failure_written = True
+            except Exception as exc:  # noqa: BLE001 - the diagnosis matters more
+                notes.append(f"{FAILURE_NAME} not written: {one_line(exc)}")
+        try:
+            self._write_results(run, "unstable")
+        except Exception as exc:  # noqa: BLE001
+            notes.append(f"{RESULTS_NAME} not updated: {one_line(exc)}")
+        grain = grain_record(run, problem.index) if problem.index is not None else None
+        p = run.sim.particles
+        cfg = run.cfg
+        diag = {
+            "silodem_version": __version__,
+            "scenario": cfg.name,
+            "kind": problem.kind,
+            "message": problem.message,
+            "time": run.sim.time,
+            "step": run.sim.steps,
+            "during_step": during_step,
+            "phase": run.state.phase,
+            "grain": grain,
+            "n_grains": p.n,
+            "kinetic_energy": p.kinetic_energy() if p.n else 0.0,
+            "energy_bound": energy_bound(run),
+            "domain": vars(domain_of(run)),
+            "dt": run.dt,
+            "dt_crit": run.dt_crit,
+            "details": problem.details,
+            "failure_state": FAILURE_NAME if failure_written else None,
+            "last_checkpoint": (None if self.last_checkpoint is None else
+                                {"file": CHECKPOINT_NAME, "step": self.last_checkpoint[0],
+                                 "time": self.last_checkpoint[1]}),
+            "notes": notes,
+            "hints": [
+                f"reduce time.safety (now {cfg.time.safety:g}) or set a smaller time.dt",
+                ("check the stiffnesses (material.kn, material.ks, walls.kn, walls.ks) and the "
+                 "grain sizes and density against each other"),
+                "look at the grain named here in failure.h5 (same layout as checkpoint.h5)",
+            ],
+        }
+        path = self.out / DIAGNOSTIC_NAME
+        text = problem.message
+        if grain is not None and problem.kind == "engine":
+            text += f"; {_where(grain)}"
+        try:
+            write_json(path, diag)
+            text += f"; diagnosis in {path}"
+        except Exception as exc:  # noqa: BLE001
+            text += f"; {DIAGNOSTIC_NAME} not written: {exc}"
+        if failure_written:
+            text += f", state in {failure}"
+        raise _Stopped(one_line(text)) from None
+
+    # --- signals -----------------------------------------------------------------------------
+    @contextmanager
+    def signals(self) -> Iterator[None]:
+        """While inside: SIGINT/SIGTERM ask the run to stop at the end of the current chunk
+        (after saving); a second one stops it at once, without saving."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def handler(signum: int, frame: Any) -> None:
+            if self.stop_signal is not None:
+                raise RunInterrupted(f"{signal.Signals(signum).name} again: stopped at once, "
+                                     "without saving", signum)
+            self.stop_signal = signum
+            if sys.stderr.isatty():
+                sys.stderr.write(f"\nsilodem: {signal.Signals(signum).name}: saving at the end "
+                                 "of the current chunk; send it again to stop at once\n")
+
+        wanted = (signal.SIGINT, signal.SIGTERM)
+        previous = {s: signal.getsignal(s) for s in wanted}
+        for s in wanted:
+            signal.signal(s, handler)
+        try:
+            yield
+        finally:
+            for s, old in previous.items():
+                signal.signal(s, old if old is not None else signal.SIG_DFL)

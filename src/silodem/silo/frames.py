@@ -1,0 +1,352 @@
+"""Frames: compact snapshots saved while a run goes, for animations, pictures and ParaView.
+
+``FramesRecorder`` takes a frame (grains, touching contacts with their forces, walls in place,
+time, phase) every ``output.frame_interval`` seconds of simulated time and at the end of each
+phase, and writes them to results.h5 ``/frames``.  When ``output.vtk_interval`` is set it also
+writes ParaView files into ``DIR/vtk/`` (:mod:`silodem.viz.vtk`) as the run goes.
+
+Layout of ``/frames`` (docs/output.md): the frames are *concatenated*.  Frame ``k`` owns rows
+``particle_offset[k]:particle_offset[k+1]`` of every ``particles/*`` array, rows
+``contact_offset[k]:contact_offset[k+1]`` of ``contacts/*`` and rows
+``wall_contact_offset[k]:wall_contact_offset[k+1]`` of ``wall_contacts/*``.  Contact indices
+``i``, ``j`` and ``grain`` count from the first grain *of the frame*; ``wall`` indexes
+``/walls``.  Floats are float32 (frames are for looking at; the exact states are the
+``/settled`` and ``/final`` snapshots and the checkpoints).
+
+:func:`read_frames` reads them back (NumPy arrays) for notebooks and for ``silodem animate``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from silodem.silo.recorders import PHASE_CODES, Recorder, take_snapshot
+
+if TYPE_CHECKING:
+    import h5py
+
+    from silodem.config import Config
+    from silodem.silo.procedure import SiloRun
+
+PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
+
+#: The arrays of a frame, their dtypes and units, by table.
+FIELDS: dict[str, dict[str, tuple[type, str]]] = {
+    "particles": {
+        "x": (np.float32, "m"), "y": (np.float32, "m"),
+        "vx": (np.float32, "m/s"), "vy": (np.float32, "m/s"),
+        "omega": (np.float32, "rad/s"), "radius": (np.float32, "m"),
+        "fx": (np.float32, "N"), "fy": (np.float32, "N"),  # resultant contact force (no gravity)
+        "uid": (np.int64, "-"),
+    },
+    "contacts": {
+        "i": (np.int32, "-"), "j": (np.int32, "-"),
+        "fn": (np.float32, "N"), "fs": (np.float32, "N"),
+    },
+    "wall_contacts": {
+        "grain": (np.int32, "-"), "wall": (np.int32, "-"),
+        "fn": (np.float32, "N"), "fs": (np.float32, "N"),
+    },
+}
+_OFFSETS = {"particles": "particle_offset", "contacts": "contact_offset",
+            "wall_contacts": "wall_contact_offset"}
+
+
+@dataclass
+class WallGeometry:
+    """The wall segments of a silo: from (ax, ay) to (bx, by) [m]."""
+
+    names: list[str]
+    ax: np.ndarray
+    ay: np.ndarray
+    bx: np.ndarray
+    by: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    @classmethod
+    def of(cls, walls: Any) -> WallGeometry:
+        """From an engine ``Walls`` object or results.h5's ``/walls`` group."""
+        keys = ("ax", "ay", "bx", "by")
+        if hasattr(walls, "names"):
+            names = [str(n) for n in walls.names]
+            coords = [np.asarray(getattr(walls, k), dtype=float).copy() for k in keys]
+        else:
+            names = [n.decode() if isinstance(n, bytes) else str(n) for n in walls["name"][()]]
+            coords = [np.asarray(walls[k][()], dtype=float) for k in keys]
+        return cls(names, *coords)
+
+    def closest_points(self, wall: np.ndarray, x: np.ndarray, y: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """The point of segment ``wall[k]`` closest to ``(x[k], y[k])`` (a grain's contact)."""
+        ax, ay = self.ax[wall], self.ay[wall]
+        dx, dy = self.bx[wall] - ax, self.by[wall] - ay
+        t = ((x - ax) * dx + (y - ay) * dy) / np.maximum(dx * dx + dy * dy, 1e-300)
+        t = np.clip(t, 0.0, 1.0)
+        return ax + t * dx, ay + t * dy
+
+
+@dataclass
+class Frame:
+    """One saved moment: arrays over the grains in the silo then (see ``FIELDS``)."""
+
+    time: float  # [s]
+    step: int
+    phase: str  # "fill", "settle" or "discharge"
+    particles: dict[str, np.ndarray]
+    contacts: dict[str, np.ndarray]
+    wall_contacts: dict[str, np.ndarray]
+    walls_active: np.ndarray  # bool per wall
+
+    @property
+    def n(self) -> int:
+        return int(self.particles["x"].shape[0])
+
+    def coordination(self) -> np.ndarray:
+        """Number of touching contacts of each grain, with grains and with walls [-]."""
+        n = self.n
+        c, w = self.contacts, self.wall_contacts
+        return (np.bincount(c["i"], minlength=n) + np.bincount(c["j"], minlength=n)
+                + np.bincount(w["grain"], minlength=n)).astype(np.int32)
+
+    def force(self) -> np.ndarray:
+        """Magnitude of the resultant contact force on each grain (gravity excluded) [N]."""
+        return np.hypot(self.particles["fx"], self.particles["fy"])
+
+    def normal_force_sum(self) -> np.ndarray:
+        """Sum of the normal forces of each grain's contacts [N]: large along force chains."""
+        n = self.n
+        c, w = self.contacts, self.wall_contacts
+        return (np.bincount(c["i"], weights=c["fn"], minlength=n)
+                + np.bincount(c["j"], weights=c["fn"], minlength=n)
+                + np.bincount(w["grain"], weights=w["fn"], minlength=n)).astype(np.float32)
+
+    def speed(self) -> np.ndarray:
+        """|v| of each grain [m/s]."""
+        return np.hypot(self.particles["vx"], self.particles["vy"])
+
+
+def frame_of(run: SiloRun) -> Frame:
+    """The current state of ``run`` as a (float32) frame."""
+    snap = take_snapshot(run)
+    tables = {}
+    for table, source in (("particles", snap.particles), ("contacts", snap.contacts),
+                          ("wall_contacts", snap.wall_contacts)):
+        tables[table] = {k: np.ascontiguousarray(source[k], dtype=dt)
+                         for k, (dt, _) in FIELDS[table].items()}
+    return Frame(float(snap.time), int(run.sim.steps), run.phase, tables["particles"],
+                 tables["contacts"], tables["wall_contacts"],
+                 np.asarray(snap.walls_active, dtype=bool).copy())
+
+
+class FramesRecorder(Recorder):
+    """Saves a frame every ``frame_interval`` [s] and at each phase end; with ``vtk_dir`` and
+    ``vtk_interval`` set, also writes ParaView files every ``vtk_interval`` [s]."""
+
+    name = "frames"
+
+    def __init__(self, frame_interval: float, vtk_interval: float | None = None,
+                 vtk_dir: Path | str | None = None) -> None:
+        super().__init__(frame_interval)
+        if vtk_interval is not None and vtk_interval <= 0:
+            raise ValueError("frames: vtk_interval must be positive")
+        self.vtk_interval = vtk_interval if vtk_dir is not None else None
+        self.vtk_dir = Path(vtk_dir) if vtk_dir is not None else None
+        self.frames: list[Frame] = []
+        self.vtk_times: list[float] = []  # time of VTK file k [s]
+        self._vtk = None
+
+    @classmethod
+    def from_config(cls, cfg: Config, out_dir: Path | str | None) -> FramesRecorder:
+        """The recorder of ``cfg.output`` for the results folder ``out_dir``."""
+        o = cfg.output
+        vtk_dir = Path(out_dir) / "vtk" if out_dir is not None and o.vtk_interval else None
+        return cls(o.frame_interval, o.vtk_interval, vtk_dir)
+
+    # --- when -----------------------------------------------------------------------------
+    def _frame_steps(self, dt: float) -> int:
+        return max(1, round(self.interval / dt))
+
+    def _vtk_steps(self, dt: float) -> int | None:
+        """Steps between VTK outputs.  A VTK interval that is a whole multiple of the frame
+        interval is made a whole multiple of the frame steps, so each VTK file is a frame."""
+        if self.vtk_interval is None:
+            return None
+        ratio = self.vtk_interval / self.interval
+        if ratio >= 1.0 and abs(ratio - round(ratio)) < 1e-6:
+            return self._frame_steps(dt) * round(ratio)
+        return max(1, round(self.vtk_interval / dt))
+
+    def every_steps(self, dt: float) -> int:
+        vs = self._vtk_steps(dt)
+        fs = self._frame_steps(dt)
+        return fs if vs is None else math.gcd(fs, vs)
+
+    # --- recording ------------------------------------------------------------------------
+    def record(self, run: SiloRun) -> None:
+        steps = run.sim.steps
+        vs = self._vtk_steps(run.dt)
+        want_frame = steps % self._frame_steps(run.dt) == 0
+        want_vtk = vs is not None and steps % vs == 0
+        if not (want_frame or want_vtk):
+            return
+        frame = frame_of(run)
+        if want_frame:
+            self.frames.append(frame)
+        if want_vtk:
+            self._write_vtk(run, frame)
+
+    def phase_ended(self, run: SiloRun, phase: str) -> None:
+        """A frame at the end of each phase (the settled state, the final state)."""
+        if self.frames and self.frames[-1].step == run.sim.steps:
+            return
+        self.frames.append(frame_of(run))
+
+    def _write_vtk(self, run: SiloRun, frame: Frame) -> None:
+        from silodem.viz.vtk import VtkSeries
+
+        if self._vtk is None:
+            self._vtk = VtkSeries(self.vtk_dir, WallGeometry.of(run.walls),
+                                  fresh=not self.vtk_times)
+        self._vtk.write(len(self.vtk_times), frame)
+        self.vtk_times.append(frame.time)
+        self._vtk.write_collections(self.vtk_times)
+
+    # --- results.h5 -----------------------------------------------------------------------
+    def arrays(self) -> dict[str, np.ndarray]:
+        """All frames as flat arrays (the ``/frames`` layout, with '/' read as '_')."""
+        return frames_to_arrays(self.frames)
+
+    def write(self, group: h5py.Group) -> None:
+        write_frames(group, self.frames, self.interval, self.vtk_interval)
+
+    def state(self) -> dict[str, Any]:
+        out = {key.replace("/", "__"): arr for key, arr in self.arrays().items()}
+        out["vtk_times"] = np.asarray(self.vtk_times, dtype=float)
+        return out
+
+    def restore(self, state: dict[str, Any]) -> None:
+        arrays = {key.replace("__", "/"): np.asarray(val) for key, val in state.items()
+                  if key != "vtk_times"}
+        self.frames = frames_from_arrays(arrays)
+        self.vtk_times = [float(t) for t in np.asarray(state.get("vtk_times", []))]
+        self._vtk = None
+
+
+# --- the flat layout ----------------------------------------------------------------------
+def frames_to_arrays(frames: list[Frame]) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {
+        "time": np.array([f.time for f in frames], dtype=float),
+        "step": np.array([f.step for f in frames], dtype=np.int64),
+        "phase": np.array([PHASE_CODES[f.phase] for f in frames], dtype=np.int8),
+    }
+    n_walls = frames[0].walls_active.size if frames else 0
+    out["walls_active"] = (np.stack([f.walls_active for f in frames]) if frames
+                           else np.zeros((0, n_walls), dtype=bool))
+    for table, fields in FIELDS.items():
+        counts = [getattr(f, table)["fn" if table != "particles" else "x"].size for f in frames]
+        out[_OFFSETS[table]] = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        for key, (dt, _) in fields.items():
+            parts = [getattr(f, table)[key] for f in frames]
+            out[f"{table}/{key}"] = (np.concatenate(parts).astype(dt, copy=False) if parts
+                                     else np.zeros(0, dtype=dt))
+    return out
+
+
+def frames_from_arrays(a: dict[str, np.ndarray]) -> list[Frame]:
+    frames = []
+    for k in range(a["time"].shape[0]):
+        tables = {}
+        for table, fields in FIELDS.items():
+            off = a[_OFFSETS[table]]
+            s = slice(int(off[k]), int(off[k + 1]))
+            tables[table] = {key: np.asarray(a[f"{table}/{key}"][s]) for key in fields}
+        frames.append(Frame(float(a["time"][k]), int(a["step"][k]),
+                            PHASE_NAMES[int(a["phase"][k])], tables["particles"],
+                            tables["contacts"], tables["wall_contacts"],
+                            np.asarray(a["walls_active"][k], dtype=bool)))
+    return frames
+
+
+def write_frames(group: h5py.Group, frames: list[Frame], interval: float,
+                 vtk_interval: float | None = None) -> None:
+    """``frames`` into ``group`` (results.h5 ``/frames``), gzip-compressed."""
+    group.attrs["interval"] = interval
+    group.attrs["unit_interval"] = "s"
+    if vtk_interval is not None:
+        group.attrs["vtk_interval"] = vtk_interval
+    group.attrs["count"] = len(frames)
+    group.attrs["layout"] = (
+        "concatenated: frame k owns rows particle_offset[k]:particle_offset[k+1] of "
+        "particles/*, contact_offset[k]:contact_offset[k+1] of contacts/*, "
+        "wall_contact_offset[k]:wall_contact_offset[k+1] of wall_contacts/*; contact i, j and "
+        "wall_contacts grain index the frame's own grains; wall indexes /walls"
+    )
+    group.attrs["phase_codes"] = "fill=0,settle=1,discharge=2"
+    units = {"time": "s"}
+    for table, fields in FIELDS.items():
+        units.update({f"{table}/{k}": u for k, (_, u) in fields.items()})
+    for key, arr in frames_to_arrays(frames).items():
+        big = arr.size > 1024
+        ds = group.create_dataset(key, data=arr, compression="gzip" if big else None,
+                                  shuffle=big)
+        if key in units:
+            ds.attrs["unit"] = units[key]
+
+
+class Frames:
+    """The frames of a results.h5 (:func:`read_frames`), with the wall geometry and events."""
+
+    def __init__(self, frames: list[Frame], walls: WallGeometry, events: dict[str, Any],
+                 attrs: dict[str, Any], scenario: str = "") -> None:
+        self.frames = frames
+        self.scenario = scenario
+        self.walls = walls
+        self.events = events
+        self.attrs = attrs
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def __getitem__(self, k: int) -> Frame:
+        return self.frames[k]
+
+    def __iter__(self):
+        return iter(self.frames)
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.array([f.time for f in self.frames], dtype=float)
+
+    def end_of_filling(self) -> Frame:
+        """The last frame before the gate opened (the settled packing), else the last one."""
+        before = [f for f in self.frames if f.phase in ("fill", "settle")]
+        return before[-1] if before else self.frames[-1]
+
+    def nearest(self, time: float) -> Frame:
+        """The frame closest in time to ``time`` [s]."""
+        return self.frames[int(np.argmin(np.abs(self.times - time)))]
+
+
+def read_frames(path: Path | str) -> Frames:
+    """The ``/frames`` of a results.h5 (``KeyError`` when it has none)."""
+    import h5py
+
+    with h5py.File(path, "r") as h5:
+        if "frames" not in h5:
+            raise KeyError("frames")
+        g = h5["frames"]
+        arrays = {}
+        g.visititems(lambda name, obj: arrays.__setitem__(name, obj[()])
+                     if isinstance(obj, h5py.Dataset) else None)
+        walls = WallGeometry.of(h5["walls"])
+        events = dict(h5["events"].attrs) if "events" in h5 else {}
+        attrs = dict(g.attrs)
+        scenario = str(h5.attrs.get("scenario", ""))
+    return Frames(frames_from_arrays(arrays), walls, events, attrs, scenario)

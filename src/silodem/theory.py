@@ -1,0 +1,279 @@
+"""Continuum silo theory to compare the simulations with (docs/theory.md).
+
+Units are SI throughout: lengths [m], densities [kg/m^3], g [m/s^2], stresses [Pa], angles in
+degrees where the argument name ends in ``_deg``.  Stresses are compressive positive (soil
+mechanics).  Every function works on NumPy arrays.
+
+Angles: the config gives the hopper wall slope theta FROM THE HORIZONTAL
+(``silo.hopper_angle_from_horizontal_deg``); hopper theory (Walker, Jenike, Nedderman) uses the
+half-angle alpha FROM THE VERTICAL, alpha = 90 deg - theta (:func:`alpha_from_theta`).
+
+Planar (2D, wedge) versus conical hoppers: the differential slice balance of a hopper reads, with
+h the height above the (virtual) apex and m = 0 for a wedge, m = 1 for a cone,
+
+    h d(sigma_v)/dh = n sigma_v - gamma h,   n = (m + 1) [D (1 + mu_w / tan(alpha)) - 1]
+
+whose solution with sigma_v(H) = q at the transition h = H is
+
+    sigma_v(h) = gamma h / (n - 1) [1 - (h/H)^(n-1)] + q (h/H)^n.
+
+A 2D DEM hopper is a wedge (plane strain): m = 0.  The paper's eq. (12) is the conical form
+(m = 1, D = 1, its n_i = n - 1); it overstates the wall support of a 2D slice by a factor of two
+(perimeter/area of a cone 2/x, of a wedge 1/x) and so underpredicts the hopper stresses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+# --- helpers ---------------------------------------------------------------------------------
+
+
+def alpha_from_theta(theta_from_horizontal_deg: float) -> float:
+    """Hopper half-angle from the vertical alpha [deg] = 90 - theta (theta from the horizontal)."""
+    return 90.0 - float(theta_from_horizontal_deg)
+
+
+def apex_below_outlet(outlet_width: float, alpha_deg: float) -> float:
+    """Depth of the virtual apex of a hopper under its outlet [m]: (D/2) / tan(alpha).
+
+    Slice theory measures heights h from the apex, where the hopper walls would meet."""
+    return 0.5 * outlet_width / math.tan(math.radians(alpha_deg))
+
+
+# --- Janssen (1895), 2D slot -----------------------------------------------------------------
+
+
+def janssen_sigma_v(depth, rho_b: float, g: float, B: float, K: float, mu_w: float):
+    """Mean vertical stress [Pa] at ``depth`` [m] under the free surface of a 2D slot silo.
+
+    sigma_v = rho_b g B / (2 K mu_w) * (1 - exp(-2 K mu_w depth / B))
+
+    Janssen's slice balance for a slot of width B between two walls (plane strain: hydraulic
+    radius A/U = B/2 per unit thickness): d(sigma_v)/dz = rho_b g - 2 K mu_w sigma_v / B.
+    rho_b bulk density [kg/m^3], K = sigma_h/sigma_v [-], mu_w wall friction [-].
+    Source: Janssen (1895), Z. Ver. Dtsch. Ing. 39; Nedderman (1992) ch. 3 (eq. 3.12 in 3D form).
+    """
+    depth = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    c = 2.0 * K * mu_w / B
+    if c == 0.0:
+        return rho_b * g * depth
+    return rho_b * g / c * -np.expm1(-c * depth)
+
+
+def janssen_sigma_h(depth, rho_b: float, g: float, B: float, K: float, mu_w: float):
+    """Horizontal (wall normal) stress [Pa] of Janssen's solution: sigma_h = K sigma_v."""
+    return K * janssen_sigma_v(depth, rho_b, g, B, K, mu_w)
+
+
+def janssen_wall_shear(depth, rho_b: float, g: float, B: float, K: float, mu_w: float):
+    """Wall shear stress [Pa] of Janssen's solution (friction fully mobilised): mu_w K sigma_v."""
+    return mu_w * janssen_sigma_h(depth, rho_b, g, B, K, mu_w)
+
+
+@dataclass(frozen=True)
+class JanssenFit:
+    """Result of :func:`fit_janssen`: K [-], mu_w [-], their standard errors, rms residual [Pa]."""
+
+    K: float
+    mu_w: float
+    K_err: float
+    mu_w_err: float
+    rms: float
+    n_points: int
+    mu_w_fitted: bool
+
+
+def fit_janssen(depth, sigma_h, rho_b: float, g: float, B: float,
+                mu_w: float | None = None) -> JanssenFit:
+    """Least-squares fit of Janssen's sigma_h(depth) to a measured wall normal stress profile.
+
+    sigma_h = rho_b g B / (2 mu_w) (1 - exp(-2 K mu_w depth / B)): the asymptote gives mu_w, the
+    curvature K mu_w.  With ``mu_w`` given (e.g. the mobilised wall friction measured as
+    sum(tau)/sum(sigma_n)) only K is fitted.  NaN points are ignored.  Units as in
+    :func:`janssen_sigma_v`.  Uses scipy.optimize.curve_fit (trust-region reflective, bounds
+    K, mu_w > 0).
+    """
+    from scipy.optimize import curve_fit
+
+    z = np.asarray(depth, dtype=float)
+    s = np.asarray(sigma_h, dtype=float)
+    ok = np.isfinite(z) & np.isfinite(s) & (z > 0)
+    z, s = z[ok], s[ok]
+    if z.size < (1 if mu_w is not None else 2):
+        raise ValueError("fit_janssen: not enough finite points with depth > 0")
+    # start: K from the slope at small depth (sigma_h ~ K rho_b g depth), mu_w from the asymptote
+    shallow = z <= np.quantile(z, 0.5)
+    k0 = float(np.clip(np.sum(s[shallow] * z[shallow]) / np.sum(z[shallow] ** 2) / (rho_b * g),
+                       0.05, 5.0))
+    if mu_w is not None:
+        def model_k(zz, K):
+            return janssen_sigma_h(zz, rho_b, g, B, K, mu_w)
+
+        popt, pcov = curve_fit(model_k, z, s, p0=[k0], bounds=([1e-6], [50.0]))
+        K, mu = float(popt[0]), float(mu_w)
+        errs = np.sqrt(np.clip(np.diag(pcov), 0.0, np.inf)) if np.all(np.isfinite(pcov)) else [
+            np.nan]
+        K_err, mu_err = float(errs[0]), 0.0
+    else:
+        mu0 = float(np.clip(rho_b * g * B / (2.0 * max(s.max(), 1e-12)), 0.05, 2.0))
+
+        def model(zz, K, mu):
+            return janssen_sigma_h(zz, rho_b, g, B, K, mu)
+
+        popt, pcov = curve_fit(model, z, s, p0=[k0, mu0], bounds=([1e-6, 1e-6], [50.0, 50.0]),
+                               maxfev=20000)
+        K, mu = float(popt[0]), float(popt[1])
+        if np.all(np.isfinite(pcov)):
+            K_err, mu_err = (float(v) for v in np.sqrt(np.clip(np.diag(pcov), 0.0, np.inf)))
+        else:
+            K_err = mu_err = float("nan")
+    resid = s - janssen_sigma_h(z, rho_b, g, B, K, mu)
+    return JanssenFit(K, mu, K_err, mu_err, float(np.sqrt(np.mean(resid**2))), int(z.size),
+                      mu_w is None)
+
+
+# --- Walker (1966): slice method in hoppers ----------------------------------------------------
+
+
+def walker_exponent(alpha_deg: float, mu_w: float, D: float = 1.0, planar: bool = True) -> float:
+    """Exponent n of the hopper slice solution [-].
+
+    n = (m + 1) [D (1 + mu_w / tan(alpha)) - 1],  m = 0 planar wedge (2D), m = 1 cone.
+
+    alpha: half-angle from the vertical [deg]; mu_w = tan(phi_w) wall friction [-]; D = sigma_n /
+    sigma_v, Walker's distribution factor (wall normal stress over mean vertical stress) [-].
+    With D = 1 and m = 1, n = 2 (1 + mu_w/tan(alpha)) - 2 = n_i + 1 with the paper's
+    n_i = 2 (1 + tan(phi_P)/tan(alpha)) - 3.  Source: Walker (1966), Chem. Eng. Sci. 21, 975;
+    Nedderman (1992) ch. 4 (the method of differential slices).
+    """
+    m = 0 if planar else 1
+    return (m + 1) * (D * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 1.0)
+
+
+def hopper_sigma_v(h, H: float, q: float, gamma: float, alpha_deg: float, mu_w: float,
+                   D: float = 1.0, planar: bool = True):
+    """Mean vertical stress [Pa] at height ``h`` [m] above the apex of a hopper (slice method).
+
+    sigma_v(h) = gamma h / (n - 1) [1 - (h/H)^(n-1)] + q (h/H)^n      (n from walker_exponent)
+
+    solves h d(sigma_v)/dh = n sigma_v - gamma h with sigma_v(H) = q, the slice balance
+    d(A sigma_v)/dh = -gamma A + P sigma_n (tan(alpha) + mu_w), sigma_n = D sigma_v, with A = 2 h
+    tan(alpha), P = 2 (wedge, per unit thickness) or A = pi (h tan(alpha))^2, P = 2 pi h
+    tan(alpha) (cone).  H: height of the transition above the apex [m]; q: mean vertical stress
+    on the transition from the cell above [Pa]; gamma = rho_b g [N/m^3]; n = 1 is the limit
+    gamma h ln(H/h) + q h/H.  Source: Walker (1966); Nedderman (1992) ch. 4.
+    """
+    h = np.asarray(h, dtype=float)
+    n = walker_exponent(alpha_deg, mu_w, D, planar)
+    x = np.clip(h / H, 1e-300, None)
+    a = n - 1.0
+    log_x = np.log(x)
+    # (1 - x^a)/a, continuous through a = 0, where it is -ln x
+    if abs(a) < 1e-12:
+        growth = -log_x
+    else:
+        growth = -np.expm1(a * log_x) / a
+    return gamma * h * growth + q * np.exp(n * log_x)
+
+
+def hopper_wall_normal(h, H: float, q: float, gamma: float, alpha_deg: float, mu_w: float,
+                       D: float = 1.0, planar: bool = True):
+    """Hopper wall normal stress [Pa]: sigma_n = D sigma_v (:func:`hopper_sigma_v`)."""
+    return D * hopper_sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar)
+
+
+def paper_eq12(z_below_transition, h_prime: float, q: float, gamma: float, alpha_deg: float,
+               mu_w: float):
+    """The paper's eq. (12) as printed [Pa]:
+
+    sigma = gamma [(h' - z)/n_i + (q/gamma - h'/n_i) (1 - z/h')^(n_i + 1)],
+    n_i = 2 (1 + tan(phi_P)/tan(alpha)) - 3,
+
+    z measured down from the transition, h' the distance from the transition to the apex [m].
+    It equals :func:`hopper_sigma_v` with planar=False, D = 1, h = h' - z, H = h'.
+    """
+    z = np.asarray(z_below_transition, dtype=float)
+    n_i = 2.0 * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 3.0
+    return gamma * ((h_prime - z) / n_i + (q / gamma - h_prime / n_i)
+                    * (1.0 - z / h_prime) ** (n_i + 1.0))
+
+
+def walker_distribution_factor(delta_deg: float, phi_w_deg: float, alpha_deg: float) -> float:
+    """Walker's distribution factor D = sigma_n / sigma_v at a hopper wall [-].
+
+    D = (1 + sin(delta) cos(2 omega)) / (1 - sin(delta) cos(2 (alpha + omega))),
+    2 omega = phi_w + arcsin(sin(phi_w) / sin(delta)),
+
+    from the Mohr circle of a material at yield (effective angle of internal friction delta) in
+    the passive (flowing) state at a wall of friction angle phi_w, with the vertical stress at
+    the wall taken as the mean vertical stress (Walker's assumption).  alpha: half-angle from
+    the vertical [deg].  For alpha = 0 it is the vertical-wall K of Walker/Nedderman; for a
+    smooth wall (phi_w = 0) Rankine's passive K = (1 + sin delta)/(1 - sin delta).
+    Source: Walker (1966); Nedderman (1992) ch. 4.
+    """
+    s = math.sin(math.radians(delta_deg))
+    pw = math.radians(phi_w_deg)
+    if math.sin(pw) > s:
+        raise ValueError("walker_distribution_factor: phi_w must not exceed delta")
+    two_omega = pw + math.asin(math.sin(pw) / s)
+    a2 = 2.0 * math.radians(alpha_deg)
+    return (1.0 + s * math.cos(two_omega)) / (1.0 - s * math.cos(a2 + two_omega))
+
+
+# --- Beverloo (1961), 2D -------------------------------------------------------------------------
+
+
+def beverloo_2d(D: float, d: float, rho_b: float, g: float, C: float, k: float,
+                thickness: float = 1.0) -> float:
+    """Discharge mass flow rate [kg/s] through a slot of width D [m] (2D Beverloo law):
+
+    W = C rho_b sqrt(g) (D - k d)^(3/2) * thickness
+
+    d: grain diameter [m]; C, k: empirical constants [-]; rho_b [kg/m^3]; thickness t [m] of the
+    slot (W per unit thickness times t).  Zero when D <= k d.  Source: Beverloo, Leniger & van de
+    Velde (1961), Chem. Eng. Sci. 15, 260 (3D form W ~ (D - k d)^(5/2)); Nedderman (1992) ch. 10.
+    """
+    open_width = max(D - k * d, 0.0)
+    return C * rho_b * math.sqrt(g) * open_width**1.5 * thickness
+
+
+def beverloo_2d_C(rate: float, D: float, d: float, rho_b: float, g: float, k: float,
+                  thickness: float = 1.0) -> float:
+    """The Beverloo constant C [-] that a measured rate [kg/s] implies for a given k."""
+    base = beverloo_2d(D, d, rho_b, g, 1.0, k, thickness)
+    return rate / base if base > 0 else float("nan")
+
+
+# --- EN 1991-4:2006 ------------------------------------------------------------------------------
+
+
+def en1991_4_filling(depth, gamma: float, K: float, mu: float, A_over_U: float):
+    """EN 1991-4:2006 §5.2.1.1 symmetrical filling loads on vertical walls of slender silos.
+
+    p_hf = p_ho Y_J(z), p_wf = mu p_hf, p_vf = p_ho / K Y_J(z), with
+    p_ho = gamma K z_o, z_o = A/(K mu U), Y_J = 1 - exp(-z/z_o)   (Janssen form).
+
+    depth z [m] below the equivalent surface; gamma [N/m^3]; K, mu [-]; A/U hydraulic radius [m]
+    (B/2 for a 2D slot of width B).  Returns (p_h, p_w, p_v) [Pa].  The characteristic values
+    of the standard use K and mu at their extremes (K = 1.1 (1 - sin phi_i) as a mean value);
+    give the values to compare.
+    """
+    z = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    z_o = A_over_U / (K * mu)
+    p_ho = gamma * K * z_o
+    yj = -np.expm1(-z / z_o)
+    p_h = p_ho * yj
+    return p_h, mu * p_h, p_ho / K * yj
+
+
+def en1991_4_discharge(depth, gamma: float, K: float, mu: float, A_over_U: float,
+                       C_h: float = 1.15, C_w: float = 1.10):
+    """EN 1991-4:2006 §5.2.2.2 fixed discharge loads of slender silos: p_he = C_h p_hf,
+    p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10, expressions 5.22-5.23; 1.0 for a silo emptied
+    from the top).  The patch load is not included.  Returns (p_he, p_we)."""
+    p_h, p_w, _ = en1991_4_filling(depth, gamma, K, mu, A_over_U)
+    return C_h * p_h, C_w * p_w

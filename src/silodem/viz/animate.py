@@ -1,0 +1,164 @@
+"""``silodem animate``: an MP4 or GIF of a run's filling and discharge from its saved frames.
+
+Every frame of results.h5 ``/frames`` becomes one picture (``FrameArtist``): disks to scale,
+coloured by speed, contact force or coordination number, with the force chains drawn.  MP4 is
+encoded by FFmpeg through imageio (the binary comes with the imageio-ffmpeg package); GIF is
+written by Pillow.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from silodem.errors import InputError
+from silodem.silo.frames import Frames, read_frames
+
+FORMATS = ("mp4", "gif")
+ANIMATION_COLORS = ("velocity", "force", "coordination")
+_GIF_HEIGHT = 560  # px: GIFs get large quickly
+_MP4_HEIGHT = 800  # px
+
+
+@dataclass
+class AnimationResult:
+    path: Path
+    frames: int
+    seconds: float  # wall time spent rendering and encoding [s]
+    width: int
+    height: int
+
+
+def load_run_frames(run_dir: Path | str) -> Frames:
+    """The frames of the results folder ``run_dir``; an InputError (one line) when there are
+    none to read."""
+    d = Path(run_dir)
+    if not d.exists():
+        raise InputError(f"results folder '{d}' does not exist")
+    if not d.is_dir():
+        raise InputError(f"'{d}' is not a folder; give the results folder of a run "
+                         "(silodem run ... --out DIR)")
+    h5 = d / "results.h5"
+    if not h5.is_file():
+        raise InputError(f"'{d}' has no results.h5; make one with: silodem run ... --out {d}")
+    try:
+        frames = read_frames(h5)
+    except KeyError:
+        raise InputError(f"'{h5}' has no /frames (saved frames); run it again with this "
+                         "version of silodem") from None
+    except OSError as exc:
+        raise InputError(f"cannot read '{h5}': {exc}") from None
+    if len(frames) == 0:
+        raise InputError(f"'{h5}' holds no frames: the run was shorter than "
+                         "output.frame_interval")
+    return frames
+
+
+def _choose_format(out: Path | None, fmt: str | None) -> str:
+    suffix = out.suffix.lower().lstrip(".") if out is not None else ""
+    if fmt is not None:
+        fmt = fmt.lower()
+        if fmt not in FORMATS:
+            raise InputError(f"--format must be one of {', '.join(FORMATS)}; got '{fmt}'")
+        if suffix in FORMATS and suffix != fmt:
+            raise InputError(f"--out {out} ends in .{suffix} but --format is {fmt}")
+        return fmt
+    return suffix if suffix in FORMATS else "mp4"
+
+
+@dataclass
+class AnimationPlan:
+    """A checked request: the frames to draw and where to write them."""
+
+    frames: Frames
+    out: Path
+    fmt: str
+    color: str
+    fps: int
+
+
+def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
+                   color: str = "velocity", fmt: str | None = None,
+                   fps: int = 10) -> AnimationPlan:
+    """Check the request and read the frames; every bad input is an InputError (one line)."""
+    if color not in ANIMATION_COLORS:
+        raise InputError(f"--color must be one of {', '.join(ANIMATION_COLORS)}; got '{color}'")
+    if isinstance(fps, bool) or not isinstance(fps, int) or not 1 <= fps <= 60:
+        raise InputError(f"--fps must be an integer from 1 to 60; got {fps}")
+    out_path = Path(out) if out is not None else None
+    fmt = _choose_format(out_path, fmt)
+    frames = load_run_frames(run_dir)
+    if out_path is None:
+        out_path = Path(run_dir) / f"animation.{fmt}"
+    if not out_path.parent.is_dir():
+        raise InputError(f"--out {out_path}: folder '{out_path.parent}' does not exist")
+    return AnimationPlan(frames, out_path, fmt, color, fps)
+
+
+def render_animation(plan: AnimationPlan,
+                     on_frame: Callable[[int, int], None] | None = None) -> AnimationResult:
+    """Draw every frame and encode the video; ``on_frame(done, total)`` after each frame."""
+    from silodem.viz.draw import FrameArtist
+
+    t0 = time.perf_counter()
+    frames, fmt, out_path = plan.frames, plan.fmt, plan.out
+    artist = FrameArtist(frames, plan.color,
+                         height_px=_MP4_HEIGHT if fmt == "mp4" else _GIF_HEIGHT)
+    total = len(frames)
+
+    def pictures():
+        for k, frame in enumerate(frames):
+            artist.draw(frame)
+            yield artist.rgb()
+            if on_frame is not None:
+                on_frame(k + 1, total)
+
+    tmp = out_path.with_name(f".{out_path.stem}.tmp.{fmt}")
+    try:
+        if fmt == "mp4":
+            _write_mp4(tmp, pictures(), plan.fps)
+        else:
+            _write_gif(tmp, pictures(), plan.fps)
+        os.replace(tmp, out_path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return AnimationResult(out_path, total, time.perf_counter() - t0, artist.width_px,
+                           artist.height_px)
+
+
+def animate(run_dir: Path | str, out: Path | str | None = None, *, color: str = "velocity",
+            fmt: str | None = None, fps: int = 10,
+            on_frame: Callable[[int, int], None] | None = None) -> AnimationResult:
+    """Render the frames of ``run_dir`` to ``out`` (default ``run_dir/animation.<fmt>``),
+    one video frame per saved frame."""
+    return render_animation(plan_animation(run_dir, out, color=color, fmt=fmt, fps=fps),
+                            on_frame)
+
+
+def _write_mp4(path: Path, pictures, fps: int) -> None:
+    import imageio.v2 as imageio
+
+    writer = imageio.get_writer(path, format="FFMPEG", mode="I", fps=fps, codec="libx264",
+                                pixelformat="yuv420p", quality=7, macro_block_size=16,
+                                ffmpeg_log_level="error")
+    try:
+        for rgb in pictures:
+            writer.append_data(rgb)
+    finally:
+        writer.close()
+
+
+def _write_gif(path: Path, pictures, fps: int) -> None:
+    from PIL import Image
+
+    fast = Image.Quantize.FASTOCTREE
+    images = [Image.fromarray(np.ascontiguousarray(rgb)).quantize(colors=255, method=fast)
+              for rgb in pictures]
+    images[0].save(path, format="GIF", save_all=True, append_images=images[1:],
+                   duration=max(20, round(1000 / fps)), loop=0, optimize=False, disposal=1)

@@ -1,0 +1,176 @@
+"""Drawing a frame: disks to scale, the force network (line width ~ normal force), the walls.
+
+``FrameArtist`` owns one matplotlib figure (Agg canvas, no pyplot) and redraws only what changes
+from frame to frame, so animations render fast.  Colour scales and the force-line scale are
+fixed over all the frames of a run, so frames (and the report's pictures) compare.
+"""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.collections import EllipseCollection, LineCollection
+from matplotlib.colors import BoundaryNorm, Normalize
+from matplotlib.figure import Figure
+
+from silodem.silo.frames import Frame, Frames
+
+COLORS = ("velocity", "force", "coordination", "none")
+_LABELS = {"velocity": "grain speed |v| [m/s]",
+           "force": "sum of the grain's contact normal forces [N]",
+           "coordination": "coordination number (contacts per grain) [-]"}
+_CMAPS = {"velocity": "viridis", "force": "YlGnBu", "coordination": "viridis"}
+CHAIN_COLOR = "#c0152f"
+PLAIN_GRAIN = "#ddd5c4"
+_MAX_COORD = 7
+
+
+def _even16(px: float) -> int:
+    return max(16, round(px / 16.0) * 16)
+
+
+def _positive_percentile(values: list[np.ndarray], q: float, default: float) -> float:
+    data = np.concatenate([np.asarray(v, dtype=float).ravel() for v in values]) if values \
+        else np.zeros(0)
+    data = data[np.isfinite(data) & (data > 0)]
+    return float(np.percentile(data, q)) if data.size else default
+
+
+class FrameArtist:
+    """Draws the frames of ``frames`` coloured by ``color`` on a figure ``height_px`` tall."""
+
+    def __init__(self, frames: Frames, color: str = "velocity", height_px: int = 800,
+                 title: str | None = None) -> None:
+        if color not in COLORS:
+            raise ValueError(f"color must be one of {', '.join(COLORS)}; got {color!r}")
+        self.frames = frames
+        self.color = color
+        self.title = title if title is not None else str(frames.scenario)
+        walls = frames.walls
+        radii = [f.particles["radius"] for f in frames]
+        r_max = max((float(r.max()) for r in radii if r.size), default=0.1)
+        xs = np.concatenate([walls.ax, walls.bx])
+        ys = np.concatenate([walls.ay, walls.by])
+        margin = max(0.05 * (ys.max() - ys.min()), 3 * r_max)
+        self.xlim = (float(xs.min()) - margin, float(xs.max()) + margin)
+        self.ylim = (float(ys.min()) - 5.5 * r_max, float(ys.max()) + margin)
+
+        # scales fixed over the run, taken from the settled packing (the end of filling) so that
+        # the impacts of pouring do not flatten the static force network
+        ref = [frames.end_of_filling()] if len(frames) else []
+        self.force_scale = _positive_percentile(
+            [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref], 90.0,
+            _positive_percentile([f.contacts["fn"] for f in frames], 90.0, 1.0))
+        if color == "velocity":
+            top = _positive_percentile([f.speed() for f in frames], 95.0, 1.0)
+            self.norm = Normalize(0.0, top)
+        elif color == "force":
+            top = 1.2 * _positive_percentile(
+                [f.normal_force_sum() for f in ref], 95.0,
+                _positive_percentile([f.normal_force_sum() for f in frames], 95.0, 1.0))
+            self.norm = Normalize(0.0, top)
+        elif color == "coordination":
+            self.norm = BoundaryNorm(np.arange(-0.5, _MAX_COORD + 1.0), 256)
+        else:
+            self.norm = None
+        self.cmap = matplotlib.colormaps[_CMAPS[color]] if color in _CMAPS else None
+
+        # the figure: axes sized to the silo (equal scales), a colour bar on the right [px]
+        dpi = 100
+        aspect = (self.xlim[1] - self.xlim[0]) / (self.ylim[1] - self.ylim[0])
+        self.height_px = h = _even16(height_px)
+        left, bottom, top = 62, 45, 28
+        plot_h = h - bottom - top
+        plot_w = aspect * plot_h
+        right = 120 if self.norm is not None else 24
+        self.width_px = w = _even16(left + plot_w + right + 8)
+        self.fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi, facecolor="white")
+        self.canvas = FigureCanvasAgg(self.fig)
+        ax = self.fig.add_axes((left / w, bottom / h, plot_w / w, plot_h / h))
+        ax.set_aspect("equal")
+        ax.set_xlim(*self.xlim)
+        ax.set_ylim(*self.ylim)
+        ax.set_xlabel("x [m]", fontsize=8)
+        ax.set_ylabel("z [m]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if self.norm is not None:
+            cax = self.fig.add_axes(((left + plot_w + 14) / w, (bottom + 0.1 * plot_h) / h,
+                                     16 / w, 0.8 * plot_h / h))
+            cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
+            cb.set_label(_LABELS[color], fontsize=8)
+            cb.ax.tick_params(labelsize=7)
+            if color == "coordination":
+                cb.set_ticks(range(_MAX_COORD + 1))
+        self.ax = ax
+        self.wall_lines = [ax.plot([walls.ax[k], walls.bx[k]], [walls.ay[k], walls.by[k]],
+                                   color="k", lw=1.6, solid_capstyle="round")[0]
+                           for k in range(len(walls))]
+        self.text = ax.set_title("", fontsize=9, loc="left")
+        self._artists: list = []
+
+    # --- drawing ------------------------------------------------------------------------------
+    def draw(self, frame: Frame, title: str | None = None) -> None:
+        for artist in self._artists:
+            artist.remove()
+        self._artists = []
+        p = frame.particles
+        x, y, r = (p[k].astype(float) for k in ("x", "y", "radius"))
+        ax = self.ax
+        if frame.n:
+            kw: dict = {"facecolors": PLAIN_GRAIN} if self.norm is None else {
+                "array": self._values(frame), "cmap": self.cmap, "norm": self.norm}
+            disks = EllipseCollection(2 * r, 2 * r, np.zeros_like(r), units="xy",
+                                      offsets=np.column_stack([x, y]),
+                                      offset_transform=ax.transData, edgecolors="#5c5346",
+                                      linewidths=0.3, zorder=2, **kw)
+            ax.add_collection(disks, autolim=False)
+            self._artists.append(disks)
+        segs, fn = self._chains(frame, x, y)
+        if fn.size:
+            widths = np.clip(2.5 * fn / self.force_scale, 0.15, 6.0)
+            chains = LineCollection(segs, linewidths=widths, colors=CHAIN_COLOR, alpha=0.9,
+                                    capstyle="round", zorder=3)
+            ax.add_collection(chains, autolim=False)
+            self._artists.append(chains)
+        for k, line in enumerate(self.wall_lines):
+            on = bool(frame.walls_active[k]) if k < frame.walls_active.size else True
+            line.set_linestyle("-" if on else ":")
+            line.set_alpha(1.0 if on else 0.5)
+        self.text.set_text(title if title is not None else
+                           f"{self.title}   t = {frame.time:6.2f} s   {frame.phase:<9}   "
+                           f"{frame.n} grains")
+
+    def _values(self, frame: Frame) -> np.ndarray:
+        if self.color == "velocity":
+            return frame.speed().astype(float)
+        if self.color == "force":
+            return frame.normal_force_sum().astype(float)
+        return np.minimum(frame.coordination(), _MAX_COORD).astype(float)
+
+    def _chains(self, frame: Frame, x: np.ndarray, y: np.ndarray):
+        c, w = frame.contacts, frame.wall_contacts
+        wx, wy = self.frames.walls.closest_points(w["wall"], x[w["grain"]], y[w["grain"]])
+        a = np.concatenate([np.column_stack([x[c["i"]], y[c["i"]]]),
+                            np.column_stack([x[w["grain"]], y[w["grain"]]])])
+        b = np.concatenate([np.column_stack([x[c["j"]], y[c["j"]]]),
+                            np.column_stack([wx, wy])])
+        fn = np.concatenate([c["fn"], w["fn"]]).astype(float)
+        keep = fn > 0
+        return np.stack([a[keep], b[keep]], axis=1), fn[keep]
+
+    # --- output -------------------------------------------------------------------------------
+    def rgb(self) -> np.ndarray:
+        """The drawn figure as an (H, W, 3) uint8 array."""
+        self.canvas.draw()
+        return np.asarray(self.canvas.buffer_rgba())[..., :3].copy()
+
+    def png(self) -> bytes:
+        buf = io.BytesIO()
+        self.fig.savefig(buf, format="png", dpi=self.fig.dpi)
+        return buf.getvalue()

@@ -1,0 +1,75 @@
+"""Pictures of the force network at chosen moments of a run, as PNG bytes (for the report).
+
+``which`` names a moment:
+
+* ``"end-of-filling"`` (or ``"settled"``): the last frame before the gate opened;
+* ``"early-discharge"``: the frame nearest to 15 % of the discharge duration after the gate
+  opened;
+* ``"late-discharge"``: the frame nearest to 75 % of the discharge duration;
+* ``"final"``: the last frame;
+* a number: the frame nearest to that time [s].
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from silodem.silo.frames import Frame, Frames, read_frames
+
+VIEWS = ("end-of-filling", "early-discharge", "late-discharge")
+_DISCHARGE_FRACTION = {"early-discharge": 0.15, "late-discharge": 0.75}
+
+
+def select_frame(frames: Frames, which: str | float) -> Frame:
+    """The frame of ``frames`` named by ``which`` (see the module); ValueError if none."""
+    if len(frames) == 0:
+        raise ValueError("the run has no frames")
+    if not isinstance(which, str):
+        return frames.nearest(float(which))
+    if which in ("end-of-filling", "settled"):
+        return frames.end_of_filling()
+    if which == "final":
+        return frames[-1]
+    if which in _DISCHARGE_FRACTION:
+        out = [f for f in frames if f.phase == "discharge"]
+        if not out:
+            raise ValueError(f"no '{which}' picture: the run has no discharge frames")
+        t0 = float(frames.events.get("discharge_start_time", out[0].time))
+        duration = float(frames.events.get("discharge_time", out[-1].time - t0))
+        target = t0 + _DISCHARGE_FRACTION[which] * duration
+        return min(out, key=lambda f: abs(f.time - target))
+    raise ValueError(f"unknown moment {which!r}: use one of {', '.join(VIEWS)}, 'final', "
+                     "'settled' or a time in seconds")
+
+
+_LABEL = {"end-of-filling": "end of filling", "early-discharge": "early discharge",
+          "late-discharge": "late discharge", "final": "end of run", "settled": "end of filling"}
+
+
+def force_network_png(results_h5: Path | str | Frames, which: str | float = "end-of-filling",
+                      *, color: str = "none", height_px: int = 700) -> bytes:
+    """PNG bytes of the grains and the force network (line width ~ normal force) of one moment
+    of a run (``which``, see the module), from its results.h5 (or already read ``Frames``).
+
+    ``color``: "none" (plain grains, the default), "velocity", "force" or "coordination"."""
+    from silodem.viz.draw import FrameArtist
+
+    frames = results_h5 if isinstance(results_h5, Frames) else read_frames(results_h5)
+    frame = select_frame(frames, which)
+    artist = FrameArtist(frames, color, height_px=height_px)
+    label = _LABEL.get(which, "") if isinstance(which, str) else ""
+    artist.draw(frame, title=f"{label + ', ' if label else ''}t = {frame.time:.2f} s "
+                f"({frame.n} grains)")
+    return artist.png()
+
+
+def force_network_pngs(results_h5: Path | str) -> dict[str, bytes]:
+    """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge)."""
+    frames = read_frames(results_h5)
+    out = {}
+    for view in VIEWS:
+        try:
+            out[view] = force_network_png(frames, view)
+        except ValueError:
+            continue
+    return out

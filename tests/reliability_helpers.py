@@ -1,0 +1,101 @@
+"""Helpers for the reliability tests: a small quick case, the command line in a subprocess,
+and comparing two results files bit for bit."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import silodem
+from silodem.config import Config
+from silodem.scenario_files import load_config, quick_variant
+
+# paper-case2 --quick with about 90 grains (~25000 steps): a few seconds; a checkpoint every
+# ~8 chunks (0.4 s of simulated time)
+SETS = ("fill.n_particles=250", "checkpoint.every_steps=2000", "output.png=false",
+        "measure.report=false")
+
+
+def quick_config(*extra: str) -> Config:
+    """The Config that ``silodem run paper-case2 --quick --set SETS...`` runs."""
+    return quick_variant(load_config("paper-case2", [*SETS, *extra]))
+
+
+def run_args(out: Path, *extra: str) -> list[str]:
+    sets = [arg for item in (*SETS, *extra) for arg in ("--set", item)]
+    return ["run", "paper-case2", "--quick", *sets, "--out", str(out)]
+
+
+def env() -> dict[str, str]:
+    """The environment for a subprocess that imports the same silodem as these tests."""
+    out = dict(os.environ)
+    package_parent = str(Path(next(iter(silodem.__path__))).parent)
+    out["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, out.get("PYTHONPATH")) if p)
+    out.setdefault("NUMBA_NUM_THREADS", "2")
+    return out
+
+
+def command(*args: str) -> list[str]:
+    return [sys.executable, "-m", "silodem", *args]
+
+
+def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(command(*args), check=False, capture_output=True, text=True,
+                          env=env(), timeout=timeout)
+
+
+def start(*args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env())
+
+
+def wait_for_file(path: Path, proc: subprocess.Popen[str], timeout: float = 60) -> None:
+    """Wait until ``path`` exists (the process must still be running)."""
+    t0 = time.monotonic()
+    while not path.exists():
+        assert proc.poll() is None, f"process ended ({proc.returncode}) before {path} appeared"
+        assert time.monotonic() - t0 < timeout, f"{path} did not appear in {timeout} s"
+        time.sleep(0.01)
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess[str], code: int,
+                          *needles: str) -> str:
+    assert result.returncode == code, (result.returncode, result.stdout, result.stderr)
+    assert "Traceback" not in result.stderr + result.stdout
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].strip(), result.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]
+
+
+def datasets(path: Path, group: str = "/") -> dict[str, np.ndarray]:
+    """Every dataset under ``group`` of an HDF5 file, by path."""
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(path, "r") as h5:
+        def visit(name: str, node) -> None:
+            if isinstance(node, h5py.Dataset):
+                out[name] = node[()]
+
+        h5[group].visititems(visit)
+    return out
+
+
+def assert_bit_identical(a: Path, b: Path, group: str) -> None:
+    """The datasets under ``group`` of two results files are equal bit for bit."""
+    da, db = datasets(a, group), datasets(b, group)
+    assert da.keys() == db.keys()
+    assert da, f"no datasets under {group}"
+    for key in da:
+        x, y = da[key], db[key]
+        assert x.dtype == y.dtype and x.shape == y.shape, key
+        if x.dtype.kind in "biuf":  # bit for bit: -0.0 != 0.0, NaN == same NaN
+            assert x.tobytes() == y.tobytes(), f"{group}/{key} differs"
+        else:
+            assert np.array_equal(x, y), f"{group}/{key} differs"

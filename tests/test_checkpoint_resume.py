@@ -1,0 +1,260 @@
+"""Checkpoints resume exactly.
+
+A run killed with SIGKILL at a random moment, or stopped by SIGINT / SIGTERM, and continued with
+``silodem run --resume DIR`` ends bit-identical to an uninterrupted run; the results.h5 a
+killed run leaves behind opens and holds the run up to its last save; a checkpoint restored in
+any phase gives back every engine array and continues to the same bits.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import shutil
+import signal
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from reliability_helpers import (
+    assert_bit_identical,
+    cli,
+    datasets,
+    quick_config,
+    run_args,
+    start,
+    wait_for_file,
+)
+
+from silodem.checkpoint import read_checkpoint, save_checkpoint
+from silodem.run import run_simulation
+from silodem.scenario_files import config_to_toml
+from silodem.silo.procedure import SiloRun
+
+COMPARED = ("final/particles", "final/contacts", "settled/particles", "timeseries", "/")
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> tuple[Path, float]:
+    """results.h5 of an uninterrupted run, and how long it took [s]."""
+    out = tmp_path_factory.mktemp("reference")
+    t0 = time.perf_counter()
+    run_simulation(quick_config(), out, progress=False)
+    return out / "results.h5", time.perf_counter() - t0
+
+
+def assert_same_as_reference(out: Path, ref: Path) -> None:
+    for group in COMPARED:
+        assert_bit_identical(out / "results.h5", ref, group)
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "complete"
+        final = {k: h5["final/particles"][k][()] for k in ("x", "y", "vx", "vy", "omega")}
+    with h5py.File(ref) as h5:
+        for key, arr in final.items():
+            assert np.array_equal(arr, h5["final/particles"][key][()])
+    assert not (out / "checkpoint.h5").exists()  # removed once the run is complete
+
+
+def assert_partial_results_are_a_prefix(out: Path, ref: Path) -> None:
+    """The results.h5 of a stopped run opens, and holds exactly what the uninterrupted run had
+    recorded up to the moment it was saved: no row missing, none different."""
+    with h5py.File(out / "results.h5", "r") as h5:
+        saved_time = float(h5.attrs["time"])
+        has_settled = "settled" in h5
+    part, full = datasets(out / "results.h5", "timeseries"), datasets(ref, "timeseries")
+    m = part["time"].shape[0]
+    for key, arr in part.items():
+        assert arr.tobytes() == full[key][:m].tobytes(), key
+    assert m == np.count_nonzero(full["time"] <= saved_time)
+    if has_settled:
+        assert_bit_identical(out / "results.h5", ref, "settled/particles")
+
+
+def kill_at_random(args: list[str], out: Path, rng: random.Random, longest: float,
+                   after_checkpoint: bool) -> bool:
+    """Start ``silodem ARGS``, SIGKILL it after a random delay; True if that left an unfinished
+    run (a checkpoint), False if the run had finished first."""
+    proc = start(*args)
+    try:
+        if after_checkpoint:
+            wait_for_file(out / "checkpoint.h5", proc)
+        deadline = time.monotonic() + rng.uniform(0.0, longest)
+        while time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.005)
+        if proc.poll() is not None:
+            proc.communicate()
+            return False
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate()
+        return (out / "checkpoint.h5").exists()  # else killed after it had finished
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
+def test_a_run_killed_at_random_moments_resumes_bit_identical(reference, tmp_path):
+    ref, seconds = reference
+    seed = int.from_bytes(os.urandom(4), "little")
+    rng = random.Random(seed)
+    out = tmp_path / "run"
+    longest = 0.6 * seconds
+    for _ in range(4):  # the run may end before the kill: try again, sooner
+        if kill_at_random(run_args(out), out, rng, longest, after_checkpoint=True):
+            break
+        shutil.rmtree(out)
+        longest /= 2
+    else:
+        pytest.fail(f"could not kill the run before it ended (seed {seed})")
+    assert_partial_results_are_a_prefix(out, ref)
+    # kill the resumed run too, at a random moment (start-up included)
+    finished = not kill_at_random(["run", "--resume", str(out)], out, rng, longest + 1.5,
+                                  after_checkpoint=False)
+    if not finished:
+        assert_partial_results_are_a_prefix(out, ref)
+        result = cli("run", "--resume", str(out))
+        assert result.returncode == 0, (seed, result.stderr[-2000:])
+    assert_same_as_reference(out, ref)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, reference,
+                                                                       tmp_path):
+    ref, _ = reference
+    out = tmp_path / "run"
+    proc = start(*run_args(out))
+    try:
+        wait_for_file(out / "checkpoint.h5", proc)
+        time.sleep(0.5)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 128 + sig, stderr[-2000:]
+    assert "Traceback" not in stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("interrupted:") and f"--resume {out}" in last, last
+    with h5py.File(out / "checkpoint.h5") as h5:
+        assert h5.attrs["reason"] == signal.Signals(sig).name
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "interrupted"
+    assert_partial_results_are_a_prefix(out, ref)
+    if sig == signal.SIGINT:  # the same code path resumes either: do it once
+        result = cli("run", "--resume", str(out))
+        assert result.returncode == 0, result.stderr[-2000:]
+        assert_same_as_reference(out, ref)
+
+
+# --- in process: a checkpoint in each phase -----------------------------------------------
+
+
+class _Stop(Exception):
+    pass
+
+
+@pytest.fixture(scope="module")
+def uninterrupted() -> SiloRun:
+    run = SiloRun(quick_config())
+    run.run()
+    return run
+
+
+def _assert_same_attributes(a: object, b: object, skip: tuple[str, ...] = ()) -> None:
+    assert vars(a).keys() == vars(b).keys()
+    for name, value in vars(a).items():
+        if name in skip:
+            continue
+        other = getattr(b, name)
+        if isinstance(value, np.ndarray):
+            assert value.dtype == other.dtype and value.shape == other.shape, name
+            assert value.tobytes() == other.tobytes(), name
+        else:
+            assert value == other and type(value) is type(other), name
+
+
+@pytest.mark.parametrize("phase", ["fill", "settle", "discharge"])
+def test_a_checkpoint_in_each_phase_restores_every_array_and_continues_bit_identical(
+        phase, uninterrupted, tmp_path):
+    cfg = quick_config()
+    path = tmp_path / "checkpoint.h5"
+    first = SiloRun(cfg)
+    seen = []
+
+    def save_on_third_chunk(run: SiloRun) -> None:
+        seen.append(run.state.phase)
+        if seen.count(phase) == 3:
+            save_checkpoint(run, path, config_toml=config_to_toml(cfg), reason="test")
+            raise _Stop
+
+    first.chunk_hooks.append(save_on_third_chunk)
+    with pytest.raises(_Stop):
+        first.run()
+
+    loaded = read_checkpoint(path)
+    assert loaded.config == cfg
+    second = SiloRun(loaded.config)
+    loaded.restore(second)
+    sim_a, sim_b = first.sim, second.sim
+    _assert_same_attributes(sim_a.particles, sim_b.particles)
+    _assert_same_attributes(sim_a.neighbors, sim_b.neighbors)
+    _assert_same_attributes(sim_a.walls, sim_b.walls)
+    _assert_same_attributes(sim_a, sim_b, skip=("particles", "walls", "neighbors", "law"))
+    assert second.state == first.state
+    assert second.rng.bit_generator.state == first.rng.bit_generator.state
+    assert second.events == first.events and second.warnings == first.warnings
+
+    second.run()
+    ref = uninterrupted
+    assert np.array(second.series.rows).tobytes() == np.array(ref.series.rows).tobytes()
+    assert second.events == ref.events and second.warnings == ref.warnings
+    for name in ("settled", "final"):
+        for key, arr in ref.snapshots[name].particles.items():
+            assert arr.tobytes() == second.snapshots[name].particles[key].tobytes(), (name, key)
+
+
+def test_a_checkpoint_file_is_replaced_whole_or_not_at_all(uninterrupted, tmp_path):
+    """A write that fails half-way leaves the previous checkpoint as it was, and no temporary
+    file behind."""
+    path = tmp_path / "checkpoint.h5"
+    cfg = quick_config()
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(cfg), reason="first")
+    before = path.read_bytes()
+
+    class Broken:
+        name = "broken"
+
+        def state(self):
+            raise RuntimeError("disk full")
+
+    uninterrupted.recorders.append(Broken())
+    try:
+        with pytest.raises(RuntimeError, match="disk full"):
+            save_checkpoint(uninterrupted, path, config_toml=config_to_toml(cfg),
+                            reason="second")
+    finally:
+        uninterrupted.recorders.pop()
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.h5"]
+
+
+def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):
+    out = tmp_path / "run"
+    proc = start(*run_args(out, "checkpoint.enabled=false"))
+    try:
+        wait_for_file(out / "results.h5", proc)
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, stderr[-2000:]
+    assert "cannot be resumed" in stderr.strip().splitlines()[-1]
+    assert not (out / "checkpoint.h5").exists()
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "interrupted"

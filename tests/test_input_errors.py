@@ -1,0 +1,265 @@
+"""Bad input is refused with exit code 2 and one line naming what is wrong, never a traceback.
+
+Complements tests/test_config_cli.py (unknown keys, malformed TOML, missing file, unknown
+scenario, bad --set, bad --threads): limits and non-finite numbers, files that are not tables,
+folders and --out paths, --resume misuse, values that are valid one by one but give no usable
+run, and fuzzing of whole TOML files and of the numbers a run is built from.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import tempfile
+import tomllib
+from pathlib import Path
+
+import h5py
+import pytest
+import tomli_w
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from silodem.checkpoint import FORMAT
+from silodem.cli import main
+from silodem.config import Config
+from silodem.errors import InputError, schema_keys
+from silodem.safety import check_numbers
+from silodem.scenario_files import config_to_toml, load_config
+from silodem.silo.procedure import SiloRun
+
+
+def refused(capsys, *args: str) -> str:
+    """Run the command line in process; assert exit code 2 and one line; return the line."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(list(args))
+    captured = capsys.readouterr()
+    assert exit_info.value.code == 2, captured.err
+    assert "Traceback" not in captured.err + captured.out
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].strip(), captured.err
+    return lines[0]
+
+
+def assert_names(line: str, *needles: str) -> None:
+    for needle in needles:
+        assert needle in line, line
+
+
+# --- values --------------------------------------------------------------------------------
+
+
+def test_too_many_grains_is_refused_naming_the_limit(capsys):
+    line = refused(capsys, "show", "--set", "fill.n_particles=20000000")
+    assert_names(line, "fill.n_particles", "10000000")
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "+inf"])
+@pytest.mark.parametrize("key", ["material.kn", "time.dt", "gravity"])
+def test_non_finite_numbers_are_refused(capsys, key, value):
+    line = refused(capsys, "show", "--set", f"{key}={value}")
+    assert_names(line, key, "finite")
+
+
+def test_non_finite_number_in_a_file_is_refused(capsys, tmp_path):
+    text = config_to_toml(load_config("paper-case2"))
+    path = tmp_path / "inf.toml"
+    path.write_text(text.replace("\nkn = ", "\nkn = inf # ", 1))
+    assert_names(refused(capsys, "show", str(path)), "material.kn", "finite")
+
+
+@pytest.mark.parametrize(
+    "replacement",
+    ["material = 3", 'material = "soft"', "[[material]]\nkn = 1", "material = [1, 2]"],
+)
+def test_a_section_that_is_not_a_table_is_refused(capsys, tmp_path, replacement):
+    text = config_to_toml(load_config("paper-case2"))
+    head, _, rest = text.partition("[material]")
+    rest = rest[rest.index("\n[") :]  # drop the [material] table
+    path = tmp_path / "section.toml"
+    path.write_text(f"{head}{replacement}\n{rest}")
+    assert_names(refused(capsys, "show", str(path)), "material")
+
+
+def test_a_file_that_is_not_toml_at_all_is_refused(capsys, tmp_path):
+    path = tmp_path / "binary.toml"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00")
+    assert_names(refused(capsys, "show", str(path)), "binary.toml")
+
+
+# --- files and folders ---------------------------------------------------------------------
+
+
+def test_a_folder_given_as_the_config_file_is_refused(capsys, tmp_path):
+    assert_names(refused(capsys, "run", str(tmp_path)), str(tmp_path), "is not a file")
+
+
+@pytest.mark.parametrize("name", ["", "   ", "x" * 5000])
+def test_empty_or_impossible_scenario_names_are_refused(capsys, name):
+    line = refused(capsys, "show", name)
+    assert len(line) < 400
+    assert_names(line, "paper-case2")
+
+
+def test_out_pointing_at_a_file_is_refused(capsys, tmp_path):
+    target = tmp_path / "results.txt"
+    target.write_text("not a folder")
+    assert_names(refused(capsys, "run", "--quick", "--out", str(target)), "--out", "is a file")
+    below = target / "sub"
+    assert_names(refused(capsys, "run", "--quick", "--out", str(below)), "--out",
+                 "is a file, not a folder")
+
+
+def test_out_holding_an_unfinished_run_is_refused(capsys, tmp_path):
+    (tmp_path / "checkpoint.h5").write_bytes(b"")
+    line = refused(capsys, "run", "--quick", "--out", str(tmp_path))
+    assert_names(line, "unfinished run", f"--resume {tmp_path}")
+
+
+# --- --resume ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("extra", "flag"),
+    [
+        (["paper-case1"], "SCENARIO"),
+        (["--set", "seed=3"], "--set"),
+        (["--quick"], "--quick"),
+        (["--out", "elsewhere"], "--out"),
+    ],
+)
+def test_resume_with_a_config_or_out_is_refused(capsys, tmp_path, extra, flag):
+    line = refused(capsys, "run", "--resume", str(tmp_path), *extra)
+    assert_names(line, "--resume", flag)
+
+
+def _foreign_h5(path: Path) -> None:
+    with h5py.File(path, "w") as h5:
+        h5.create_dataset("x", data=[1.0])
+
+
+def _other_version(path: Path) -> None:
+    with h5py.File(path, "w") as h5:
+        h5.attrs["format"] = FORMAT
+        h5.attrs["format_version"] = 99
+        h5.attrs["silodem_version"] = "9.9"
+
+
+def _finished(folder: Path) -> None:
+    with h5py.File(folder / "results.h5", "w") as h5:
+        h5.attrs["status"] = "complete"
+
+
+@pytest.mark.parametrize(
+    ("prepare", "needles"),
+    [
+        (None, ["does not exist"]),
+        (lambda d: d.mkdir(), ["no checkpoint.h5"]),
+        (lambda d: (d.mkdir(), (d / "checkpoint.h5").write_bytes(b"\0garbage" * 10)),
+         ["cannot be read"]),
+        (lambda d: (d.mkdir(), _foreign_h5(d / "checkpoint.h5")), ["not a silodem checkpoint"]),
+        (lambda d: (d.mkdir(), _other_version(d / "checkpoint.h5")), ["format 99", "9.9"]),
+        (lambda d: (d.mkdir(), _finished(d)), ["has finished"]),
+        (lambda d: d.write_text("x"), ["is a file"]),
+    ],
+    ids=["missing", "empty", "garbage", "foreign", "other-version", "finished", "file"],
+)
+def test_resume_without_a_usable_checkpoint_is_refused(capsys, tmp_path, prepare, needles):
+    folder = tmp_path / "run"
+    if prepare is not None:
+        prepare(folder)
+    line = refused(capsys, "run", "--resume", str(folder))
+    assert_names(line, str(folder), *needles)
+
+
+# --- fuzzing -------------------------------------------------------------------------------
+
+_SCRATCH = tempfile.TemporaryDirectory(prefix="silodem-fuzz-")
+_KEYS = [k.split(".") for k in schema_keys(Config)]
+_JUNK = [["materal"], ["material", "knn"], ["silo", "kind", "x"], ["a", "b"], ["fill", ""]]
+
+_scalars = st.one_of(
+    st.integers(min_value=-(2**63), max_value=2**63 - 1),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.booleans(),
+    st.text(max_size=10),
+    st.datetimes(timezones=st.just(dt.UTC)),
+    st.dates(),
+    st.times(),
+)
+_values = st.recursive(
+    _scalars,
+    lambda inner: st.lists(inner, max_size=3)
+    | st.dictionaries(st.text(min_size=1, max_size=6), inner, max_size=3),
+    max_leaves=6,
+)
+_edits = st.lists(
+    st.tuples(st.sampled_from(_KEYS + _JUNK), st.none() | _values),  # None: delete the key
+    max_size=4,
+)
+
+
+def _edited(data: dict, edits) -> dict:
+    for path, value in edits:
+        node = data
+        for part in path[:-1]:
+            child = node.get(part)
+            if not isinstance(child, dict):
+                child = node[part] = {}
+            node = child
+        if value is None:
+            node.pop(path[-1], None)
+        else:
+            node[path[-1]] = value
+    return data
+
+
+def _loads_or_refuses(path: Path) -> None:
+    try:
+        cfg = load_config(str(path))
+    except InputError as exc:
+        assert str(exc) and "\n" not in str(exc)
+    else:
+        assert isinstance(cfg, Config)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenario=st.sampled_from(["paper-case1", "paper-case2"]), edits=_edits)
+def test_fuzzed_toml_files_load_or_are_refused_in_one_line(scenario, edits):
+    data = _edited(tomllib.loads(config_to_toml(load_config(scenario))), edits)
+    path = Path(_SCRATCH.name) / "fuzz.toml"
+    path.write_text(tomli_w.dumps(data), encoding="utf-8")
+    _loads_or_refuses(path)
+
+
+@settings(max_examples=100, deadline=None)
+@given(content=st.binary(max_size=200) | st.text(max_size=200).map(str.encode))
+def test_fuzzed_file_contents_load_or_are_refused_in_one_line(content):
+    path = Path(_SCRATCH.name) / "raw.toml"
+    path.write_bytes(content)
+    _loads_or_refuses(path)
+
+
+_extremes = st.sampled_from([5e-324, 1e-320, 1e-300, 1e-30, 1e-6, 0.5, 1.0, 89.99, 1e6, 1e30,
+                             1e300, 1.7e308]) | st.floats(min_value=0, max_value=1e308)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenario=st.sampled_from(["paper-case1", "paper-case2"]),
+       sets=st.lists(st.tuples(st.sampled_from([
+           "material.density", "material.radius_min", "material.radius_max",
+           "material.thickness", "material.kn", "material.ks", "material.friction_deg",
+           "material.restitution", "walls.kn", "walls.ks", "silo.cell_width",
+           "silo.wall_height", "silo.outlet_width", "silo.hopper_angle_from_horizontal_deg",
+           "fill.band_height", "fill.initial_speed", "time.dt", "time.safety", "gravity"]),
+           _extremes), max_size=3))
+def test_extreme_numbers_build_a_run_or_are_refused_in_one_line(scenario, sets):
+    items = [f"{key}={value!r}" for key, value in sets]
+    try:
+        cfg = load_config(scenario, items)
+        check_numbers(cfg)
+    except InputError as exc:
+        assert "\n" not in str(exc)
+        return
+    run = SiloRun(cfg)
+    assert math.isfinite(run.dt) and run.dt > 0

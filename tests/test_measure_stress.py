@@ -1,0 +1,106 @@
+"""Love-Weber stress: a packing compressed between walls carries the applied wall stress.
+
+The reference is the wall stress applied by a servo (force on a wall / its loaded length), not
+the code under test: in static equilibrium the mean stress of the whole assembly equals the
+boundary traction (Christoffersen et al. 1981)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from silodem.engine import quantities as q
+from silodem.engine.contact import GrainLaw, damping_ratio_from_restitution
+from silodem.engine.particles import Particles
+from silodem.engine.simulation import Simulation
+from silodem.engine.walls import Walls
+from silodem.measure.frame import frame_from_sim
+from silodem.measure.stress import circle_measure, grain_moments, lens_area, region_stress
+
+P_X, P_Z = 3000.0, 1500.0  # applied stresses [Pa]
+
+
+@pytest.fixture(scope="module")
+def compressed_box():
+    """16 x 16 grains in a box of frictionless walls; the right and top walls are servo-driven
+    to the stresses P_X and P_Z, then stopped and the packing relaxed to rest (no gravity)."""
+    N, k, ext = 16, 1e6, 0.6
+    L0 = 0.1 * N
+    w = Walls()
+    w.add("floor", (-ext, 0), (L0 + ext, 0), k, k, 0.0)
+    w.add("right", (L0, -ext), (L0, L0 + ext), k, k, 0.0)
+    w.add("top", (L0 + ext, L0), (-ext, L0), k, k, 0.0)
+    w.add("left", (0, L0 + ext), (0, -ext), k, k, 0.0)
+    rng = np.random.default_rng(5)
+    xs, ys = np.meshgrid(np.arange(N) * 0.1 + 0.05, np.arange(N) * 0.1 + 0.05)
+    p = Particles(512)
+    p.add(xs.ravel(), ys.ravel(), rng.uniform(0.045, 0.05, N * N), 1000.0)
+    law = GrainLaw(kn=k / 2, ks=k / 2, mu=0.3, zeta=damping_ratio_from_restitution(0.3),
+                   local_damping=0.7)
+    sim = Simulation(p, w, law, dt=4e-4, gravity=0.0, skin=0.02)
+    vmax = 0.05
+    for _ in range(450):
+        f = q.force_on_walls(sim)
+        px, pz = f[1, 0] / w.ay[2], f[2, 1] / w.ax[1]
+        w.vx[1] = -vmax * np.clip((P_X - px) / P_X, -1, 1)
+        w.vy[2] = -vmax * np.clip((P_Z - pz) / P_Z, -1, 1)
+        sim.run(25)
+    w.vx[1] = w.vy[2] = 0.0
+    sim.run(3000)
+    return sim
+
+
+def test_stress_of_a_packing_compressed_between_walls_equals_the_wall_stress(compressed_box):
+    sim = compressed_box
+    w = sim.walls
+    width, height = w.ax[1], w.ay[2]  # right wall x, top wall z: the box [0, W] x [0, H]
+    f = q.force_on_walls(sim)
+    applied_x, applied_z = f[1, 0] / height, f[2, 1] / width  # [Pa], thickness 1 m
+    assert applied_x > 1.3 * applied_z > 0  # an anisotropic load (it relaxes a little)
+    fr = frame_from_sim(sim)
+    sxx, szz, sxz = region_stress(fr.moments, np.ones(fr.n, bool), width * height, 1.0)
+    assert sxx == pytest.approx(applied_x, rel=0.02)
+    assert szz == pytest.approx(applied_z, rel=0.02)
+    assert abs(sxz) < 0.02 * applied_x
+    # a PFC measurement circle enclosing the box, porosity taken over the box area
+    m = circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, width / 2, height / 2,
+                       0.75 * max(width, height), area_inside=width * height)
+    assert m["stress"][0] == pytest.approx(applied_x, rel=0.02)
+    assert m["stress"][1] == pytest.approx(applied_z, rel=0.02)
+    solid = np.sum(np.pi * fr.r**2)
+    assert m["porosity"] == pytest.approx(1.0 - solid / (width * height), abs=1e-9)
+    # circles inside the packing: same stress on average, within the scatter of ~100 grains
+    xs = []
+    for cx, cz in [(0.35, 0.35), (0.35, 0.65), (0.65, 0.35), (0.65, 0.65), (0.5, 0.5)]:
+        xs.append(circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, cx * width,
+                                 cz * height, 0.3 * width)["stress"])
+    mean = np.mean(xs, axis=0)
+    assert mean[0] == pytest.approx(applied_x, rel=0.25)
+    assert mean[1] == pytest.approx(applied_z, rel=0.25)
+    assert mean[0] > mean[1]  # the anisotropy of the load is seen
+
+
+def test_two_disks_pressed_together():
+    # two disks of radius r touching along x with force F: sigma_xx = F * 2r / A, compression
+    r, F = 0.5, 10.0
+    x, z, rr = np.array([0.0, 2 * r]), np.zeros(2), np.full(2, r)
+    m = grain_moments(2, x, z, rr, np.array([0]), np.array([1]), np.array([F]), np.array([0.0]),
+                      np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
+    s = region_stress(m, np.ones(2, bool), 4.0, 2.0)
+    np.testing.assert_allclose(s, [F * 2 * r / (4.0 * 2.0), 0.0, 0.0], atol=1e-12)
+
+
+def test_lens_area_against_quadrature():
+    R = 1.0
+    cases = [(0.0, 0.3), (2.5, 0.3), (0.9, 0.3), (0.5, 0.8), (1.2, 1.5)]
+    n = 1500
+    h = 6.0 / n
+    g = -3.0 + h * (np.arange(n) + 0.5)
+    gx, gz = np.meshgrid(g, g)
+    in_c = gx**2 + gz**2 <= R * R
+    for d, r in cases:
+        brute = np.sum(in_c & ((gx - d) ** 2 + gz**2 <= r * r)) * h * h
+        assert lens_area(np.array([d]), np.array([r]), R)[0] == pytest.approx(brute, abs=5e-3)
+    assert lens_area(np.array([0.0]), np.array([0.3]), R)[0] == pytest.approx(math.pi * 0.09)

@@ -1,0 +1,113 @@
+"""The run report: report.html is written by a run and by 'silodem plot', is self-contained,
+and a headless Chromium renders it with its figures."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+
+import numpy as np
+import pytest
+from measure_helpers import tiny_hopper_config
+
+from silodem.cli import main
+from silodem.run import run_simulation
+
+PAPER_FIGURES = ["fig2_coordination", "fig3a_horizontal_filling", "fig3b_vertical_filling",
+                 "fig4_switch_zone_network", "fig5_force_network", "fig6_horizontal_discharge",
+                 "fig7_switch_zone_evolution"]
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "run"
+    run_simulation(tiny_hopper_config(), out, progress=False)
+    return out
+
+
+def _imgs(html: str) -> list[str]:
+    return re.findall(r"<img [^>]*src='data:image/png;base64,([A-Za-z0-9+/=]+)'", html)
+
+
+def test_run_writes_a_self_contained_report(run_dir):
+    html = (run_dir / "report.html").read_text(encoding="utf-8")
+    pngs = sorted(p.stem for p in (run_dir / "figures").glob("*.png"))
+    assert len(_imgs(html)) == len(pngs) == html.count("<img ")
+    for name in PAPER_FIGURES:
+        assert name in pngs and f"id='{name}'" in html
+    assert "switch-zone peak" in html and "Janssen" in html and "PLANAR" in html
+    assert "src='http" not in html and "<script" not in html  # nothing to fetch or run
+    assert "[silo]" in html  # the config
+
+
+def test_plot_re_renders_from_results_without_running(run_dir, tmp_path):
+    copy = tmp_path / "copy"
+    shutil.copytree(run_dir, copy)
+    shutil.rmtree(copy / "figures")
+    (copy / "report.html").unlink()
+    digest = hashlib.sha256((copy / "results.h5").read_bytes()).hexdigest()
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(copy)])
+    assert exc.value.code == 0
+    assert (copy / "report.html").is_file()
+    assert len(list((copy / "figures").glob("*.png"))) == len(list(
+        (run_dir / "figures").glob("*.png")))
+    assert hashlib.sha256((copy / "results.h5").read_bytes()).hexdigest() == digest
+
+
+@pytest.mark.parametrize("what", ["missing", "empty", "garbage"])
+def test_plot_of_a_bad_folder_is_one_line_and_exit_2(what, tmp_path, capsys):
+    folder = tmp_path / "x"
+    if what != "missing":
+        folder.mkdir()
+    if what == "garbage":
+        (folder / "results.h5").write_text("not hdf5")
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(folder)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and str(folder) in err
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def test_chromium_renders_the_report_with_its_figures(run_dir, tmp_path):
+    browser = _chromium()
+    if browser is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is not installed in CI (.ci/run installs it)")
+        pytest.skip("chromium not installed")
+    shot = tmp_path / "shot.png"
+    profile = tempfile.mkdtemp(prefix="chromium-profile-")
+    try:
+        subprocess.run(
+            [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+             "--no-first-run", "--disable-background-networking", "--disable-component-update",
+             "--disable-sync", f"--user-data-dir={profile}", "--hide-scrollbars",
+             "--window-size=1200,9000", f"--screenshot={shot}",
+             (run_dir / "report.html").resolve().as_uri()],
+            check=True, capture_output=True, timeout=120)
+    finally:
+        shutil.rmtree(profile, ignore_errors=True)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(shot)[..., :3]
+    assert img.shape[0] >= 8000
+    # not blank: the page has text and pictures
+    assert img.std() > 0.05
+    # the figures are drawn: coloured pixels (text and tables are grey) all down the page
+    sat = img.max(axis=2) - img.min(axis=2)
+    coloured = sat > 0.25
+    assert coloured.mean() > 0.01
+    rows = np.flatnonzero(coloured.any(axis=1))
+    assert rows.max() - rows.min() > 4000

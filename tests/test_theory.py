@@ -1,0 +1,203 @@
+"""Silo theory (silodem.theory) against independent references: direct numerical integration of
+the slice force balances (scipy solve_ivp), hydrostatics, statics of a deep column, Rankine,
+and a brute-force Mohr-circle construction."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from silodem import theory as th
+
+RHO_B, G = 700.0, 9.81
+GAMMA = RHO_B * G
+
+
+# --- Janssen -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("K,mu,B", [(0.4, 0.45, 3.4), (0.6, 0.2, 1.0), (1.2, 0.9, 0.5)])
+def test_janssen_solves_the_slice_balance_of_a_slot(K, mu, B):
+    # slice of width B, two walls: B d(sigma_v)/dz = gamma B - 2 mu K sigma_v
+    sol = solve_ivp(lambda z, s: [GAMMA - 2.0 * mu * K * s[0] / B], (0.0, 6.0), [0.0],
+                    rtol=1e-11, atol=1e-9, dense_output=True)
+    z = np.linspace(0.05, 6.0, 40)
+    ref = sol.sol(z)[0]
+    got = th.janssen_sigma_v(z, RHO_B, G, B, K, mu)
+    np.testing.assert_allclose(got, ref, rtol=1e-6)
+    np.testing.assert_allclose(th.janssen_sigma_h(z, RHO_B, G, B, K, mu), K * ref, rtol=1e-6)
+
+
+def test_deep_janssen_column_hangs_on_its_walls():
+    # far below the surface the two walls carry the whole weight: 2 tau = gamma B
+    B, K, mu = 2.0, 0.5, 0.4
+    tau = th.janssen_wall_shear(1e3, RHO_B, G, B, K, mu)
+    assert 2.0 * tau == pytest.approx(GAMMA * B, rel=1e-9)
+    _, p_w, _ = th.en1991_4_filling(1e3, GAMMA, K, mu, B / 2.0)
+    assert 2.0 * p_w == pytest.approx(GAMMA * B, rel=1e-9)
+    # near the surface: hydrostatic-like, sigma_v = gamma z
+    assert th.janssen_sigma_v(1e-4, RHO_B, G, B, K, mu) == pytest.approx(GAMMA * 1e-4, rel=1e-4)
+
+
+@pytest.mark.parametrize("K,mu", [(0.4, 0.45), (0.7, 0.25), (0.3, 0.8)])
+def test_janssen_fit_recovers_K_and_mu_from_synthetic_profiles(K, mu):
+    B = 3.4
+    depth = np.linspace(0.1, 4.5, 18)
+    exact = th.janssen_sigma_h(depth, RHO_B, G, B, K, mu)
+    fit = th.fit_janssen(depth, exact, RHO_B, G, B)
+    assert fit.K == pytest.approx(K, rel=1e-4)
+    assert fit.mu_w == pytest.approx(mu, rel=1e-4)
+    # with 2 % noise, K is still recovered when mu_w is known, both within a few % otherwise
+    rng = np.random.default_rng(3)
+    noisy = exact * (1.0 + 0.02 * rng.standard_normal(depth.size))
+    assert th.fit_janssen(depth, noisy, RHO_B, G, B, mu_w=mu).K == pytest.approx(K, rel=0.03)
+    deep = np.linspace(0.1, 20.0, 60)  # a deep profile pins the asymptote, hence mu_w
+    noisy = th.janssen_sigma_h(deep, RHO_B, G, B, K, mu) * (
+        1.0 + 0.02 * rng.standard_normal(deep.size))
+    fit = th.fit_janssen(deep, noisy, RHO_B, G, B)
+    assert fit.mu_w == pytest.approx(mu, rel=0.05)
+    assert fit.K == pytest.approx(K, rel=0.1)
+
+
+# --- Walker's hopper slice solution -------------------------------------------------------------
+
+
+def _slice_ode(alpha_deg, mu, D, planar):
+    """d(A sigma)/dh = -gamma A + P D sigma (tan(alpha) + mu), written for sigma(h)."""
+    ta = math.tan(math.radians(alpha_deg))
+
+    def area(h):
+        return 2.0 * h * ta if planar else math.pi * (h * ta) ** 2
+
+    def d_area(h):
+        return 2.0 * ta if planar else 2.0 * math.pi * h * ta * ta
+
+    def perimeter(h):
+        return 2.0 if planar else 2.0 * math.pi * h * ta
+
+    def rhs(h, s):
+        a = area(h)
+        return [(-GAMMA * a + perimeter(h) * D * s[0] * (ta + mu) - d_area(h) * s[0]) / a]
+
+    return rhs
+
+
+CASES = [  # alpha from the vertical [deg], mu_w, D, q [Pa]
+    (45.0, math.tan(math.radians(24.0)), 1.0, 15000.0),  # paper case 2
+    (20.0, 0.3, 1.0, 8000.0),
+    (60.0, 0.6, 1.0, 0.0),  # n < 1 for the wedge
+    (30.0, 0.5, 1.4, 12000.0),  # Walker distribution factor
+    (35.0, 0.7002075382097097, 1.0, 5000.0),  # wedge n = 1 exactly: mu = tan(alpha)
+]
+
+
+@pytest.mark.parametrize("planar", [True, False], ids=["planar", "conical"])
+@pytest.mark.parametrize("alpha,mu,D,q", CASES)
+def test_hopper_solution_matches_numerical_integration_of_the_slice_balance(alpha, mu, D, q,
+                                                                            planar):
+    if abs(mu - math.tan(math.radians(alpha))) < 1e-9:
+        mu = math.tan(math.radians(alpha))
+    H = 1.7
+    h_end = 0.2
+    sol = solve_ivp(_slice_ode(alpha, mu, D, planar), (H, h_end), [q], method="DOP853",
+                    rtol=1e-12, atol=1e-10, dense_output=True)
+    h = np.linspace(H, h_end, 30)
+    ref = sol.sol(h)[0]
+    got = th.hopper_sigma_v(h, H, q, GAMMA, alpha, mu, D, planar)
+    np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-6 * max(q, GAMMA * H))
+    np.testing.assert_allclose(th.hopper_wall_normal(h, H, q, GAMMA, alpha, mu, D, planar),
+                               D * ref, rtol=1e-6, atol=1e-6 * max(q, GAMMA * H))
+
+
+def test_smooth_hopper_with_isotropic_wall_stress_is_hydrostatic():
+    # mu_w = 0 and D = 1: the grains act as a fluid, sigma = q + gamma (H - h)
+    H, q = 2.0, 3000.0
+    h = np.linspace(0.1, H, 25)
+    for planar in (True, False):
+        got = th.hopper_sigma_v(h, H, q, GAMMA, 30.0, 0.0, 1.0, planar)
+        np.testing.assert_allclose(got, q + GAMMA * (H - h), rtol=1e-12)
+
+
+def test_paper_eq12_is_the_conical_form_with_D_1():
+    alpha, mu, q, H = 45.0, math.tan(math.radians(24.0)), 12000.0, 1.7
+    z = np.linspace(0.0, 1.2, 13)  # down from the transition
+    paper = th.paper_eq12(z, H, q, GAMMA, alpha, mu)
+    np.testing.assert_allclose(paper, th.hopper_sigma_v(H - z, H, q, GAMMA, alpha, mu, 1.0,
+                                                        planar=False), rtol=1e-12)
+    # the planar exponent is half the conical one (m = 0 instead of 1), for D = 1
+    assert th.walker_exponent(alpha, mu, planar=True) == pytest.approx(
+        0.5 * th.walker_exponent(alpha, mu, planar=False))
+
+
+def test_alpha_is_the_complement_of_theta():
+    assert th.alpha_from_theta(60.0) == 30.0
+    assert th.apex_below_outlet(1.0, 45.0) == pytest.approx(0.5)
+
+
+# --- Walker's distribution factor -----------------------------------------------------------
+
+
+def _brute_force_D(delta_deg, phi_w_deg, alpha_deg):
+    """Mohr circle (p = 1, radius sin delta) rotated until the traction on the right hopper wall
+    has tau/sigma_n = tan(phi_w) with friction acting up the wall; passive = larger sigma_n."""
+    s = math.sin(math.radians(delta_deg))
+    a = math.radians(alpha_deg)
+    n = np.array([-math.cos(a), math.sin(a)])  # into the grains
+    t = np.array([math.sin(a), math.cos(a)])  # up the wall
+    mu = math.tan(math.radians(phi_w_deg))
+
+    def tensor(psi):
+        e1 = np.array([math.cos(psi), math.sin(psi)])
+        e3 = np.array([-math.sin(psi), math.cos(psi)])
+        return (1 + s) * np.outer(e1, e1) + (1 - s) * np.outer(e3, e3)
+
+    def f(psi):
+        sig = tensor(psi)
+        return t @ sig @ n - mu * (n @ sig @ n)
+
+    grid = np.linspace(0.0, math.pi, 2001)
+    vals = [f(p) for p in grid]
+    roots = [brentq(f, grid[k], grid[k + 1], xtol=1e-15) for k in range(len(grid) - 1)
+             if vals[k] * vals[k + 1] < 0]
+    best = max(roots, key=lambda p: n @ tensor(p) @ n)
+    sig = tensor(best)
+    return (n @ sig @ n) / sig[1, 1]
+
+
+@pytest.mark.parametrize("delta,phi_w,alpha", [(40, 20, 25), (30, 24, 45), (35, 10, 0),
+                                               (45, 30, 60)])
+def test_walker_distribution_factor_matches_a_mohr_circle_construction(delta, phi_w, alpha):
+    assert th.walker_distribution_factor(delta, phi_w, alpha) == pytest.approx(
+        _brute_force_D(delta, phi_w, alpha), rel=1e-8)
+
+
+def test_walker_factor_of_a_smooth_vertical_wall_is_rankine_passive():
+    delta = 33.0
+    rankine = math.tan(math.radians(45 + delta / 2)) ** 2
+    assert th.walker_distribution_factor(delta, 0.0, 0.0) == pytest.approx(rankine, rel=1e-12)
+
+
+# --- Beverloo and EN 1991-4 -----------------------------------------------------------------------
+
+
+def test_beverloo_2d_scaling_and_inverse():
+    w1 = th.beverloo_2d(1.0, 0.2, RHO_B, G, C=1.0, k=1.5)
+    w2 = th.beverloo_2d(1.7, 0.2, RHO_B, G, C=1.0, k=1.5)
+    assert w2 / w1 == pytest.approx(((1.7 - 0.3) / (1.0 - 0.3)) ** 1.5)
+    assert w1 == pytest.approx(RHO_B * math.sqrt(G) * 0.7**1.5)
+    assert th.beverloo_2d_C(2.5 * w1, 1.0, 0.2, RHO_B, G, k=1.5) == pytest.approx(2.5)
+    assert th.beverloo_2d(0.25, 0.2, RHO_B, G, C=1.0, k=1.5) == 0.0
+
+
+def test_en1991_4_discharge_magnifies_the_janssen_filling_load():
+    z = np.linspace(0.0, 5.0, 11)
+    p_h, p_w, p_v = th.en1991_4_filling(z, GAMMA, 0.5, 0.4, 1.7)
+    np.testing.assert_allclose(p_h, th.janssen_sigma_h(z, RHO_B, G, 3.4, 0.5, 0.4), rtol=1e-12)
+    np.testing.assert_allclose(p_v, th.janssen_sigma_v(z, RHO_B, G, 3.4, 0.5, 0.4), rtol=1e-12)
+    p_he, p_we = th.en1991_4_discharge(z, GAMMA, 0.5, 0.4, 1.7)
+    np.testing.assert_allclose(p_he, 1.15 * p_h)
+    np.testing.assert_allclose(p_we, 1.10 * p_w)

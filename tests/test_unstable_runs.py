@@ -1,0 +1,134 @@
+"""Unstable runs stop safely: a NaN, a grain thrown out of the domain or an energy blow-up put
+into a running simulation stop it with one line and exit code 3, a diagnostic naming the grain,
+the time and the place, the state at the failure, and the last good checkpoint."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import h5py
+import numpy as np
+import pytest
+from reliability_helpers import quick_config, run_args
+
+from silodem.checkpoint import read_checkpoint
+from silodem.cli import main
+from silodem.errors import InputError
+from silodem.safety import check_numbers
+from silodem.silo.procedure import SiloRun
+
+INJECT_AT_CHUNK = 14  # settling: some checkpoints are behind, the run has far to go
+
+
+def _strict_json(path):
+    def refuse(token):
+        raise ValueError(f"non-standard JSON token {token}")
+
+    return json.loads(path.read_text(encoding="utf-8"), parse_constant=refuse)
+
+
+def _inject(monkeypatch, when: str, field: str, value) -> dict:
+    """Patch SiloRun.advance_chunk to set ``field`` of one grain to ``value`` before or after
+    chunk INJECT_AT_CHUNK; return what was done (uid, time, step), filled in when it happens."""
+    original = SiloRun.advance_chunk
+    done: dict = {}
+    count = [0]
+
+    def put(run: SiloRun) -> None:
+        p = run.sim.particles
+        k = p.n // 2
+        if field == "y_far":
+            p.y[k] = run.shape.wall_top + 100.0
+        else:
+            getattr(p, field)[k] = value
+        done.update(uid=int(p.uid[k]), time=run.sim.time, step=run.sim.steps,
+                    phase=run.state.phase)
+
+    def patched(self: SiloRun) -> None:
+        count[0] += 1
+        if when == "before" and count[0] == INJECT_AT_CHUNK:
+            put(self)
+        original(self)
+        if when == "after" and count[0] == INJECT_AT_CHUNK:
+            put(self)
+
+    monkeypatch.setattr(SiloRun, "advance_chunk", patched)
+    return done
+
+
+@pytest.mark.parametrize(
+    ("when", "field", "value", "kind"),
+    [
+        ("after", "vx", math.nan, "non_finite"),  # found between chunks
+        ("after", "omega", math.inf, "non_finite"),
+        ("after", "y_far", None, "outside_domain"),
+        ("after", "vx", 1.0e4, "energy"),  # finite, but far beyond any fall
+        ("before", "vx", math.nan, "engine"),  # found by the engine inside a step
+    ],
+    ids=["nan-velocity", "inf-spin", "thrown-out", "energy-blow-up", "nan-inside-a-step"],
+)
+def test_an_unphysical_state_stops_the_run_with_a_diagnosis_and_a_checkpoint(
+        monkeypatch, capsys, tmp_path, when, field, value, kind):
+    done = _inject(monkeypatch, when, field, value)
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(out))
+    assert exit_info.value.code == 3
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("run stopped: ") and str(out / "diagnostic.json") in line, line
+
+    diag = _strict_json(out / "diagnostic.json")
+    assert diag["kind"] == kind
+    assert diag["time"] == done["time"] and diag["step"] == done["step"]
+    assert diag["phase"] == done["phase"]
+    if kind == "engine":  # a NaN spreads to the grain's contacts within the step
+        assert done["uid"] in diag["details"]["non_finite_uids"]
+        assert diag["during_step"] is True
+    else:
+        assert diag["grain"]["uid"] == done["uid"]
+        assert f"uid {done['uid']}" in line
+    for key in ("x", "y", "vx", "vy"):
+        assert key in diag["grain"]
+
+    # the last good checkpoint: before the failure, finite, resumable
+    checkpoint = read_checkpoint(out)
+    assert checkpoint.step <= done["step"] and checkpoint.step == diag["last_checkpoint"]["step"]
+    particles = checkpoint.data["particles"]
+    n = particles["n"]
+    for key in ("x", "y", "vx", "vy", "omega"):
+        assert np.all(np.isfinite(particles[key][:n]))
+    # the state at the failure, with the grain as it was put there
+    with h5py.File(out / "failure.h5") as h5:
+        assert h5.attrs["reason"] == "unstable"
+        assert done["uid"] in h5["particles/uid"][: h5["particles/n"][()]]
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "unstable"
+        assert h5["timeseries/time"].shape[0] > 0
+
+
+@pytest.mark.parametrize(
+    ("sets", "needle"),
+    [
+        (["material.kn=1e-300"], "stiffness"),
+        (["material.kn=1e308", "walls.kn=1e308"], "stiffness"),
+        (["material.density=1e-320"], "time step"),
+        (["time.dt=1e-300"], "steps"),
+        (["material.thickness=1e-300"], "steps"),
+    ],
+)
+def test_values_valid_one_by_one_but_unusable_together_are_refused(sets, needle):
+    cfg = quick_config(*sets)
+    with pytest.raises(InputError, match=needle) as info:
+        check_numbers(cfg)
+    assert "\n" not in str(info.value)
+
+
+def test_unusable_values_end_the_command_with_exit_code_2(capsys, tmp_path):
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(tmp_path / "run", "material.kn=1e-300"))
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "stiffness" in err and "Traceback" not in err

@@ -1,0 +1,274 @@
+"""Visualisation: saved frames, ParaView (VTK) files, animations and force-network pictures.
+
+One small quick run (module fixture) through the command line, as a user would make it.  The
+checks compare against data that other parts of the program write (the /settled and /final
+snapshots, the time series, /walls, /events) and against what independent readers (meshio's VTK
+reader, XML, FFmpeg through imageio, Pillow) find in the files.
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import math
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import meshio
+import numpy as np
+import pytest
+from PIL import Image
+
+import silodem
+from silodem.silo.frames import FramesRecorder, read_frames
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    package_parent = str(Path(next(iter(silodem.__path__))).parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH")) if p)
+    env.setdefault("NUMBA_NUM_THREADS", "2")
+    return env
+
+
+def cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "silodem", *args], capture_output=True,
+                          text=True, env=_env(), timeout=300, check=False)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("viz") / "run"
+    res = cli("run", "paper-case2", "--quick", "--set", "fill.n_particles=80",
+              "--set", "output.vtk_interval=0.5", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def h5(run_dir):
+    with h5py.File(run_dir / "results.h5", "r") as f:
+        data = {
+            "dt": float(f.attrs["dt"]),
+            "events": dict(f["events"].attrs),
+            "walls": {k: f["walls"][k][()] for k in ("name", "ax", "ay", "bx", "by")},
+            "ts": {k: f["timeseries"][k][()] for k in ("time", "n_particles", "n_contacts")},
+            "frame_time": f["frames/time"][()],
+        }
+        for snap in ("settled", "final"):
+            data[snap] = {"time": float(f[snap].attrs["time"]),
+                          **{k: f[snap]["particles"][k][()] for k in ("x", "y", "uid")},
+                          "fn": f[snap]["contacts"]["fn"][()]}
+    return data
+
+
+@pytest.fixture(scope="module")
+def frames(run_dir):
+    return read_frames(run_dir / "results.h5")
+
+
+# --- frames -----------------------------------------------------------------------------------
+def test_frames_are_regular_and_include_the_settled_and_final_states(frames, h5):
+    t = frames.times
+    assert len(frames) == h5["frame_time"].size >= 40  # about 4.8 s of run at 0.1 s
+    assert np.all(np.diff(t) > 0)
+    # regular every 0.1 s (to a time step), apart from the frames added at the phase ends
+    regular = [f.time for f in frames if f.step % round(0.1 / h5["dt"]) == 0]
+    assert len(regular) >= len(frames) - 3
+    assert np.allclose(np.diff(regular), 0.1, atol=h5["dt"])
+    for name, frame in (("settled", frames.end_of_filling()), ("final", frames[-1])):
+        snap = h5[name]
+        assert frame.time == pytest.approx(snap["time"], abs=1e-12)
+        assert np.array_equal(frame.particles["uid"], snap["uid"])
+        assert np.array_equal(frame.particles["x"], snap["x"].astype(np.float32))
+        assert np.array_equal(frame.particles["y"], snap["y"].astype(np.float32))
+        assert np.array_equal(frame.contacts["fn"], snap["fn"].astype(np.float32))
+    t_open = h5["events"]["discharge_start_time"]
+    for f in frames:
+        assert (f.phase == "discharge") == (f.time > t_open + 1e-9)
+        assert f.walls_active[list(h5["walls"]["name"]).index(b"gate")] == (f.time <= t_open)
+
+
+def test_frames_agree_with_the_time_series(frames, h5):
+    ts = h5["ts"]
+    matched = 0
+    for f in frames:
+        k = np.flatnonzero(np.abs(ts["time"] - f.time) < 1e-9)
+        if k.size:
+            matched += 1
+            assert f.n == ts["n_particles"][k[0]]
+            assert f.contacts["fn"].size == ts["n_contacts"][k[0]]
+    assert matched >= len(frames) - 3
+
+
+def test_recorder_state_restores_to_the_same_frames(frames):
+    rec = FramesRecorder(0.1, 0.5, None)
+    rec.frames = list(frames)
+    rec.vtk_times = [0.5, 1.0]
+    state = rec.state()
+    assert all(isinstance(v, np.ndarray) for v in state.values())
+    other = FramesRecorder(0.1)
+    other.restore({k: v.copy() for k, v in state.items()})
+    assert other.vtk_times == [0.5, 1.0]
+    a, b = rec.arrays(), other.arrays()
+    assert a.keys() == b.keys()
+    for key in a:
+        assert np.array_equal(a[key], b[key]), key
+
+
+# --- VTK --------------------------------------------------------------------------------------
+def _piece_counts(path: Path) -> tuple[int, int]:
+    piece = ET.parse(path).getroot().find(".//Piece")
+    return int(piece.get("NumberOfPoints")), int(piece.get("NumberOfCells"))
+
+
+def _pvd(path: Path) -> list[tuple[float, str]]:
+    return [(float(d.get("timestep")), d.get("file"))
+            for d in ET.parse(path).getroot().iter("DataSet")]
+
+
+def test_pvd_collections_list_every_vtk_file_at_the_vtk_interval(run_dir, h5):
+    vtk = run_dir / "vtk"
+    listed = set()
+    end = h5["final"]["time"]
+    for kind in ("particles", "contacts", "walls"):
+        entries = _pvd(vtk / f"{kind}.pvd")
+        assert len(entries) == math.floor(end / (round(0.5 / h5["dt"]) * h5["dt"]))
+        for k, (time, name) in enumerate(entries):
+            assert abs(time - 0.5 * (k + 1)) <= (k + 1) * h5["dt"]
+            assert (vtk / name).is_file()
+            listed.add(name)
+    assert listed == {p.name for p in vtk.glob("*.vtu")}
+
+
+def test_vtk_files_hold_the_frames(run_dir, frames, h5):
+    vtk = run_dir / "vtk"
+    walls = h5["walls"]
+    n_walls = walls["name"].size
+    gate = list(walls["name"]).index(b"gate")
+    by_time = {f.time: f for f in frames}
+    entries = _pvd(vtk / "particles.pvd")
+    assert len(entries) >= 8
+    for k, (time, name) in enumerate(entries):
+        f = by_time[time]  # each VTK time is a saved frame
+        n, p, c, w = f.n, f.particles, f.contacts, f.wall_contacts
+        # particles: one point (and one vertex) per grain, fields equal to the frame
+        assert _piece_counts(vtk / name) == (n, n)
+        m = meshio.read(vtk / name)
+        assert m.points.shape == (n, 3)
+        assert np.array_equal(m.points[:, 0], p["x"]) and np.array_equal(m.points[:, 1], p["y"])
+        assert not m.points[:, 2].any()
+        pd = m.point_data
+        assert {"radius", "velocity", "spin", "force", "coordination"} <= set(pd)
+        assert np.array_equal(pd["radius"], p["radius"])
+        assert pd["velocity"].shape == (n, 3)
+        assert np.array_equal(pd["velocity"][:, 0], p["vx"])
+        assert np.array_equal(pd["velocity"][:, 1], p["vy"])
+        assert np.array_equal(pd["spin"], p["omega"])
+        assert np.allclose(pd["force"], np.hypot(p["fx"].astype(float), p["fy"]), rtol=1e-6)
+        touching = (np.bincount(c["i"], minlength=n) + np.bincount(c["j"], minlength=n)
+                    + np.bincount(w["grain"], minlength=n))
+        assert np.array_equal(pd["coordination"], touching)
+        assert np.array_equal(pd["uid"], p["uid"])
+        # contacts: one line per touching contact, carrying its normal force
+        cname = vtk / f"contacts_{k:06d}.vtu"
+        n_lines = c["fn"].size + w["fn"].size
+        assert _piece_counts(cname) == (n + w["fn"].size, n_lines)
+        if n_lines:
+            m = meshio.read(cname)
+            lines = m.cells_dict["line"]
+            assert np.array_equal(m.cell_data["normal_force"][0],
+                                  np.concatenate([c["fn"], w["fn"]]))
+            gg = lines[: c["fn"].size]
+            assert np.array_equal(m.points[gg[:, 0], 0], p["x"][c["i"]])
+            assert np.array_equal(m.points[gg[:, 1], 1], p["y"][c["j"]])
+        # walls: one line per wall, the gate active until it opens
+        m = meshio.read(vtk / f"walls_{k:06d}.vtu")
+        lines = m.cells_dict["line"]
+        assert lines.shape == (n_walls, 2)
+        assert np.allclose(m.points[lines[:, 0], 0], walls["ax"])
+        assert np.allclose(m.points[lines[:, 1], 1], walls["by"])
+        active = m.cell_data["active"][0]
+        assert np.array_equal(active.astype(bool), f.walls_active)
+        assert bool(active[gate]) == (time <= h5["events"]["discharge_start_time"])
+
+
+# --- animations and pictures ------------------------------------------------------------------
+def _check_frames_differ_and_not_blank(images: list[np.ndarray]) -> None:
+    spread = [float(img.std()) for img in images]
+    inked = [float(np.mean(img.min(axis=2) < 200)) for img in images]
+    assert min(spread) > 10  # not a blank picture
+    assert min(inked) > 0.02  # something drawn besides white
+    diffs = [float(np.abs(a.astype(int) - b.astype(int)).max())
+             for a, b in itertools.pairwise(images)]
+    assert min(diffs) > 30  # every frame is a new picture (the time in the title at least)
+    changed = np.abs(images[0].astype(int) - images[-1].astype(int)).max(axis=2) > 30
+    assert float(changed.mean()) > 0.005  # the grains moved between first and last
+
+
+def test_animate_mp4_has_one_video_frame_per_saved_frame(run_dir, h5):
+    out = run_dir / "anim.mp4"
+    res = cli("animate", str(run_dir), "--color", "force", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(out, format="FFMPEG")
+    images = [np.asarray(img) for img in reader]
+    reader.close()
+    assert len(images) == h5["frame_time"].size
+    _check_frames_differ_and_not_blank(images)
+
+
+def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):
+    res = cli("animate", str(run_dir), "--color", "coordination", "--format", "gif",
+              "--fps", "5")
+    assert res.returncode == 0, res.stderr
+    images = []
+    with Image.open(run_dir / "animation.gif") as gif:
+        assert gif.n_frames == h5["frame_time"].size
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            assert gif.info["duration"] == 200
+            images.append(np.asarray(gif.convert("RGB")))
+    _check_frames_differ_and_not_blank(images)
+
+
+@pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color"])
+def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
+    target = tmp_path / "r"
+    extra: list[str] = []
+    if case != "missing":
+        target.mkdir()
+    if case == "no_frames":
+        with h5py.File(target / "results.h5", "w") as f:
+            f.attrs["scenario"] = "x"
+    if case == "bad_color":
+        target, extra = run_dir, ["--color", "rainbow"]
+    res = cli("animate", str(target), *extra)
+    assert res.returncode == 2
+    assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
+    assert res.stderr.startswith("error:")
+
+
+def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
+    from silodem.viz import force_network_png, force_network_pngs
+    from silodem.viz.network import select_frame
+
+    pictures = force_network_pngs(run_dir / "results.h5")
+    assert list(pictures) == ["end-of-filling", "early-discharge", "late-discharge"]
+    images = [np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+              for png in pictures.values()]
+    assert all(png.startswith(b"\x89PNG") for png in pictures.values())
+    _check_frames_differ_and_not_blank(images)
+    # the moments: settled packing, then inside the discharge, early before late
+    t_open = h5["events"]["discharge_start_time"]
+    assert select_frame(frames, "end-of-filling").time == pytest.approx(h5["settled"]["time"])
+    early, late = (select_frame(frames, v) for v in ("early-discharge", "late-discharge"))
+    assert t_open < early.time < late.time <= h5["final"]["time"]
+    # a time picks the nearest frame
+    assert force_network_png(run_dir / "results.h5", 2.0).startswith(b"\x89PNG")
+    assert select_frame(frames, 2.03).time == pytest.approx(2.0, abs=0.05 + h5["dt"])
