@@ -255,6 +255,46 @@ def plot(
 
 
 @app.command()
+def bench(
+    n: Annotated[int, typer.Option("--n", help="Number of grains (about; the lattice of the "
+                                   "reference deck decides the exact count).")] = 31700,
+    threads: Annotated[int, typer.Option("--threads", help="CPU threads of the kernels "
+                                         "(and MPI ranks of LAMMPS with --lammps).")] = 1,
+    steps: Annotated[int, typer.Option("--steps", help="Timed steps.")] = 2000,
+    settle: Annotated[int, typer.Option("--settle", help="Untimed steps first (compilation, "
+                                        "fall, start of the flow), as the deck's SETTLE.")] = 10000,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    lammps: Annotated[bool, typer.Option("--lammps", help="Also run the same silo with LAMMPS "
+                                         "(`lmp`, Debian package lammps) and print the ratio.")] = False,
+) -> None:
+    """Measure particle-steps per second on a dense, steadily discharging flat-bottomed silo
+    built to match the reference LAMMPS deck (docs/performance.md). Example:
+
+      silodem bench --n 30000 --threads 1 --lammps
+    """
+    if n < 10 or n > 20_000_000:
+        raise InputError(f"--n must be between 10 and 20000000 grains, got {n}")
+    if steps < 1 or settle < 0:
+        raise InputError(f"--steps must be >= 1 and --settle >= 0, got {steps} and {settle}")
+    _check_threads(threads)
+    from silodem import bench as benchmark
+
+    results = benchmark.bench(n, threads, steps, settle, lammps)
+    if as_json:
+        print(benchmark.as_json(results))
+        return
+    console = Console()
+    for r in results:
+        console.print(r.line(), markup=False, highlight=False)
+    console.print(f"peak memory {results[0].peak_memory_bytes / 1e6:.0f} MB "
+                  f"({results[0].peak_memory_bytes / results[0].n:.0f} bytes per grain, "
+                  "whole process)", markup=False, highlight=False)
+    if len(results) > 1:
+        ratio = results[0].particle_steps_per_s / results[1].particle_steps_per_s
+        console.print(f"silodem / LAMMPS = {ratio:.2f}", markup=False, highlight=False)
+
+
+@app.command()
 def animate(
     run_dir: Annotated[
         Path,
