@@ -73,22 +73,27 @@ def assert_partial_results_are_a_prefix(out: Path, ref: Path) -> None:
 
 
 def kill_at_random(args: list[str], out: Path, rng: random.Random, longest: float,
-                   after_checkpoint: bool) -> bool:
-    """Start ``silodem ARGS``, SIGKILL it after a random delay; True if that left an unfinished
-    run (a checkpoint), False if the run had finished first."""
+                   after_checkpoint: bool) -> tuple[bool, float]:
+    """Start ``silodem ARGS`` and SIGKILL it after a random delay of up to ``longest`` seconds
+    (counted from its first checkpoint if ``after_checkpoint``).  Returns whether that left an
+    unfinished run (a checkpoint), and the seconds the process ran from where the delay starts
+    (its whole run when it ended first)."""
     proc = start(*args)
     try:
         if after_checkpoint:
             wait_for_file(out / "checkpoint.h5", proc)
-        deadline = time.monotonic() + rng.uniform(0.0, longest)
+        t0 = time.monotonic()
+        deadline = t0 + rng.uniform(0.0, longest)
         while time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.005)
         if proc.poll() is not None:
+            elapsed = time.monotonic() - t0
             proc.communicate()
-            return False
+            return False, elapsed
         proc.send_signal(signal.SIGKILL)
         proc.communicate()
-        return (out / "checkpoint.h5").exists()  # else killed after it had finished
+        # a kill after the run had finished leaves no checkpoint
+        return (out / "checkpoint.h5").exists(), time.monotonic() - t0
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -100,19 +105,21 @@ def test_a_run_killed_at_random_moments_resumes_bit_identical(reference, tmp_pat
     seed = int.from_bytes(os.urandom(4), "little")
     rng = random.Random(seed)
     out = tmp_path / "run"
-    longest = 0.6 * seconds
-    for _ in range(4):  # the run may end before the kill: try again, sooner
-        if kill_at_random(run_args(out), out, rng, longest, after_checkpoint=True):
+    longest = 0.6 * seconds  # a first guess; the runs that end first tell the real length
+    for _ in range(5):
+        killed, elapsed = kill_at_random(run_args(out), out, rng, longest,
+                                         after_checkpoint=True)
+        if killed:
             break
         shutil.rmtree(out)
-        longest /= 2
+        longest = 0.8 * min(elapsed, longest)
     else:
         pytest.fail(f"could not kill the run before it ended (seed {seed})")
     assert_partial_results_are_a_prefix(out, ref)
     # kill the resumed run too, at a random moment (start-up included)
-    finished = not kill_at_random(["run", "--resume", str(out)], out, rng, longest + 1.5,
-                                  after_checkpoint=False)
-    if not finished:
+    killed, _ = kill_at_random(["run", "--resume", str(out)], out, rng, longest + 1.5,
+                               after_checkpoint=False)
+    if killed:
         assert_partial_results_are_a_prefix(out, ref)
         result = cli("run", "--resume", str(out))
         assert result.returncode == 0, (seed, result.stderr[-2000:])
@@ -127,7 +134,7 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
     proc = start(*run_args(out))
     try:
         wait_for_file(out / "checkpoint.h5", proc)
-        time.sleep(0.5)
+        time.sleep(0.2)
         proc.send_signal(sig)
         _, stderr = proc.communicate(timeout=120)
     finally:

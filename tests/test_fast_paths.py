@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from reference_dem import ReferenceDEM
 
 import silodem.jit
-from reference_dem import ReferenceDEM
 from silodem.engine.contact import GrainLaw
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation

@@ -132,3 +132,35 @@ def test_unusable_values_end_the_command_with_exit_code_2(capsys, tmp_path):
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "stiffness" in err and "Traceback" not in err
+
+
+def test_a_real_instability_is_stopped_before_it_produces_garbage(monkeypatch, capsys,
+                                                                  tmp_path):
+    """A time step 8 x the stability limit (its refusal bypassed): the run blows up and must
+    stop with exit code 3, blaming a grain that is indeed out of bounds, non-finite or far too
+    energetic, and keeping the state it started from."""
+    from silodem.silo import procedure
+
+    stable = procedure.choose_time_step
+
+    def too_large(*args):
+        _, dt_crit = stable(*args)
+        return 8.0 * dt_crit, dt_crit
+
+    monkeypatch.setattr(procedure, "choose_time_step", too_large)
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(out))
+    assert exit_info.value.code == 3
+    assert "Traceback" not in capsys.readouterr().err
+    diag = _strict_json(out / "diagnostic.json")
+    grain, box = diag["grain"], diag["domain"]
+    values = [grain[k] for k in ("x", "y", "vx", "vy", "omega")]
+    non_finite = any(isinstance(v, str) for v in values)
+    outside = not non_finite and not (box["xmin"] <= grain["x"] <= box["xmax"]
+                                      and box["ymin"] <= grain["y"] <= box["ymax"])
+    energetic = (not isinstance(diag["kinetic_energy"], str)
+                 and diag["kinetic_energy"] > diag["energy_bound"])
+    assert non_finite or outside or energetic, diag
+    assert diag["dt"] > diag["dt_crit"]
+    assert read_checkpoint(out).step <= diag["step"]  # the last good state stays resumable
