@@ -1,0 +1,84 @@
+"""Throughput of silodem and LAMMPS on the benchmark silo over N, threads and MPI ranks.
+
+    python benchmarks/performance_matrix.py [--out docs/performance.json] [--quick]
+
+Each row runs `silodem bench --json [--lammps]` in a fresh process (so compilation and memory are
+per row).  Steps per size are chosen so a row takes minutes, not hours; both codes always run the
+same deck with the same SETTLE and STEPS.  The plot goes next to the JSON (.png).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+#       N,        settle, steps
+PLAN = [(1_000, 10_000, 2_000), (10_000, 10_000, 2_000), (31_700, 10_000, 2_000),
+        (100_000, 3_000, 500), (300_000, 1_500, 200), (1_000_000, 600, 100)]
+
+
+def row(n: int, threads: int, settle: int, steps: int, lammps: bool) -> dict:
+    cmd = [sys.executable, "-m", "silodem", "bench", "--n", str(n), "--threads", str(threads),
+           "--settle", str(settle), "--steps", str(steps), "--json"]
+    if lammps:
+        cmd.append("--lammps")
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    return json.loads(out)
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.2), dpi=120)
+    for threads, style in ((1, "-o"), (2, "-s")):
+        sel = [r for r in rows if r["threads"] == threads]
+        if not sel:
+            continue
+        ax.plot([r["n"] for r in sel], [r["particle_steps_per_s"] / 1e6 for r in sel], style,
+                label=f"silodem, {threads} thread{'s' * (threads > 1)}")
+        lam = [r for r in sel if "lammps" in r]
+        ax.plot([r["n"] for r in lam], [r["lammps"]["particle_steps_per_s"] / 1e6 for r in lam],
+                style, mfc="none", ls="--",
+                label=f"LAMMPS, {threads} rank{'s' * (threads > 1)}")
+    ax.set_xscale("log")
+    ax.set_xlabel("grains N")
+    ax.set_ylabel("M particle-steps / s")
+    ax.set_title("benchmark silo (shared/bench/lammps-silo2d.in)", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default="docs/performance.json")
+    ap.add_argument("--quick", action="store_true", help="only N <= 31,700")
+    ap.add_argument("--max-lammps-n", type=int, default=1_000_000)
+    args = ap.parse_args()
+    rows = []
+    for n, settle, steps in PLAN:
+        if args.quick and n > 31_700:
+            break
+        for threads in (1, 2):
+            r = row(n, threads, settle, steps, lammps=n <= args.max_lammps_n)
+            r["settle"] = settle
+            rows.append(r)
+            lam = r.get("lammps", {}).get("particle_steps_per_s")
+            print(f"N={r['n']:8d} threads={threads} silodem "
+                  f"{r['particle_steps_per_s'] / 1e6:7.2f} M/s  mem "
+                  f"{r['peak_memory_bytes'] / 1e6:6.0f} MB"
+                  + (f"  LAMMPS {lam / 1e6:7.2f} M/s  ratio {r['ratio_vs_lammps']:.2f}"
+                     if lam else ""), flush=True)
+            Path(args.out).write_text(json.dumps(rows, indent=1))
+    plot(rows, Path(args.out).with_suffix(".png"))
+
+
+if __name__ == "__main__":
+    main()
