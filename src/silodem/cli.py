@@ -225,11 +225,24 @@ def show(
     quick: QuickOpt = False,
 ) -> None:
     """Print the complete config of a scenario or file as TOML, every default included.
+    A study (paper-study, or a study file) is printed as it is written.
 
     Save it to start your own case:
 
       silodem show paper-case2 > my.toml   (edit my.toml, then: silodem run my.toml)
+
+      silodem show paper-study > my-study.toml   (then: silodem sweep my-study.toml)
     """
+    from silodem.study.spec import study_text
+
+    text = study_text(source)
+    if text is not None:
+        if sets or quick:
+            raise InputError(f"{source} is a study: --set and --quick apply to scenarios (put "
+                             "fixed values in the study's [set] table; 'silodem sweep --quick' "
+                             "shrinks every run)")
+        sys.stdout.write(text if text.endswith("\n") else text + "\n")
+        return
     cfg = _config(source, sets, quick)
     sys.stdout.write(config_to_toml(cfg))
 
@@ -252,6 +265,91 @@ def plot(
 
     path = write_report(run_dir)
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
+
+
+@app.command()
+def sweep(
+    study: Annotated[
+        str,
+        typer.Argument(metavar="STUDY|FILE.toml",
+                       help="An embedded study (paper-study) or a study file (docs/sweeps.md).",
+                       show_default=False),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", metavar="DIR",
+                     help="Study folder: runs/<id>/ per run, results.csv, report.html. "
+                     "Default: studies/<study name> (studies/<name>-quick with --quick).",
+                     show_default=False),
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option("--scheduler", metavar="ADDRESS",
+                     help="Address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                     "(started with 'dask scheduler'; its workers must see DIR). Default: a "
+                     "local cluster on this machine.", show_default=False),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option("--workers", "-w", metavar="N",
+                     help="Local cluster: N single-threaded worker processes (default: one per "
+                     "core). With --scheduler: wait until N workers have joined.",
+                     show_default=False),
+    ] = None,
+    quick: Annotated[
+        bool,
+        typer.Option("--quick", help="Run the small silo of every case (as 'silodem run "
+                     "--quick'): a first try of a study in minutes."),
+    ] = False,
+) -> None:
+    """Run a parametric study: every combination of the study's grid, for each seed, on Dask.
+
+    Each run goes into its own folder DIR/runs/<id>/, written completely or not at all; running
+    the same command again skips the finished runs, so an interrupted study (Ctrl-C, a crash, a
+    dead worker) is resumed by repeating it. A worker that dies mid-run loses nothing: its run
+    is done again by another worker. At the end: DIR/results.csv (one row per run) and
+    DIR/report.html (the paper's Figs. 7 and 8 for every case, heat maps over the grid).
+    Examples:
+
+      silodem sweep paper-study --quick      (16 small runs on this machine)
+
+      silodem sweep my-study.toml --out studies/mine --workers 4
+
+      silodem sweep paper-study --scheduler tcp://127.0.0.1:8786
+
+    Exit codes: 0 every run finished, 1 some runs failed (listed), 2 bad input.
+    """
+    if workers is not None and not 1 <= workers <= 4096:
+        raise InputError(f"--workers must be an integer from 1 to 4096, got {workers}")
+    if scheduler is not None and not scheduler.strip():
+        raise InputError("--scheduler needs an address, e.g. tcp://127.0.0.1:8786")
+    from silodem.study import expand, load_study, run_study
+    from silodem.study.execute import default_workers
+
+    plan = expand(load_study(study), quick=quick)
+    out_dir = out if out is not None else Path("studies") / (plan.name + ("-quick" if quick
+                                                                           else ""))
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir} is a file, not a folder")
+    where = (f"the Dask scheduler at {scheduler}" if scheduler is not None else
+             f"a local cluster of {workers or default_workers()} single-threaded workers")
+    console = Console()
+
+    def say(text: str) -> None:
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
+
+    say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
+        f"-> {out_dir}, on {where}")
+    outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
+    say(f"{outcome.computed} computed, {outcome.skipped} already finished, "
+        f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")
+    say(f"table: {outcome.table_path}")
+    say(f"report: {outcome.report_path}")
+    if outcome.failed:
+        first_id, first_error = next(iter(outcome.failed.items()))
+        _error(f"{len(outcome.failed)} of {len(plan.runs)} runs failed (first: {first_id}: "
+               f"{first_error}); see {out_dir / 'report.html'}; run the command again to retry "
+               "them", 1)
 
 
 @app.command()
@@ -345,6 +443,51 @@ def animate(
     Console().print(f"animation: {result.frames} frames ({result.width}x{result.height} px, "
                     f"{fps} fps) in {result.seconds:.1f} s -> {result.path}", markup=False,
                     highlight=False, soft_wrap=True)
+
+
+@app.command()
+def validate(
+    quick: Annotated[
+        bool,
+        typer.Option("--quick", help="Only the particle-impact cases and the settled column "
+                     "(the subset CI runs; well under a minute). The full suite adds the "
+                     "Janssen and Beverloo silos (about ten minutes)."),
+    ] = False,
+    as_json: Annotated[
+        bool,
+        typer.Option("--json", help="Print the records as one JSON list (case, quantity, "
+                     "expected, got, tolerance, tolerance_kind, unit, pass, note) and nothing "
+                     "else on stdout; progress goes to stderr."),
+    ] = False,
+    out: Annotated[
+        Path,
+        typer.Option("--out", "-o", metavar="DIR", help="Folder for the figures (PNG)."),
+    ] = Path("validation"),
+) -> None:
+    """Check the physics against analytic solutions and published results: normal impacts
+    (spring-dashpot solution, Schwager & Poeschel 2007), Chung & Ooi (2011) benchmark tests
+    4-8 adapted to disks, a settled column (walls carry the weight), and with the full suite
+    Janssen's wall pressures and Beverloo's discharge rates (docs/validation.md).
+
+    Prints a table (case, quantity, expected, got, tolerance, pass) and writes figures into
+    DIR. Exit code 0 when every check passes, 1 when one fails. Examples:
+
+      silodem validate --quick
+
+      silodem validate --out validation --json > validation.json
+    """
+    _check_out(out)
+    from silodem.validate.runner import print_table, run_validation  # imports numba
+
+    err = Console(stderr=True)
+    result = run_validation(quick=quick, out=out,
+                            progress=lambda msg: err.print(msg, markup=False, highlight=False))
+    if as_json:
+        sys.stdout.write(result.to_json() + "\n")
+    else:
+        print_table(result, Console(width=None if sys.stdout.isatty() else 160))
+    if not result.passed:
+        raise typer.Exit(code=1)
 
 
 def _error(message: str, code: int = 2) -> None:

@@ -114,8 +114,9 @@ def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
                 pair_fy[k] = 0.0
                 continue
             d = math.sqrt(d2)
-            nx = dx / d
-            ny = dy / d
+            inv_d = 1.0 / d
+            nx = dx * inv_d
+            ny = dy * inv_d
             # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
             spin = omega[j] * radius[j] + omega[i] * ri
             rvx = vx[j] - vx[i] + spin * ny

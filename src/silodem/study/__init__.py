@@ -1,0 +1,19 @@
+"""Parametric studies: a grid of runs over a base scenario, on Dask (docs/sweeps.md).
+
+    spec.py     the study file (pydantic model) and the embedded studies
+    plan.py     grid expansion, resolved configs, run ids
+    execute.py  the Dask task of a run, atomic run folders, resumption, the cluster
+    table.py    per-run summaries and the results table (CSV)
+    report.py   the study report (report.html, figures/)
+
+``run_study`` does it all: plan, run what is missing, write results.csv and report.html.
+"""
+
+from __future__ import annotations
+
+from silodem.study.api import finish_study, run_study
+from silodem.study.plan import StudyPlan, expand
+from silodem.study.spec import LoadedStudy, list_studies, load_study, study_names, study_text
+
+__all__ = ["LoadedStudy", "StudyPlan", "expand", "finish_study", "list_studies", "load_study",
+           "run_study", "study_names", "study_text"]

@@ -1,0 +1,118 @@
+"""``run_study``: plan -> run what is missing (Dask or serial) -> results.csv -> report.html."""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from silodem.output import write_text
+from silodem.study.execute import (
+    StudyOutcome,
+    connect,
+    is_finished,
+    prepare,
+    read_summary,
+    run_on_client,
+    run_serial,
+)
+from silodem.study.plan import PlannedRun, StudyPlan
+
+TABLE_NAME = "results.csv"
+
+
+def collect_rows(plan: StudyPlan, out_dir: Path) -> list[dict[str, Any]]:
+    """Table rows of the planned runs whose folders are finished (read from their
+    summary.json), in plan order."""
+    from silodem.study.table import table_rows
+
+    runs = Path(out_dir) / "runs"
+    summaries = {r.id: read_summary(runs / r.id) for r in plan.runs if is_finished(runs / r.id)}
+    return table_rows(plan, summaries)
+
+
+def finish_study(plan: StudyPlan, out_dir: Path, outcome: StudyOutcome | None = None,
+                 report: bool = True) -> StudyOutcome:
+    """Write DIR/results.csv (from the run folders that exist) and DIR/report.html."""
+    from silodem.study.table import table_columns, table_csv
+
+    out_dir = Path(out_dir).resolve()
+    if outcome is None:
+        outcome = StudyOutcome(plan, out_dir)
+    rows = collect_rows(plan, out_dir)
+    columns = table_columns(plan.grid_keys, rows)
+    outcome.table_path = out_dir / TABLE_NAME
+    write_text(outcome.table_path, table_csv(columns, rows))
+    if report:
+        from silodem.study.report import write_study_report
+
+        outcome.report_path = write_study_report(plan, out_dir, rows, outcome.failed,
+                                                 outcome.where)
+    return outcome
+
+
+@contextlib.contextmanager
+def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, dict], None]]:
+    if not enabled:
+        yield lambda run, result: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import Progress as Bar
+
+    console = Console(stderr=True)
+    with Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+             TextColumn("{task.description}"), console=console, transient=False) as bar:
+        task = bar.add_task("", total=total)
+
+        def done(run: PlannedRun, result: dict) -> None:
+            status = result.get("status", "?")
+            where = f"{result.get('host', '?')}:{result.get('pid', '?')}"
+            if status == "failed":
+                text = f"[red]failed[/] {run.id}: {result.get('error', '')}"
+            else:
+                text = f"{status} {run.id} ({result.get('wall_s', 0.0):.1f} s on {where})"
+            bar.console.print(text, highlight=False, soft_wrap=True)
+            bar.update(task, advance=1, description=run.slug)
+
+        yield done
+
+
+def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = None,
+              workers: int | None = None, client=None, serial: bool = False,
+              progress: bool = False, report: bool = True) -> StudyOutcome:
+    """Run every planned run that has no finished folder in ``out_dir/runs``, then write
+    ``out_dir/results.csv`` and ``out_dir/report.html``.
+
+    Where: ``serial`` in this process; else on ``client`` (a dask.distributed Client) if
+    given; else on the scheduler at ``scheduler``; else on a new LocalCluster of ``workers``
+    single-threaded processes (default one per core), closed at the end.  Nothing is started
+    when every run is finished already."""
+    t0 = time.perf_counter()
+    out_dir = Path(out_dir).resolve()
+    todo = prepare(plan, out_dir)
+    if not todo:
+        outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs),
+                               where="(every run was finished before)")
+    elif serial:
+        with _progress_bar(len(todo), progress) as on_done:
+            outcome = run_serial(plan, out_dir, on_done)
+    elif client is not None:
+        with _progress_bar(len(todo), progress) as on_done:
+            outcome = run_on_client(plan, out_dir, client, on_done)
+        outcome.where = f"Dask client of {client.scheduler.address}"
+    else:
+        client, cluster, where = connect(scheduler, workers)
+        try:
+            with _progress_bar(len(todo), progress) as on_done:
+                outcome = run_on_client(plan, out_dir, client, on_done)
+            outcome.where = where
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    outcome = finish_study(plan, out_dir, outcome, report=report)
+    outcome.wall_s = time.perf_counter() - t0
+    return outcome

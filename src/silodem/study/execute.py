@@ -1,0 +1,308 @@
+"""Running a study on dask.distributed: one task per run, atomic run folders, resumption.
+
+Layout of a study folder DIR (docs/sweeps.md)::
+
+    DIR/study.toml              the study file as given
+    DIR/runs/<id>/              a finished run: config.toml, results.h5, summary.json, ...
+    DIR/runs/.<id>.tmp-<uuid>/  a run in progress (or left by a worker that died)
+    DIR/failed/<id>/            the folder of a run that raised (unstable, bad numbers)
+    DIR/results.csv             one row per finished run
+    DIR/report.html             the study report (figures in DIR/figures/)
+
+A run is done in its own temporary folder and renamed to ``runs/<id>`` only once complete (the
+rename is atomic on one file system), so ``runs/<id>`` is either complete or absent; it is
+finished when it holds results.h5 and summary.json (written last, before the rename).  A task
+is idempotent: it returns the finished folder's summary if there is one, and two attempts of the
+same run (a worker thought dead that still works) never mix their files.  A worker that dies
+mid-run leaves only its temporary folder; the scheduler gives the task to another worker.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import socket
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from silodem.errors import InputError, one_line
+from silodem.output import write_text
+from silodem.study.plan import PlannedRun, StudyPlan
+
+SUMMARY_NAME = "summary.json"
+ATTEMPT_NAME = "attempt.json"
+RESULTS_NAME = "results.h5"
+TASK_RETRIES = 2  # re-runs of a task that raised an unexpected error (a full disk, a lost file)
+WORKER_WAIT_S = 120.0  # how long to wait for the first worker of an external scheduler
+
+
+# --- one run, in a worker --------------------------------------------------------------------
+
+
+def is_finished(run_dir: Path) -> bool:
+    """True when ``run_dir`` is a finished run folder (results.h5 and summary.json)."""
+    return (run_dir / RESULTS_NAME).is_file() and (run_dir / SUMMARY_NAME).is_file()
+
+
+def read_summary(run_dir: Path) -> dict[str, Any]:
+    return json.loads((run_dir / SUMMARY_NAME).read_text(encoding="utf-8"))
+
+
+def _fsync_dir(path: Path) -> None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def tmp_prefix(run_id: str) -> str:
+    return f".{run_id}.tmp-"
+
+
+def run_task(cfg_data: dict[str, Any], study_dir: str, run_id: str) -> dict[str, Any]:
+    """The Dask task of one run: run it in ``runs/.<id>.tmp-<uuid>`` and rename that folder to
+    ``runs/<id>`` when complete.  Returns a small dict: id, status ('computed', 'existing' or
+    'failed'), summary (the per-run results), error, wall_s, host, pid.
+
+    Errors of the run itself (an unstable run, values refused) are deterministic: they are
+    returned as status 'failed' (no retry) and the run's folder is kept as ``failed/<id>``.
+    Any other error propagates, so that Dask retries the task."""
+    from silodem.config import Config
+    from silodem.errors import UnstableRunError
+
+    root = Path(study_dir)
+    runs = root / "runs"
+    final = runs / run_id
+    info = {"id": run_id, "host": socket.gethostname(), "pid": os.getpid()}
+    if is_finished(final):
+        return {**info, "status": "existing", "summary": read_summary(final), "wall_s": 0.0}
+    runs.mkdir(parents=True, exist_ok=True)
+    tmp = runs / f"{tmp_prefix(run_id)}{uuid.uuid4().hex[:12]}"
+    tmp.mkdir()
+    t0 = time.perf_counter()
+    try:
+        write_text(tmp / ATTEMPT_NAME, json.dumps({**info, "started": time.time()}) + "\n")
+        cfg = Config.model_validate(cfg_data)
+        _run_simulation(cfg, tmp)
+        from silodem.study.table import summarise_run
+
+        try:
+            summary = summarise_run(tmp)
+        except Exception as exc:  # noqa: BLE001 - the run is complete: keep it, say why not
+            summary = {"summary_error": f"{type(exc).__name__}: {one_line(exc)}"}
+        write_text(tmp / SUMMARY_NAME, json.dumps(summary, indent=1) + "\n")
+        _fsync_dir(tmp)
+    except (UnstableRunError, InputError) as exc:
+        failed = root / "failed" / run_id
+        failed.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(failed, ignore_errors=True)
+        try:
+            os.rename(tmp, failed)
+        except OSError:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return {**info, "status": "failed", "error": f"{type(exc).__name__}: {one_line(exc)}",
+                "wall_s": time.perf_counter() - t0}
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if final.exists() and not is_finished(final):  # not ours: set aside, never taken as done
+        with contextlib.suppress(OSError):
+            os.rename(final, runs / f".{run_id}.incomplete-{uuid.uuid4().hex[:12]}")
+    try:
+        os.rename(tmp, final)  # atomic; fails if another attempt finished first
+    except OSError:
+        if not is_finished(final):
+            raise
+        shutil.rmtree(tmp, ignore_errors=True)
+        return {**info, "status": "existing", "summary": read_summary(final),
+                "wall_s": time.perf_counter() - t0}
+    _fsync_dir(runs)
+    shutil.rmtree(root / "failed" / run_id, ignore_errors=True)
+    return {**info, "status": "computed", "summary": summary, "wall_s": time.perf_counter() - t0}
+
+
+def _run_simulation(cfg, out: Path) -> None:
+    """run_simulation on one thread, without progress bars; numba's thread count restored."""
+    import numba
+
+    from silodem.run import run_simulation
+
+    before = numba.get_num_threads()
+    try:
+        run_simulation(cfg, out, threads=1, progress=False)
+    finally:
+        numba.set_num_threads(before)
+
+
+# --- the study -------------------------------------------------------------------------------
+
+
+@dataclass
+class StudyOutcome:
+    plan: StudyPlan
+    out_dir: Path
+    computed: int = 0  # runs computed by this invocation
+    skipped: int = 0  # runs found finished before it started
+    failed: dict[str, str] = field(default_factory=dict)  # run id -> error
+    results: dict[str, dict[str, Any]] = field(default_factory=dict)  # run id -> task result
+    wall_s: float = 0.0
+    table_path: Path | None = None
+    report_path: Path | None = None
+    where: str = ""  # the cluster used
+
+
+def default_workers() -> int:
+    """One worker per core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
+    """Create the study folder, save the study file, return the runs still to do."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir} is a file, not a folder")
+    try:
+        (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: cannot create the study folder ({exc})") from None
+    write_text(out_dir / "study.toml", plan.study.text)
+    return [r for r in plan.runs if not is_finished(out_dir / "runs" / r.id)]
+
+
+def clean_stale(plan: StudyPlan, out_dir: Path) -> int:
+    """Remove the temporary folders of this study's finished runs (left by dead workers or by
+    a redundant attempt); the temporary folders of unfinished runs are left alone (another
+    sweep may be working on them).  Returns how many were removed."""
+    runs = out_dir / "runs"
+    removed = 0
+    for run in plan.runs:
+        if not is_finished(runs / run.id):
+            continue
+        for tmp in runs.glob(f"{tmp_prefix(run.id)}*"):
+            shutil.rmtree(tmp, ignore_errors=True)
+            removed += 1
+    return removed
+
+
+Callback = Callable[[PlannedRun, dict[str, Any]], None]
+
+
+def _record(outcome: StudyOutcome, run: PlannedRun, result: dict[str, Any]) -> None:
+    outcome.results[run.id] = result
+    if result["status"] == "failed":
+        outcome.failed[run.id] = result.get("error", "failed")
+    elif result["status"] == "computed":
+        outcome.computed += 1
+
+
+def run_serial(plan: StudyPlan, out_dir: Path, on_done: Callback | None = None) -> StudyOutcome:
+    """Run the study in this process, one run after the other (no Dask): the reference that a
+    cluster must reproduce."""
+    t0 = time.perf_counter()
+    out_dir = Path(out_dir).resolve()
+    todo = prepare(plan, out_dir)
+    outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs) - len(todo), where="serial")
+    for run in todo:
+        result = run_task(run.cfg.model_dump(), str(out_dir), run.id)
+        _record(outcome, run, result)
+        if on_done is not None:
+            on_done(run, result)
+    clean_stale(plan, out_dir)
+    outcome.wall_s = time.perf_counter() - t0
+    return outcome
+
+
+def run_on_client(plan: StudyPlan, out_dir: Path, client,
+                  on_done: Callback | None = None) -> StudyOutcome:
+    """Submit the runs still to do to a dask.distributed ``client`` and wait for them.
+
+    Task keys are ``silodem-<run id>`` (a resubmitted study reuses them); each task may be
+    retried ``TASK_RETRIES`` times after an unexpected error, and the scheduler re-runs the
+    task of a worker that dies (up to ``distributed.scheduler.allowed-failures`` times, then
+    the run is reported failed with KilledWorker)."""
+    from distributed import as_completed
+
+    t0 = time.perf_counter()
+    out_dir = Path(out_dir).resolve()
+    todo = prepare(plan, out_dir)
+    outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs) - len(todo))
+    by_key = {}
+    futures = []
+    for run in todo:
+        fut = client.submit(run_task, run.cfg.model_dump(), str(out_dir), run.id,
+                            key=f"silodem-{run.id}", pure=False, retries=TASK_RETRIES)
+        by_key[fut.key] = run
+        futures.append(fut)
+    try:
+        for fut in as_completed(futures):
+            run = by_key[fut.key]
+            if fut.status == "finished":
+                result = fut.result()
+            else:
+                try:
+                    exc = fut.exception()
+                except Exception as err:  # noqa: BLE001 - a cancelled future raises here
+                    exc = err
+                result = {"id": run.id, "status": "failed",
+                          "error": f"{type(exc).__name__}: {one_line(exc)}"}
+            _record(outcome, run, result)
+            if on_done is not None:
+                on_done(run, result)
+    except BaseException:
+        client.cancel(futures)
+        raise
+    clean_stale(plan, out_dir)
+    outcome.wall_s = time.perf_counter() - t0
+    return outcome
+
+
+def local_cluster(workers: int):
+    """A LocalCluster of ``workers`` single-threaded worker processes (each under a nanny
+    that restarts it if it dies), no dashboard, quiet logs."""
+    import logging
+
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                        dashboard_address=":0", silence_logs=logging.ERROR)
+
+
+def connect(scheduler: str | None, workers: int | None):
+    """(client, cluster or None, description): a LocalCluster by default, else a client of
+    the running scheduler at ``scheduler`` (``--workers`` then waits for that many workers)."""
+    from distributed import Client
+
+    if scheduler is None:
+        n = workers or default_workers()
+        cluster = local_cluster(n)
+        return Client(cluster), cluster, f"LocalCluster of {n} single-threaded workers"
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(exc)}); "
+                         "start one with 'dask scheduler' or leave out --scheduler for a "
+                         "local cluster") from None
+    try:
+        client.wait_for_workers(n_workers=workers or 1, timeout=WORKER_WAIT_S)
+    except (OSError, TimeoutError):
+        have = len(client.scheduler_info().get("workers", {}))
+        client.close()
+        raise InputError(f"the Dask scheduler at {scheduler} has {have} worker(s), fewer than "
+                         f"{workers or 1} after {WORKER_WAIT_S:.0f} s; start workers with "
+                         f"'dask worker {scheduler} --nthreads 1'") from None
+    n = len(client.scheduler_info().get("workers", {}))
+    return client, None, f"Dask scheduler {scheduler} ({n} workers)"

@@ -1,0 +1,188 @@
+"""From a study to its runs: the grid product, the resolved config of each run and its id.
+
+A run's config is built as: the base scenario -> the study's ``[set]`` values -> the values of
+its grid point -> its seed -> validation -> ``quick_variant`` (with ``--quick``).  Its id is
+``<slug>-<hash>``: the slug names the grid point for people (``theta35_phiG20_phiP10_seed2``),
+the hash is the first 10 hex digits of the SHA-256 of the resolved config (every value except
+``name`` and ``description``, as canonical JSON), so the same physics always has the same id
+and any change of a value, a default or ``--quick`` gives another.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from silodem.config import Config
+from silodem.errors import InputError, format_validation_error
+from silodem.scenario_files import load_config, quick_variant
+from silodem.study.spec import LoadedStudy
+
+HASH_DIGITS = 10
+# short names of the paper's parameters, for run slugs and report labels
+NICKNAMES = {
+    "silo.hopper_angle_from_horizontal_deg": "theta",
+    "material.friction_deg": "phiG",
+    "walls.friction_deg": "phiP",
+}
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """One run of a study: its grid point, seed, resolved config and id."""
+
+    id: str
+    slug: str
+    seed: int
+    point: dict[str, Any]  # grid key -> value, in the grid's order
+    cfg: Config = field(repr=False)
+
+    @property
+    def label(self) -> str:
+        return label_of(self.point, self.seed)
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    study: LoadedStudy
+    quick: bool
+    runs: list[PlannedRun]
+
+    @property
+    def name(self) -> str:
+        return self.study.name
+
+    @property
+    def grid_keys(self) -> list[str]:
+        return list(self.study.spec.grid)
+
+
+def nicknames(keys: list[str]) -> dict[str, str]:
+    """A short, unique name per dotted key: the paper's symbol if it has one, else its last
+    part, else (when two keys share a last part) section_last."""
+    lasts = [k.rsplit(".", 1)[-1] for k in keys]
+    out = {}
+    for key, last in zip(keys, lasts):
+        if key in NICKNAMES:
+            out[key] = NICKNAMES[key]
+        elif lasts.count(last) == 1:
+            out[key] = last
+        else:
+            out[key] = key.replace(".", "_")
+    return out
+
+
+def format_value(value: Any) -> str:
+    """A short text of a grid value: 35.0 -> '35', 0.5 -> '0.5', True -> 'true'."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float) and math.isfinite(value) and value == int(value) \
+            and abs(value) < 1e15:
+        return str(int(value))
+    if isinstance(value, list | tuple):
+        return "+".join(format_value(v) for v in value)
+    return str(value)
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_.") or "x"
+
+
+def slug_of(point: dict[str, Any], seed: int) -> str:
+    names = nicknames(list(point))
+    parts = [f"{names[k]}{_safe(format_value(v))}" for k, v in point.items()]
+    slug = "_".join([*parts, f"seed{seed}"])
+    return slug if len(slug) <= 120 else slug[:120].rstrip("_")
+
+
+def label_of(point: dict[str, Any], seed: int | None = None) -> str:
+    names = nicknames(list(point))
+    text = ", ".join(f"{names[k]} = {format_value(v)}" for k, v in point.items())
+    return text + (f", seed {seed}" if seed is not None else "")
+
+
+def config_hash(cfg: Config) -> str:
+    """First ``HASH_DIGITS`` hex digits of the SHA-256 of the canonical JSON of ``cfg``
+    without ``name`` and ``description``."""
+    data = cfg.model_dump(mode="json", exclude={"name", "description"})
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:HASH_DIGITS]
+
+
+def _put(data: dict[str, Any], dotted: str, value: Any) -> None:
+    parts = dotted.split(".")
+    node = data
+    for part in parts[:-1]:
+        node = node.setdefault(part, {})
+        if node is None:  # an optional section left unset
+            raise InputError(f"'{dotted}': its section is not set in the base config")
+    node[parts[-1]] = value
+
+
+def _base_config(study: LoadedStudy) -> Config:
+    base = study.spec.base
+    if study.folder is not None and not Path(base).is_absolute():
+        candidate = study.folder / base
+        if candidate.is_file():
+            base = str(candidate)
+    try:
+        return load_config(base)
+    except InputError as exc:
+        raise InputError(f"study {study.source}: base '{study.spec.base}': {exc}") from None
+
+
+def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> StudyPlan:
+    """Every run of ``study`` (seeds outermost, then the grid product in the order of its
+    keys, the first key slowest).  ``check``: also refuse values that validate one by one but
+    give no usable run together (``silodem.safety.check_numbers``).  InputError, one line,
+    naming the grid point, for a run that is not valid."""
+    spec = study.spec
+    base = _base_config(study).model_dump()
+    keys = list(spec.grid)
+    runs: list[PlannedRun] = []
+    seen: dict[str, str] = {}
+    for seed in spec.seeds:
+        for values in itertools.product(*(spec.grid[k] for k in keys)):
+            point = dict(zip(keys, values))
+            where = f"study {study.source}, run {label_of(point, seed)}"
+            data = json.loads(json.dumps(base))  # deep copy of plain data
+            for key, value in {**spec.set, **point}.items():
+                _put(data, key, value)
+            data["seed"] = seed
+            try:
+                cfg = Config.model_validate(data)
+            except ValidationError as exc:
+                msg = format_validation_error(exc, data, model=Config)
+                raise InputError(f"{where}: {msg.removeprefix('config error: ')}") from None
+            if quick:
+                try:
+                    cfg = quick_variant(cfg)
+                except InputError as exc:
+                    raise InputError(f"{where}: {exc}") from None
+            if check:
+                from silodem.safety import check_numbers
+
+                try:
+                    check_numbers(cfg)
+                except InputError as exc:
+                    raise InputError(f"{where}: {exc}") from None
+            slug = slug_of(point, seed)
+            run_id = f"{slug}-{config_hash(cfg)}"
+            if run_id in seen:
+                raise InputError(f"study {study.source}: runs {seen[run_id]} and "
+                                 f"{label_of(point, seed)} have the same config; remove the "
+                                 "repeated grid value")
+            seen[run_id] = label_of(point, seed)
+            name = f"{spec.name}-{slug}" + ("-quick" if quick else "")
+            cfg = cfg.model_copy(update={"name": name,
+                                         "description": f"{spec.name}: {label_of(point, seed)}"})
+            runs.append(PlannedRun(run_id, slug, seed, point, cfg))
+    return StudyPlan(study, quick, runs)

@@ -1,0 +1,364 @@
+"""The study report: DIR/report.html (self-contained, figures as base64 PNG) and DIR/figures/.
+
+Layout of the figures: the first grid key gives the rows of the panel grids and heat maps and
+the groups of the bar charts; the combinations of the other keys give the columns / bars.  For
+the paper's study: rows = hopper slope theta, columns = (phi_G, phi_P).  Values are means over
+the seeds (bars carry the standard deviation over the seeds when there are several); the time
+series are those of the first seed.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import itertools
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np
+from matplotlib.figure import Figure
+
+from silodem.report.draw import rolling_mean, shade_phases
+from silodem.report.html import _CSS, _atomic_write, _table
+from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
+from silodem.study.table import COLUMNS, switch_series
+
+CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
+
+
+def regime(cv: float) -> str:
+    """The paper's reading of the ratio sigma_h / sigma_v at the switch zone (section 6): a
+    steady ratio means continuum-like behaviour, large fluctuations an anisotropic stress field."""
+    if cv is None or not math.isfinite(cv):
+        return "n/a"
+    return "anisotropic" if cv > CV_ANISOTROPIC else "continuum-like"
+
+
+@dataclass
+class Layout:
+    row_key: str
+    rows: list[Any]  # values of the first grid key
+    cols: list[dict[str, Any]]  # combinations of the other keys
+    names: dict[str, str]  # key -> short name
+
+    def col_label(self, col: dict[str, Any]) -> str:
+        return ", ".join(f"{self.names[k]}={format_value(v)}" for k, v in col.items()) or "all"
+
+    def row_label(self, value: Any) -> str:
+        return f"{self.names[self.row_key]}={format_value(value)}"
+
+
+def layout_of(plan: StudyPlan) -> Layout:
+    grid = plan.study.spec.grid
+    keys = list(grid)
+    rest = keys[1:]
+    cols = [dict(zip(rest, vals)) for vals in itertools.product(*(grid[k] for k in rest))]
+    return Layout(keys[0], list(grid[keys[0]]), cols, nicknames(keys))
+
+
+def _runs_at(plan: StudyPlan, lay: Layout, row: Any, col: dict[str, Any]) -> list[PlannedRun]:
+    point = {lay.row_key: row, **col}
+    return [r for r in plan.runs if all(r.point[k] == v for k, v in point.items())]
+
+
+def _values(rows_by_id: dict[str, dict], runs: list[PlannedRun], column: str) -> np.ndarray:
+    vals = []
+    for r in runs:
+        row = rows_by_id.get(r.id)
+        if row is not None:
+            try:
+                vals.append(float(row.get(column, math.nan)))
+            except (TypeError, ValueError):
+                vals.append(math.nan)
+    return np.array(vals, dtype=float)
+
+
+def _mean_std(v: np.ndarray) -> tuple[float, float]:
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return math.nan, math.nan
+    return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0
+
+
+# --- figures ---------------------------------------------------------------------------------
+
+
+def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> Figure | None:
+    """Fig. 7 for every case: switch-zone sigma_h and sigma_v (or their ratio) against time."""
+    nr, nc = len(lay.rows), len(lay.cols)
+    fig = Figure(figsize=(2.9 * nc + 1.0, 2.3 * nr + 1.0), dpi=90)
+    axes = np.atleast_2d(fig.subplots(nr, nc, squeeze=False, sharex=True))
+    drawn = 0
+    for i, row in enumerate(lay.rows):
+        for j, col in enumerate(lay.cols):
+            ax = axes[i, j]
+            runs = _runs_at(plan, lay, row, col)
+            folder = out_dir / "runs" / runs[0].id if runs else None
+            s = switch_series(folder) if folder is not None and (folder / "results.h5").is_file() \
+                else None
+            if i == 0:
+                ax.set_title(lay.col_label(col), fontsize=8)
+            if j == 0:
+                ax.set_ylabel(lay.row_label(row) + ("\nsigma_h/sigma_v [-]" if ratio
+                                                    else "\nstress [kPa]"), fontsize=8)
+            ax.tick_params(labelsize=7)
+            if s is None or s.time.size == 0:
+                ax.text(0.5, 0.5, "no result", ha="center", va="center", transform=ax.transAxes,
+                        fontsize=8, color="0.5")
+                continue
+            shade_phases(ax, s.time, s.phase)
+            n = max(1, round(0.2 / max(float(np.median(np.diff(s.time))), 1e-9))) \
+                if s.time.size > 1 else 1
+            if ratio:
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    r = np.where(s.sigma_v > 0, s.sigma_h / s.sigma_v, np.nan)
+                ax.plot(s.time, r, color="#7f7f7f", lw=0.5)
+                ax.plot(s.time, rolling_mean(r, n), color="k", lw=1.2)
+                ax.set_ylim(0, 3)
+            else:
+                ax.plot(s.time, rolling_mean(s.sigma_h, n) / 1e3, color="#1f77b4", lw=1.2,
+                        label="sigma_h")
+                ax.plot(s.time, rolling_mean(s.sigma_v, n) / 1e3, color="#ff7f0e", lw=1.2,
+                        ls="--", label="sigma_v")
+                ax.set_ylim(bottom=0)
+            drawn += 1
+    if not drawn:
+        return None
+    for ax in axes[-1, :]:
+        ax.set_xlabel("time [s]", fontsize=8)
+    handles, labels = [], []
+    for ax in axes.ravel():  # one legend for the figure: phases (and the two stresses)
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    what = ("ratio sigma_h / sigma_v (grey: samples, black: 0.2 s running mean)" if ratio
+            else "horizontal and vertical stress, 0.2 s running mean")
+    fig.suptitle(f"Switch zone: {what}", fontsize=9, x=0.02, ha="left")
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    if handles:
+        fig.legend(handles, labels, loc="upper right", ncol=len(labels), fontsize=7,
+                   frameon=False)
+    return fig
+
+
+def fig_change(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
+    """Fig. 8a/8b: percentage change of sigma_h and sigma_v at the switch zone from filling to
+    discharge, bars grouped by the first grid key (hopper slope), one bar per friction pair."""
+    fig = Figure(figsize=(max(7.0, 1.6 * len(lay.rows) * max(1, len(lay.cols)) / 3 + 4), 7.5),
+                 dpi=90)
+    axes = fig.subplots(2, 1, sharex=True)
+    x = np.arange(len(lay.rows))
+    width = 0.8 / max(1, len(lay.cols))
+    colors = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+              "#7f7f7f", "#bcbd22", "#17becf"]
+    any_value = False
+    for ax, comp, title in ((axes[0], "switch_sigma_h_change_pct", "(a) horizontal stress"),
+                            (axes[1], "switch_sigma_v_change_pct", "(b) vertical stress")):
+        for j, col in enumerate(lay.cols):
+            means, errs = [], []
+            for row in lay.rows:
+                m, s = _mean_std(_values(rows_by_id, _runs_at(plan, lay, row, col), comp))
+                means.append(m)
+                errs.append(s)
+            any_value |= bool(np.isfinite(means).any())
+            ax.bar(x - 0.4 + width * (j + 0.5), means, width, yerr=errs if len(
+                plan.study.spec.seeds) > 1 else None, color=colors[j % len(colors)],
+                label=lay.col_label(col), capsize=2)
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_ylabel("change, discharge vs filling [%]", fontsize=9)
+        ax.set_title(f"{title} at the switch zone", fontsize=10)
+    if not any_value:
+        return None
+    axes[1].set_xticks(x, [lay.row_label(r) for r in lay.rows])
+    axes[0].legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    return fig
+
+
+HEATMAPS = [
+    ("switch_sigma_h_change_pct", "change of sigma_h [%]", "RdBu_r", True),
+    ("switch_sigma_v_change_pct", "change of sigma_v [%]", "RdBu_r", True),
+    ("switch_ratio_discharge", "sigma_h / sigma_v, discharge [-]", "viridis", False),
+    ("switch_ratio_cv_discharge", "CV of sigma_h / sigma_v, discharge [-]", "magma_r", False),
+    ("wall_peak_discharge", "wall peak in the switch zone, discharge [Pa]", "viridis", False),
+    ("discharge_rate", "discharge rate [kg/s]", "viridis", False),
+    ("mass_flow_index", "mass flow index v_wall / v_axis [-]", "viridis", False),
+]
+
+
+def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
+    """One heat map per quantity over the grid (seed means, the value written in each cell)."""
+    n = len(HEATMAPS)
+    ncols = 2
+    nrows = math.ceil(n / ncols)
+    fig = Figure(figsize=(6.2 * ncols, (0.55 * len(lay.rows) + 2.2) * nrows), dpi=90)
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    any_value = False
+    for ax, (column, title, cmap, centred) in zip(axes, HEATMAPS):
+        grid = np.array([[_mean_std(_values(rows_by_id, _runs_at(plan, lay, row, col),
+                                            column))[0] for col in lay.cols]
+                         for row in lay.rows], dtype=float)
+        finite = grid[np.isfinite(grid)]
+        any_value |= finite.size > 0
+        kw = {}
+        if finite.size and centred:
+            lim = float(np.max(np.abs(finite))) or 1.0
+            kw = {"vmin": -lim, "vmax": lim}
+        im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, aspect="auto", **kw)
+        for (i, j), v in np.ndenumerate(grid):
+            ax.text(j, i, "n/a" if not np.isfinite(v) else f"{v:.3g}", ha="center",
+                    va="center", fontsize=7, color="k",
+                    bbox={"facecolor": "white", "alpha": 0.6, "lw": 0, "pad": 1})
+        ax.set_xticks(range(len(lay.cols)), [lay.col_label(c) for c in lay.cols], fontsize=7,
+                      rotation=20, ha="right")
+        ax.set_yticks(range(len(lay.rows)), [lay.row_label(r) for r in lay.rows], fontsize=7)
+        ax.set_title(title, fontsize=9)
+        fig.colorbar(im, ax=ax, shrink=0.85)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    if not any_value:
+        return None
+    fig.tight_layout()
+    return fig
+
+
+# --- the page --------------------------------------------------------------------------------
+
+
+def _fmt(value: Any, digits: int = 3) -> str:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return str(value) if value not in (None, "") else "n/a"
+    return f"{v:.{digits}g}" if math.isfinite(v) else "n/a"
+
+
+def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[str, str]) -> str:
+    head = ("run", "change sigma_h [%]", "change sigma_v [%]", "sigma_h/sigma_v discharge [-]",
+            "CV of the ratio [-]", "regime", "wall peak change [%]", "discharge rate [kg/s]",
+            "flow pattern")
+    cells = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    body = []
+    for run in plan.runs:
+        row = rows_by_id.get(run.id)
+        report = out_dir / "runs" / run.id / "report.html"
+        name = html.escape(run.label)
+        if report.is_file():
+            name = f"<a href='runs/{html.escape(run.id)}/report.html'>{name}</a>"
+        if row is None:
+            why = failed.get(run.id, "not run yet")
+            body.append(f"<tr><td>{name}</td><td colspan='{len(head) - 1}' class='warn'>"
+                        f"{html.escape(why)}</td></tr>")
+            continue
+        vals = [_fmt(row.get("switch_sigma_h_change_pct")),
+                _fmt(row.get("switch_sigma_v_change_pct")),
+                _fmt(row.get("switch_ratio_discharge")),
+                _fmt(row.get("switch_ratio_cv_discharge")),
+                regime(_float(row.get("switch_ratio_cv_discharge"))),
+                _fmt(row.get("wall_peak_change_pct")), _fmt(row.get("discharge_rate"), 4),
+                str(row.get("flow_pattern") or "n/a")]
+        body.append(f"<tr><td>{name}</td>" + "".join(f"<td>{html.escape(v)}</td>" for v in vals)
+                    + "</tr>")
+    return f"<table><tr>{cells}</tr>{''.join(body)}</table>"
+
+
+def _float(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+FIGURES = [
+    ("fig7_switch_stresses", "Fig. 7", ("Evolution of the horizontal and vertical stress at "
+     "the switch zone (mean Love-Weber stress of the two measurement circles against the walls "
+     "at the cell-hopper junction) through filling, settling and discharge, for every case.")),
+    ("fig7_switch_ratio", "Fig. 7", ("Ratio sigma_h / sigma_v at the switch zone for every "
+     "case: a steady ratio is the paper's continuum-like behaviour, strong fluctuations an "
+     "anisotropic stress field.")),
+    ("fig8_change", "Figs. 8a, 8b", ("Percentage change of the horizontal (a) and vertical (b) "
+     "stress at the switch zone from the end of filling (settling window) to the discharge "
+     "window, grouped by the first grid key, one bar per combination of the others.")),
+    ("heatmaps", "", "The main quantities over the grid (seed means)."),
+]
+
+
+def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]],
+                       failed: dict[str, str] | None = None, where: str = "") -> Path:
+    """Render the figures into ``out_dir/figures`` and write ``out_dir/report.html``."""
+    out_dir = Path(out_dir)
+    failed = failed or {}
+    rows_by_id = {r["id"]: r for r in rows}
+    lay = layout_of(plan)
+    makers = {
+        "fig7_switch_stresses": lambda: fig_evolution(plan, out_dir, lay, ratio=False),
+        "fig7_switch_ratio": lambda: fig_evolution(plan, out_dir, lay, ratio=True),
+        "fig8_change": lambda: fig_change(plan, rows_by_id, lay),
+        "heatmaps": lambda: fig_heatmaps(plan, rows_by_id, lay),
+    }
+    fig_dir = out_dir / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    pngs = []
+    for name, paper, caption in FIGURES:
+        fig = makers[name]()
+        if fig is None:
+            (fig_dir / f"{name}.png").unlink(missing_ok=True)
+            continue
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png")
+        _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
+        pngs.append((name, paper, caption, buf.getvalue()))
+    spec = plan.study.spec
+    title = f"silodem study: {plan.name}" + (" (--quick)" if plan.quick else "")
+    parts = [(f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"),
+             f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(spec.description)}</p>"]
+    n_done = len(rows)
+    meta = [("base", spec.base, ""), ("seeds", ", ".join(map(str, spec.seeds)), ""),
+            *((f"set {k}", format_value(v), "") for k, v in spec.set.items()),
+            *((f"grid {k} ({nicknames(list(spec.grid))[k]})",
+               ", ".join(format_value(v) for v in vals), "") for k, vals in spec.grid.items()),
+            ("--quick (small silo of each case)", "yes" if plan.quick else "no", ""),
+            ("runs finished / planned", f"{n_done} / {len(plan.runs)}", ""),
+            ("failed", str(len(failed)), ""),
+            ("computed on", where or "n/a", ""),
+            ("written", time.strftime("%Y-%m-%d %H:%M:%S"), "")]
+    parts += ["<h2>Study</h2>", _table([(a, b) for a, b, _ in meta], ("item", "value"))]
+    parts.append(
+        "<p>Stresses are compressive positive [Pa] per unit out-of-plane thickness. The switch "
+        "zone is the cell-hopper junction; its stresses are the mean Love-Weber stress of the "
+        "two measurement circles against the walls at the junction (docs/measurements.md). "
+        "'After filling' is the last measure.window of settling, 'discharge' the window that "
+        "starts measure.discharge_delay after the gate opens. The regime reads the coefficient "
+        f"of variation of the sampled ratio sigma_h / sigma_v in the discharge window: above "
+        f"{CV_ANISOTROPIC:g} 'anisotropic', else 'continuum-like' (the paper's section 6; the "
+        "threshold is ours). Hopper slope theta from the horizontal; phi_G grain-grain, phi_P "
+        "grain-wall friction angle.</p>")
+    if failed:
+        parts.append("<h2>Failed runs</h2><ul>" + "".join(
+            f"<li class='warn'>{html.escape(k)}: {html.escape(v)}</li>"
+            for k, v in failed.items()) + "</ul>")
+    parts += ["<h2>Runs</h2>", _run_table(plan, rows_by_id, out_dir, failed),
+              ("<p>Every value per run, with units: results.csv (columns in docs/sweeps.md). "
+              "A run's name links to its own report when it wrote one.</p>"), "<h2>Figures</h2>"]
+    for name, paper, caption, png in pngs:
+        b64 = base64.b64encode(png).decode("ascii")
+        label = f"{paper} equivalent. " if paper else ""
+        parts.append(f"<figure id='{name}'><img alt='{name}' src='data:image/png;base64,{b64}'>"
+                     f"<figcaption><b>{html.escape(label)}</b>{html.escape(caption)}"
+                     "</figcaption></figure>")
+    parts.append("<h2>Columns of results.csv</h2>" + _table(
+        [(c, u or "-", d) for c, u, d in COLUMNS], ("column", "unit", "meaning")))
+    parts.append("<h2>Study file</h2><pre>" + html.escape(plan.study.text) + "</pre>")
+    parts.append("</body></html>")
+    path = out_dir / "report.html"
+    _atomic_write(path, "\n".join(parts).encode("utf-8"))
+    return path

@@ -1,0 +1,267 @@
+"""Study files: a base scenario, seeds, fixed overrides and a grid of values (docs/sweeps.md).
+
+```toml
+name = "my-study"                 # optional; default: the file name
+description = "..."               # optional
+base = "paper-case2"              # an embedded scenario, or a .toml file (relative to this file)
+seeds = [1, 2]                    # every grid point is run once per seed
+[set]                             # optional: values every run gets
+"fill.n_particles" = 480
+[grid]                            # dotted config keys -> lists of values; the full product is run
+"silo.hopper_angle_from_horizontal_deg" = [35, 45]
+"material.friction_deg" = [20, 30]
+```
+
+Dotted keys may be written quoted (one key) or bare (TOML then nests them as tables: ``[grid]
+material.friction_deg = [20, 30]`` is the same as the quoted form).  The embedded studies are
+the TOML files of the package folder ``silodem/studies/``.  Every problem is an
+:class:`InputError` with one line.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from silodem.config import Config
+from silodem.errors import (
+    InputError,
+    did_you_mean,
+    format_validation_error,
+    model_at,
+    one_line,
+    submodel,
+    unknown_key_message,
+)
+
+RESERVED_KEYS = {"seed": "give the seeds in the study's 'seeds' list",
+                 "name": "the runs are named by the study",
+                 "description": "the runs are described by the study"}
+
+
+def _flatten(table: Any, where: str) -> Any:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}`` (TOML's bare dotted keys are nested tables)."""
+    if not isinstance(table, dict):
+        return table
+    out: dict[str, Any] = {}
+
+    def walk(node: dict, prefix: str) -> None:
+        for key, value in node.items():
+            dotted = f"{prefix}{key}"
+            if isinstance(value, dict):
+                if not value:
+                    raise ValueError(f"[{where}] '{dotted}' is an empty table")
+                walk(value, dotted + ".")
+            else:
+                if dotted in out:
+                    raise ValueError(f"[{where}] gives '{dotted}' twice")
+                out[dotted] = value
+
+    walk(table, "")
+    return out
+
+
+def check_config_key(dotted: str) -> None:
+    """ValueError unless ``dotted`` is a value key (not a section) of the run Config schema."""
+    parts = [p.strip() for p in dotted.split(".")]
+    if parts[0] in RESERVED_KEYS and len(parts) == 1:
+        raise ValueError(f"'{dotted}' cannot be set by a study: {RESERVED_KEYS[parts[0]]}")
+    parent = model_at(Config, parts[:-1])
+    if parent is None or parts[-1] not in parent.model_fields:
+        raise ValueError(unknown_key_message(Config, parts))
+    sub = submodel(parent.model_fields[parts[-1]].annotation)
+    if sub is not None:
+        example = next(iter(sub.model_fields))
+        raise ValueError(f"'{dotted}' is a section, not a value; give a key inside "
+                         f"it, e.g. '{dotted}.{example}'")
+
+
+class StudySpec(BaseModel):
+    """A parametric study: ``base`` x ``set`` x the product of ``grid`` x ``seeds``."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    name: str = Field("", description="study name (default: the study file's name)")
+    description: str = Field("", description="free text")
+    base: str = Field(min_length=1, description="embedded scenario name or .toml file of the "
+                      "base configuration (a relative path is taken from the study file's folder)")
+    seeds: list[int] = Field(min_length=1, description="seeds; every grid point runs once per seed")
+    set: dict[str, Any] = Field(default_factory=dict,
+                                description="dotted config keys -> values every run gets")
+    grid: dict[str, list[Any]] = Field(min_length=1, description="dotted config keys -> lists of "
+                                       "values; the full product is run")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flatten_tables(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            data = dict(data)
+            if "set" in data:
+                data["set"] = _flatten(data["set"], "set")
+            if "grid" in data:
+                data["grid"] = _flatten(data["grid"], "grid")
+        return data
+
+    @field_validator("seeds")
+    @classmethod
+    def _seeds(cls, seeds: list[int]) -> list[int]:
+        if any(s < 0 for s in seeds):
+            raise ValueError("seeds must be integers >= 0")
+        if len(set(seeds)) != len(seeds):
+            raise ValueError("seeds must not repeat")
+        return seeds
+
+    @field_validator("set")
+    @classmethod
+    def _set_keys(cls, table: dict[str, Any]) -> dict[str, Any]:
+        for key in table:
+            check_config_key(key)
+        return table
+
+    @field_validator("grid")
+    @classmethod
+    def _grid_keys(cls, table: dict[str, list[Any]]) -> dict[str, list[Any]]:
+        for key, values in table.items():
+            check_config_key(key)
+            if not values:
+                raise ValueError(f"'{key}' has no values; give a list of one or more")
+            seen: list[Any] = []
+            for v in values:
+                if any(type(v) is type(s) and v == s for s in seen):
+                    raise ValueError(f"'{key}' lists {v!r} twice")
+                seen.append(v)
+        return table
+
+    @model_validator(mode="after")
+    def _no_overlap(self) -> StudySpec:
+        both = sorted(set(self.set) & set(self.grid))
+        if both:
+            raise ValueError(f"'{both[0]}' is both in [set] and in [grid]; keep it in one")
+        return self
+
+    @property
+    def n_runs(self) -> int:
+        n = len(self.seeds)
+        for values in self.grid.values():
+            n *= len(values)
+        return n
+
+
+# --- embedded studies ------------------------------------------------------------------------
+
+
+def _study_files() -> dict[str, Any]:
+    folder = resources.files("silodem") / "studies"
+    files = {}
+    if folder.is_dir():
+        for entry in folder.iterdir():
+            if entry.is_file() and entry.name.endswith(".toml"):
+                files[entry.name[: -len(".toml")]] = entry
+    return dict(sorted(files.items()))
+
+
+def study_names() -> list[str]:
+    """Names of the embedded studies, sorted."""
+    return list(_study_files())
+
+
+def list_studies() -> list[tuple[str, str]]:
+    """``(name, description)`` of every embedded study."""
+    out = []
+    for name, entry in _study_files().items():
+        try:
+            desc = str(tomllib.loads(entry.read_text(encoding="utf-8")).get("description", ""))
+        except tomllib.TOMLDecodeError:
+            desc = "(unreadable study file)"
+        out.append((name, one_line(desc)))
+    return out
+
+
+# --- loading ---------------------------------------------------------------------------------
+
+
+def _read(source: str) -> tuple[str, str, Path | None]:
+    """(TOML text, default name, folder for relative paths) of a study name or file."""
+    files = _study_files()
+    names = ", ".join(files) or "none"
+    if not str(source).strip():
+        raise InputError(f"empty study name: give an embedded study ({names}) or a .toml file")
+    path = Path(source)
+    try:
+        is_file, exists = path.is_file(), path.exists()
+    except (OSError, ValueError):
+        is_file = exists = False
+    if is_file:
+        try:
+            return path.read_text(encoding="utf-8"), path.stem, path.resolve().parent
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read study file {source}: {exc}") from None
+    if exists:
+        raise InputError(f"{source} is not a file (give a study .toml file or one of: {names})")
+    if source in files:
+        return files[source].read_text(encoding="utf-8"), source, None
+    if str(source).endswith(".toml") or "/" in str(source) or "\\" in str(source):
+        raise InputError(f"study file not found: {source} (give an existing .toml file, or an "
+                         f"embedded study: {names})")
+    from silodem.scenario_files import scenario_names
+
+    if source in scenario_names():
+        raise InputError(f"'{source}' is a scenario, not a study; a study names it as its base "
+                         f"(see 'silodem show paper-study'); embedded studies: {names}")
+    hint = did_you_mean(str(source), files)
+    hint_text = f" (did you mean '{hint}'?)" if hint else ""
+    raise InputError(f"unknown study '{one_line(source)[:60]}'{hint_text}; embedded studies: "
+                     f"{names}; or give the path of a study .toml file")
+
+
+def study_text(source: str) -> str | None:
+    """The TOML text of an embedded study name or of a study file (a TOML file with top-level
+    ``grid`` or ``seeds``), for ``silodem show``; None when ``source`` is not a study."""
+    if source in _study_files():
+        return _study_files()[source].read_text(encoding="utf-8")
+    path = Path(source)
+    try:
+        if not path.is_file():
+            return None
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text)
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    return text if isinstance(data, dict) and ("grid" in data or "seeds" in data) else None
+
+
+class LoadedStudy(BaseModel):
+    """A validated study with where it came from."""
+
+    model_config = ConfigDict(arbitrary_types_allowed=True)
+
+    spec: StudySpec
+    source: str
+    text: str
+    folder: Path | None  # folder of the study file (None: embedded)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+def load_study(source: str) -> LoadedStudy:
+    """Read and validate an embedded study or a study file; InputError (one line) if bad."""
+    text, default_name, folder = _read(str(source))
+    where = f"study {source}"
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: malformed TOML: {exc}") from None
+    try:
+        spec = StudySpec.model_validate(data)
+    except ValidationError as exc:
+        message = format_validation_error(exc, data, model=StudySpec)
+        raise InputError(f"{where}: {message.removeprefix('config error: ')}") from None
+    if not spec.name:
+        spec = spec.model_copy(update={"name": default_name})
+    return LoadedStudy(spec=spec, source=str(source), text=text, folder=folder)

@@ -1,0 +1,258 @@
+"""Per-run results of a study: the summary of one results folder, and the tidy table.
+
+``summarise_run(folder)`` reduces a run's results.h5 to the numbers the paper's section 5
+compares (switch-zone stresses after filling and during discharge, their change, the ratio
+sigma_h / sigma_v and its fluctuation, the wall peak, the discharge rate and flow pattern).  It
+uses the colleague's analysis (``silodem.report.analysis``) for the time windows, the wall
+profiles and the discharge rate, so a study and the run's own report.html agree.
+
+The table has one row per finished run and one column per quantity (docs/sweeps.md lists them
+with their units).  It holds only values that a run determines, so the same study gives the same
+table whether run serially or on any cluster.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+SETTLE, DISCHARGE = 1, 2
+WALL_CIRCLES = ("switch_left", "switch_right")
+
+# (column, unit, meaning) of the per-run quantities, in table order
+COLUMNS: list[tuple[str, str, str]] = [
+    ("switch_sigma_h_fill", "Pa", "horizontal stress at the switch zone after filling"),
+    ("switch_sigma_h_discharge", "Pa", "horizontal stress at the switch zone during discharge"),
+    ("switch_sigma_h_change_pct", "%", "change of the horizontal stress, filling -> discharge"),
+    ("switch_sigma_v_fill", "Pa", "vertical stress at the switch zone after filling"),
+    ("switch_sigma_v_discharge", "Pa", "vertical stress at the switch zone during discharge"),
+    ("switch_sigma_v_change_pct", "%", "change of the vertical stress, filling -> discharge"),
+    ("switch_ratio_fill", "-", ("sigma_h / sigma_v at the switch zone after filling (ratio of "
+     "the window means)")),
+    ("switch_ratio_discharge", "-", "sigma_h / sigma_v at the switch zone during discharge"),
+    ("switch_ratio_cv_fill", "-", ("coefficient of variation (std / mean) of the sampled ratio "
+     "sigma_h / sigma_v in the filling window")),
+    ("switch_ratio_cv_discharge", "-", ("coefficient of variation of the sampled ratio in the "
+     "discharge window: small = continuum-like, large = anisotropic")),
+    ("wall_peak_fill", "Pa", "switch-zone peak of the wall normal stress after filling"),
+    ("wall_peak_z_fill", "m", "height of that peak"),
+    ("wall_peak_discharge", "Pa", "switch-zone peak of the wall normal stress during discharge"),
+    ("wall_peak_z_discharge", "m", "height of that peak"),
+    ("wall_peak_change_pct", "%", "change of the wall peak, filling -> discharge"),
+    ("discharge_rate", "kg/s", "steady discharge rate W (per unit thickness t)"),
+    ("discharge_rate_err", "kg/s", "its standard error (5 block slopes)"),
+    ("mass_flow_index", "-", "v_wall / v_axis above the junction"),
+    ("dead_fraction", "-", "fraction of the grains in a dead zone"),
+    ("flow_pattern", "", "mass flow or funnel flow"),
+    ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
+    ("fill_level", "m", "free surface after settling"),
+    ("n_poured", "-", "grains poured"),
+    ("discharged_fraction", "-", "mass fraction that left the silo"),
+    ("discharge_end_reason", "", "what ended the discharge: fraction, time or clog"),
+    ("steps", "-", "time steps"),
+    ("dt", "s", "time step"),
+]
+CIRCLE_QUANTITIES: list[tuple[str, str, str]] = [
+    ("sigma_h_fill", "Pa", "horizontal stress in the circle after filling"),
+    ("sigma_h_discharge", "Pa", "horizontal stress in the circle during discharge"),
+    ("sigma_h_change_pct", "%", "change of the horizontal stress"),
+    ("sigma_v_fill", "Pa", "vertical stress in the circle after filling"),
+    ("sigma_v_discharge", "Pa", "vertical stress in the circle during discharge"),
+    ("sigma_v_change_pct", "%", "change of the vertical stress"),
+    ("ratio_cv_discharge", "-", "coefficient of variation of sigma_h / sigma_v, discharge"),
+]
+NAN = float("nan")
+
+
+def _f(value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return NAN
+    return v
+
+
+def _change(before: float, after: float) -> float:
+    return 100.0 * (after - before) / before if before and math.isfinite(before) else NAN
+
+
+UNLOADED = 0.1  # samples with sigma_v under this fraction of its window median are left out
+
+
+def _ratio_stats(sh: np.ndarray, sv: np.ndarray) -> tuple[float, float]:
+    """(ratio of the window means, coefficient of variation std/mean of the sampled ratio).
+
+    The sampled ratio leaves out samples where the circle is almost unloaded (sigma_v below
+    ``UNLOADED`` times its median over the window): a ratio of two near-zero numbers is noise,
+    not anisotropy."""
+    ok = np.isfinite(sh) & np.isfinite(sv) & (sv > 0)
+    if not ok.any():
+        return NAN, NAN
+    ratio_of_means = float(np.mean(sh[ok]) / np.mean(sv[ok]))
+    ok &= sv >= UNLOADED * float(np.median(sv[ok]))
+    r = sh[ok] / sv[ok]
+    mean = float(np.mean(r))
+    cv = float(np.std(r) / abs(mean)) if r.size >= 2 and mean != 0 else NAN
+    return ratio_of_means, cv
+
+
+def wall_circle_indices(names: list[str]) -> list[int]:
+    """The circles whose mean is 'the switch zone': the two default circles against the walls
+    at the junction (switch_left, switch_right) when present, else every circle."""
+    idx = [names.index(n) for n in WALL_CIRCLES if n in names]
+    return idx if idx else list(range(len(names)))
+
+
+@dataclass
+class SwitchSeries:
+    """Stress time series at the switch zone of one run (for Fig. 7)."""
+
+    time: np.ndarray  # [s]
+    phase: np.ndarray  # 0 fill, 1 settle, 2 discharge
+    sigma_h: np.ndarray  # [Pa]
+    sigma_v: np.ndarray  # [Pa]
+    t_open: float  # gate opening [s]
+
+
+def switch_series(folder: Path | str) -> SwitchSeries | None:
+    """The switch-zone sigma_h, sigma_v (mean of the wall circles) of a run against time."""
+    import h5py
+
+    path = Path(folder) / "results.h5"
+    with h5py.File(path, "r") as h5:
+        if "measure" not in h5 or "circles" not in h5["measure"]:
+            return None
+        m = h5["measure"]
+        names = [n.decode() if isinstance(n, bytes) else str(n) for n in m["circles/name"][()]]
+        stress = m["circles/stress"][()]
+        t, phase = m["time"][()], m["phase"][()]
+        t_open = float(h5["events"].attrs.get("discharge_start_time", NAN))
+    idx = wall_circle_indices(names)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN samples (empty circles)
+        sh = np.nanmean(stress[:, idx, 0], axis=1) if stress.size else np.zeros(0)
+        sv = np.nanmean(stress[:, idx, 1], axis=1) if stress.size else np.zeros(0)
+    return SwitchSeries(t, phase, sh, sv, t_open)
+
+
+def summarise_run(folder: Path | str) -> dict[str, Any]:
+    """The per-run quantities of :data:`COLUMNS` (and per-circle ones) from a results folder."""
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    res = load_results(folder)
+    a = analyse(res)
+    ev = res.events
+    out: dict[str, Any] = {c: NAN for c, _, _ in COLUMNS}
+    out.update(junction_z=_f(a.geom.get("z_j")), fill_level=_f(ev.get("fill_level")),
+               n_poured=int(ev.get("n_poured", 0)),
+               discharged_fraction=_f(ev.get("discharged_fraction")),
+               discharge_end_reason=str(ev.get("discharge_end_reason", "")),
+               steps=int(res.attrs.get("steps", 0)), dt=_f(res.attrs.get("dt")),
+               flow_pattern="")
+    m = res.group("measure")
+    if m is not None and a.windows:
+        t, phase = m["time"], m["phase"]
+        (f0, f1), (d0, d1) = a.windows["fill"], a.windows["discharge"]
+        masks = {"fill": (t >= f0) & (t <= f1) & (phase == SETTLE),
+                 "discharge": (t >= d0) & (t <= d1) & (phase == DISCHARGE)}
+        c = m["circles"]
+        names = [str(n) for n in c["name"]]
+        stress = c["stress"]
+
+        def window_stats(sh: np.ndarray, sv: np.ndarray, prefix: str) -> None:
+            for key, mask in masks.items():
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    h = float(np.nanmean(sh[mask])) if mask.any() else NAN
+                    v = float(np.nanmean(sv[mask])) if mask.any() else NAN
+                out[f"{prefix}sigma_h_{key}"], out[f"{prefix}sigma_v_{key}"] = h, v
+                ratio, cv = _ratio_stats(sh[mask], sv[mask])
+                if prefix == "switch_":
+                    out[f"switch_ratio_{key}"] = ratio
+                    out[f"switch_ratio_cv_{key}"] = cv
+                elif key == "discharge":
+                    out[f"{prefix}ratio_cv_discharge"] = cv
+            for comp in ("sigma_h", "sigma_v"):
+                out[f"{prefix}{comp}_change_pct"] = _change(out[f"{prefix}{comp}_fill"],
+                                                            out[f"{prefix}{comp}_discharge"])
+
+        if names:
+            idx = wall_circle_indices(names)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # empty circles give NaN
+                window_stats(np.nanmean(stress[:, idx, 0], axis=1),
+                             np.nanmean(stress[:, idx, 1], axis=1), "switch_")
+            for k, name in enumerate(names):
+                window_stats(stress[:, k, 0], stress[:, k, 1], f"circle_{name}_")
+    for key in ("fill", "discharge"):
+        if key in a.peaks:
+            out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = map(_f, a.peaks[key])
+    out["wall_peak_change_pct"] = _change(out["wall_peak_fill"], out["wall_peak_discharge"])
+    flow = a.flow
+    if "rate" in flow:
+        out["discharge_rate"], out["discharge_rate_err"] = _f(flow["rate"].rate), \
+            _f(flow["rate"].err)
+    if "pattern" in flow:
+        out["mass_flow_index"] = _f(flow["mfi"])
+        out["dead_fraction"] = _f(flow["dead_fraction"])
+        out["flow_pattern"] = str(flow["pattern"])
+    return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in out.items()}
+
+
+# --- the table -------------------------------------------------------------------------------
+
+
+def table_columns(grid_keys: list[str], rows: list[dict[str, Any]]) -> list[str]:
+    """Column order: id, slug, seed, the grid keys, COLUMNS, then the per-circle columns."""
+    fixed = ["id", "slug", "seed", *grid_keys, *(c for c, _, _ in COLUMNS)]
+    extra = sorted({k for r in rows for k in r} - set(fixed))
+    return fixed + extra
+
+
+def table_rows(plan, summaries: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per planned run that has a summary, in plan order."""
+    rows = []
+    for run in plan.runs:
+        summary = summaries.get(run.id)
+        if summary is None:
+            continue
+        row: dict[str, Any] = {"id": run.id, "slug": run.slug, "seed": run.seed}
+        row.update(run.point)
+        row.update({k: v for k, v in summary.items() if k not in row})
+        rows.append(row)
+    return rows
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)  # shortest text that reads back to the same double; 'nan' for NaN
+    if isinstance(value, list | tuple):
+        return " ".join(_cell(v) for v in value)
+    return str(value)
+
+
+def table_csv(columns: list[str], rows: list[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    for row in rows:
+        writer.writerow([_cell(row.get(c)) for c in columns])
+    return buf.getvalue()
+
+
+def read_table(path: Path | str) -> list[dict[str, str]]:
+    """The rows of a results.csv as dicts of strings."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))

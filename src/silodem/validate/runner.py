@@ -1,0 +1,135 @@
+"""``silodem validate``: run the case families, collect their records, draw their figures.
+
+Families (one module each; a family returns its records and the data of its figure):
+
+* impacts    linear normal impacts against the analytic spring-dashpot solution
+              (Chung & Ooi tests 1-3; Schwager & Poeschel 2007), with the order of convergence;
+* chung_ooi  Chung & Ooi (2011) tests 4-8 adapted to disks, against rigid-body theory;
+* statics    a settled column: floor + walls carry the weight;
+* janssen    a tall flat-bottomed slot silo against the 2D Janssen solution   (full mode only);
+* beverloo   steady discharge rates against the 2D Beverloo law                (full mode only).
+
+``--quick`` runs the first three (the particle-impact level and one small packing), the subset
+CI runs; the full mode adds the silo-scale cases.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from silodem.validate.records import Record
+
+
+@dataclass(frozen=True)
+class Family:
+    name: str
+    title: str
+    quick: bool  # part of --quick
+    run: Callable[[bool], tuple[list[Record], object]]
+    figure: Callable[[object, Path], Path] | None
+
+
+def families() -> list[Family]:
+    from silodem.validate import beverloo, chung_ooi, figures, impacts, janssen, statics
+
+    return [
+        Family("impacts", "linear normal impacts", True, impacts.run, figures.impacts),
+        Family("chung_ooi", "Chung & Ooi tests 4-8 (disks)", True, chung_ooi.run,
+               figures.chung_ooi),
+        Family("statics", "settled column", True, statics.run, figures.statics),
+        Family("janssen", "Janssen slot silo", False, janssen.run, figures.janssen),
+        Family("beverloo", "Beverloo discharge", False, beverloo.run, figures.beverloo),
+    ]
+
+
+@dataclass
+class Validation:
+    records: list[Record] = field(default_factory=list)
+    figures: list[Path] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.records)
+
+    @property
+    def failures(self) -> list[Record]:
+        return [r for r in self.records if not r.passed]
+
+    def to_json(self) -> str:
+        return json.dumps([r.to_dict() for r in self.records], indent=1)
+
+
+def run_validation(quick: bool = False, out: Path | None = None,
+                   progress: Callable[[str], None] | None = None,
+                   only: list[str] | None = None) -> Validation:
+    """Run the families (``quick``: those marked quick; ``only``: these names), write their
+    figures into ``out`` (none if None) and return every record."""
+    say = progress or (lambda _msg: None)
+    result = Validation()
+    for fam in families():
+        if (quick and not fam.quick) or (only is not None and fam.name not in only):
+            continue
+        say(f"validate: {fam.title} ...")
+        t0 = time.perf_counter()
+        records, data = fam.run(quick)
+        result.records.extend(records)
+        if out is not None and fam.figure is not None:
+            result.figures.append(fam.figure(data, Path(out) / f"{fam.name}.png"))
+        result.seconds[fam.name] = time.perf_counter() - t0
+        bad = sum(not r.passed for r in records)
+        say(f"validate: {fam.title}: {len(records)} checks, {bad} failed, "
+            f"{result.seconds[fam.name]:.1f} s")
+    return result
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    v = float(v)
+    if math.isnan(v):
+        return "nan"
+    if v == 0.0:
+        return "0"
+    return f"{v:.6g}" if 1e-3 <= abs(v) < 1e6 else f"{v:.4e}"
+
+
+def _tol(r: Record) -> str:
+    if r.kind == "info":
+        return "reported"
+    if r.kind == "rel":
+        return f"{100 * r.tolerance:g} %"
+    return f"+- {r.tolerance:g}"
+
+
+def print_table(result: Validation, console) -> None:
+    """The records as a rich table, then a one-line verdict."""
+    from rich.table import Table
+
+    table = Table(title="silodem validate", show_lines=False)
+    for col, kw in (("case", {"overflow": "fold", "max_width": 60}),
+                    ("quantity", {"overflow": "fold", "max_width": 42}),
+                    ("expected", {"justify": "right"}), ("got", {"justify": "right"}),
+                    ("tolerance", {"justify": "right"}), ("pass", {"justify": "center"})):
+        table.add_column(col, **kw)
+    for r in result.records:
+        verdict = "info" if r.kind == "info" else ("yes" if r.passed else "NO")
+        style = None if r.passed else "bold red"
+        unit = f" [{r.unit}]" if r.unit not in ("-", "") else ""
+        table.add_row(r.case, r.quantity + unit, _fmt(r.expected), _fmt(r.got), _tol(r),
+                      verdict, style=style)
+    console.print(table)
+    n = len(result.records)
+    checked = sum(r.kind != "info" for r in result.records)
+    bad = len(result.failures)
+    times = ", ".join(f"{k} {v:.0f} s" for k, v in result.seconds.items())
+    console.print(f"{checked} checks ({n - checked} reported values): "
+                  f"{checked - bad} passed, {bad} failed  [{times}]", markup=False,
+                  highlight=False)
+    for path in result.figures:
+        console.print(f"figure: {path}", markup=False, highlight=False, soft_wrap=True)

@@ -1,0 +1,292 @@
+"""Parametric studies on Dask (docs/sweeps.md): a cluster reproduces a serial run bit for bit,
+a killed worker loses no grid point, a second invocation recomputes nothing, bad study files
+end in one line with exit code 2."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import time
+import tomllib
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from silodem.cli import main
+from silodem.study import expand, load_study, run_study
+from silodem.study.execute import local_cluster
+
+# A tiny study: the paper's hopper case shrunk by --quick (about 50 grains, a 1 s discharge),
+# two grain-grain friction angles, one seed; no per-run pictures or report.
+TINY = """\
+base = "paper-case2"
+seeds = [3]
+[set]
+"fill.n_particles" = 60
+"discharge.max_time" = 1.0
+"measure.report" = false
+"output.png" = false
+[grid]
+"material.friction_deg" = [20.0, 30.0]
+"""
+
+SNAPSHOT_FIELDS = ("x", "y", "vx", "vy", "omega", "radius", "uid")
+
+
+def _plan(folder: Path):
+    path = folder / "tiny.toml"
+    path.write_text(TINY, encoding="utf-8")
+    return expand(load_study(str(path)), quick=True)
+
+
+def _arrays(run_dir: Path) -> dict[str, np.ndarray]:
+    out = {}
+    with h5py.File(run_dir / "results.h5", "r") as h5:
+        assert h5.attrs["status"] == "complete"
+        for snap in ("settled", "final"):
+            for key in SNAPSHOT_FIELDS:
+                out[f"{snap}/{key}"] = h5[f"{snap}/particles/{key}"][()]
+    return out
+
+
+def _assert_same_runs(plan, dir_a: Path, dir_b: Path) -> None:
+    """Every planned run is finished in both folders with bit-identical grain arrays, and the
+    two results tables are the same text."""
+    for run in plan.runs:
+        a, b = _arrays(dir_a / "runs" / run.id), _arrays(dir_b / "runs" / run.id)
+        assert a.keys() == b.keys()
+        for key in a:
+            assert a[key].dtype == b[key].dtype and a[key].tobytes() == b[key].tobytes(), \
+                f"{run.id}: {key} differs"
+    text_a = (dir_a / "results.csv").read_text(encoding="utf-8")
+    text_b = (dir_b / "results.csv").read_text(encoding="utf-8")
+    assert text_a == text_b
+    assert len(text_a.splitlines()) == 1 + len(plan.runs)
+
+
+def _run_folders(study_dir: Path) -> list[str]:
+    return sorted(p.name for p in (study_dir / "runs").iterdir())
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    """The tiny study run in this process, one run after the other: the reference."""
+    root = tmp_path_factory.mktemp("serial")
+    plan = _plan(root)
+    outcome = run_study(plan, root / "study", serial=True)
+    assert outcome.computed == len(plan.runs) == 2 and not outcome.failed
+    return plan, root / "study"
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client
+
+    cluster = local_cluster(2)
+    c = Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+def test_local_cluster_equals_serial_and_second_invocation_recomputes_nothing(
+        serial, client, tmp_path):
+    plan_ref, ref_dir = serial
+    plan = _plan(tmp_path)
+    assert [r.id for r in plan.runs] == [r.id for r in plan_ref.runs]
+    study_dir = tmp_path / "study"
+    outcome = run_study(plan, study_dir, client=client)
+    assert outcome.computed == 2 and outcome.skipped == 0 and not outcome.failed
+    # the runs ran in the cluster's worker processes, not in this one
+    worker_pids = set(client.run(os.getpid).values())
+    assert {r["pid"] for r in outcome.results.values()} <= worker_pids
+    assert os.getpid() not in worker_pids
+    assert _run_folders(study_dir) == sorted(r.id for r in plan.runs)
+    _assert_same_runs(plan, ref_dir, study_dir)
+
+    # the same command again, from the command line: nothing is recomputed
+    stamps = {p: p.stat().st_mtime_ns for p in (study_dir / "runs").rglob("*")}
+    stamps[study_dir / "runs"] = (study_dir / "runs").stat().st_mtime_ns
+    again = run_study(_plan(tmp_path), study_dir, client=client)
+    assert again.computed == 0 and again.skipped == 2 and not again.results
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)])
+    assert exc.value.code == 0
+    after = {p: p.stat().st_mtime_ns for p in (study_dir / "runs").rglob("*")}
+    after[study_dir / "runs"] = (study_dir / "runs").stat().st_mtime_ns
+    assert after == stamps
+    _assert_same_runs(plan, ref_dir, study_dir)
+
+
+def test_a_worker_killed_mid_run_loses_no_grid_point(serial, tmp_path):
+    """kill -9 the worker process that is running a run; the study still ends with every grid
+    point, each equal to the serial run, and no half folder."""
+    from distributed import Client
+
+    _, ref_dir = serial
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    runs = study_dir / "runs"
+    cluster = local_cluster(2)  # fresh workers: a run starts with imports, a wide window
+    c = Client(cluster)
+    try:
+        worker_pids = set(c.run(os.getpid).values())
+        result: dict = {}
+        thread = threading.Thread(
+            target=lambda: result.update(outcome=run_study(plan, study_dir, client=c)))
+        thread.start()
+        victim = None
+        deadline = time.monotonic() + 120
+        while victim is None and time.monotonic() < deadline:
+            for attempt in runs.glob(".*.tmp-*/attempt.json") if runs.is_dir() else []:
+                try:
+                    info = json.loads(attempt.read_text(encoding="utf-8"))
+                except (OSError, ValueError):
+                    continue  # being written
+                victim = (info["pid"], info["id"], attempt.parent)
+                break
+            time.sleep(0.01)
+        assert victim is not None, "no run started"
+        pid, run_id, tmp = victim
+        assert pid in worker_pids  # the process running the run is a Dask worker
+        os.kill(pid, signal.SIGKILL)
+        time.sleep(0.2)
+        # killed mid-run: its temporary folder is left, the run is not finished
+        assert tmp.is_dir() and not (runs / run_id).exists()
+        thread.join(timeout=300)
+        assert not thread.is_alive()
+    finally:
+        c.close()
+        cluster.close()
+    outcome = result["outcome"]
+    assert not outcome.failed
+    assert outcome.computed == 2
+    # every grid point has its result, nothing else is left in runs/
+    assert _run_folders(study_dir) == sorted(r.id for r in plan.runs)
+    _assert_same_runs(plan, ref_dir, study_dir)
+
+
+@pytest.mark.parametrize(("text", "needles"), [
+    (TINY.replace('seeds = [3]', 'seeds = [3]\ngird = 1'), ["unknown key 'gird'", "'grid'"]),
+    (TINY.replace('"material.friction_deg"', '"material.frction_deg"'),
+     ["material.frction_deg", "did you mean 'material.friction_deg'"]),
+    (TINY.replace('"material.friction_deg"', '"silo"'), ["'silo' is a section"]),
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]', 'material.friction_deg = []'),
+     ["material.friction_deg", "no values"]),
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"silo.outlet_width" = [1.0, 9.0]'),
+     ["silo.outlet_width", "9"]),
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"seed" = [1, 2]'), ["seeds"]),
+    (TINY.replace('seeds = [3]\n', ''), ["missing required key 'seeds'"]),
+    (TINY.replace('base = "paper-case2"', 'base = "paper-case9"'),
+     ["paper-case9", "did you mean 'paper-case2'"]),
+    (TINY + "[grid\n", ["malformed TOML"]),
+])
+def test_bad_study_files_give_one_line_and_exit_2(tmp_path, capsys, text, needles):
+    path = tmp_path / "bad.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(path), "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    for needle in needles:
+        assert needle in err
+    assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+def test_missing_study_and_bad_options_give_one_line_and_exit_2(tmp_path, capsys):
+    for argv in (["sweep", str(tmp_path / "nope.toml")], ["sweep", "paper-stdy"],
+                 ["sweep", "paper-study", "--workers", "0"]):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_paper_study_is_the_papers_grid_and_every_case_is_valid(capsys):
+    """Section 5 of the paper: hopper slope 35, 45, 55, 75 deg x phi_G 20, 30 deg x phi_P 10,
+    45 deg on case 2; every combination gives a valid run, full size and --quick."""
+    with pytest.raises(SystemExit) as exc:
+        main(["show", "paper-study"])
+    assert exc.value.code == 0
+    data = tomllib.loads(capsys.readouterr().out)
+    assert data["base"] == "paper-case2"
+    grid = data["grid"]
+    assert sorted(grid["silo.hopper_angle_from_horizontal_deg"]) == [35, 45, 55, 75]
+    assert sorted(grid["material.friction_deg"]) == [20, 30]
+    assert sorted(grid["walls.friction_deg"]) == [10, 45]
+    for quick in (False, True):
+        plan = expand(load_study("paper-study"), quick=quick)
+        assert len({r.id for r in plan.runs}) == 16
+        points = {(r.cfg.silo.hopper_angle_from_horizontal_deg, r.cfg.material.friction_deg,
+                   r.cfg.walls.friction_deg) for r in plan.runs}
+        assert points == {(t, g, p) for t in (35, 45, 55, 75) for g in (20, 30) for p in (10, 45)}
+        # the paper keeps the silo height and the outlet constant over the study
+        assert len({(r.cfg.silo.wall_height, r.cfg.silo.outlet_width, r.cfg.silo.cell_width,
+                     r.cfg.fill.n_particles) for r in plan.runs}) == 1
+
+
+def test_bare_dotted_keys_mean_the_same_as_quoted_ones(tmp_path):
+    quoted = _plan(tmp_path)
+    bare = tmp_path / "bare.toml"
+    bare.write_text(TINY.replace('"fill.n_particles"', "fill.n_particles")
+                    .replace('"material.friction_deg"', "material.friction_deg"),
+                    encoding="utf-8")
+    plan = expand(load_study(str(bare)), quick=True)
+    assert [r.id for r in plan.runs] == [r.id for r in quoted.runs]
+
+
+def test_a_half_written_run_folder_is_never_taken_as_finished(serial, tmp_path):
+    """A run folder without its summary (as a copy cut short would leave) is run again, and
+    its files are set aside, not mixed with the new result."""
+    _, ref_dir = serial
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    half = study_dir / "runs" / plan.runs[0].id
+    half.mkdir(parents=True)
+    (half / "results.h5").write_bytes(b"not a finished run")
+    outcome = run_study(plan, study_dir, serial=True)
+    assert outcome.computed == 2 and outcome.skipped == 0
+    _assert_same_runs(plan, ref_dir, study_dir)
+    aside = list((study_dir / "runs").glob(f".{plan.runs[0].id}.incomplete-*/results.h5"))
+    assert len(aside) == 1 and aside[0].read_bytes() == b"not a finished run"
+
+
+def test_a_failing_run_is_reported_kept_aside_and_retried(tmp_path, monkeypatch):
+    """A run that stops as unstable is not retried within the sweep, is not in runs/ nor in
+    the table, keeps its folder in failed/, and is run again by the next invocation."""
+    from silodem.errors import UnstableRunError
+    from silodem.study import execute
+
+    plan = _plan(tmp_path)
+    bad = plan.runs[1]
+    real = execute._run_simulation
+    calls = []
+
+    def flaky(cfg, out):
+        calls.append(cfg.material.friction_deg)
+        if cfg.material.friction_deg == bad.cfg.material.friction_deg:
+            raise UnstableRunError("grain 7 left the domain (test)")
+        real(cfg, out)
+
+    monkeypatch.setattr(execute, "_run_simulation", flaky)
+    study_dir = tmp_path / "study"
+    outcome = run_study(plan, study_dir, serial=True)
+    assert list(outcome.failed) == [bad.id] and outcome.computed == 1
+    assert calls.count(bad.cfg.material.friction_deg) == 1
+    assert _run_folders(study_dir) == [plan.runs[0].id]
+    assert (study_dir / "failed" / bad.id / "attempt.json").is_file()
+    rows = (study_dir / "results.csv").read_text(encoding="utf-8").splitlines()
+    assert len(rows) == 2 and bad.id not in "\n".join(rows)
+    assert bad.id in (study_dir / "report.html").read_text(encoding="utf-8")
+
+    monkeypatch.setattr(execute, "_run_simulation", real)
+    again = run_study(plan, study_dir, serial=True)
+    assert again.computed == 1 and again.skipped == 1 and not again.failed
+    assert _run_folders(study_dir) == sorted(r.id for r in plan.runs)
+    assert not (study_dir / "failed" / bad.id).exists()

@@ -1,0 +1,178 @@
+"""`silodem validate`: the quick suite passes, its records carry the tolerances the issue states,
+and the pure functions of the suite agree with algebra and with numerical integration done here
+independently."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from silodem.validate.chung_ooi import (
+    rigid_pair_impact,
+    rigid_wall_impact,
+    sliding_limit,
+    sticking_tangential_restitution,
+)
+from silodem.validate.impacts import convergence_order, spring_dashpot
+from silodem.validate.records import Record
+
+FIELDS = {"case", "quantity", "expected", "got", "tolerance", "pass"}
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("validation")
+    proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--quick", "--json",
+                           "--out", str(out)], capture_output=True, text=True, timeout=600,
+                          check=False)
+    return proc, out
+
+
+def test_quick_validation_exits_0_and_every_record_passes(quick_run):
+    proc, out = quick_run
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    records = json.loads(proc.stdout)  # nothing but the JSON list on stdout
+    assert isinstance(records, list) and len(records) > 100
+    for r in records:
+        assert FIELDS <= set(r), r
+        assert r["pass"] is True, r
+    for name in ("impacts", "chung_ooi", "statics"):
+        assert (out / f"{name}.png").stat().st_size > 1000
+
+
+def _tolerances(records, quantity):
+    found = {(r["tolerance_kind"], r["tolerance"]) for r in records if r["quantity"] == quantity}
+    assert found, quantity
+    return found
+
+
+def test_quick_validation_uses_the_stated_tolerances(quick_run):
+    records = json.loads(quick_run[0].stdout)
+    # normal impacts: restitution within 0.5 %, contact duration within 1 %
+    assert _tolerances(records, "restitution") <= {("rel", 0.005), ("info", None)}
+    assert ("rel", 0.005) in _tolerances(records, "restitution")
+    assert _tolerances(records, "contact duration") == {("rel", 0.01)}
+    # settled column: floor + walls = weight within 1e-3
+    assert _tolerances(records, "vertical force of the grains on floor + walls") == {
+        ("rel", 1e-3)}
+    # rigid-body comparisons of Chung & Ooi: 0.5 %
+    assert _tolerances(records, "tangential restitution v_t'/v_t") == {("rel", 0.005)}
+    cases = {r["case"] for r in records}
+    for e in ("0.1", "0.3", "0.5", "0.7", "0.9", "1"):  # e spans [0.1, 1]
+        for geometry in ("disk-disk", "disk-wall"):
+            assert any(f"{geometry}, e={e}," in c for c in cases), (geometry, e)
+    for n in range(4, 9):  # Chung & Ooi tests 4-8
+        assert any(c.startswith(f"Chung-Ooi {n},") for c in cases), n
+    # every sliding angle of test 4 from 30 to 85 deg is checked
+    angles = {int(c.split("angle ")[1].split(" ")[0]) for c in cases if "angle " in c}
+    assert set(range(30, 90, 5)) <= angles
+
+
+def test_validate_refuses_an_out_that_is_a_file(tmp_path):
+    f = tmp_path / "file"
+    f.write_text("x")
+    proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--quick", "--out",
+                           str(f)], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+# --- pure functions ------------------------------------------------------------------------------
+
+
+def test_sticking_limit_of_a_disk_is_two_thirds():
+    # a disk (I = m R^2 / 2) leaving the wall rolling without slip: impulse P on the centre
+    # gives v' = v - P/m, w' R = -P R^2 / I = -2 P/m, and v' + w' R = 0  =>  v' = 2 v / 3
+    assert sticking_tangential_restitution(0.5) == pytest.approx(2.0 / 3.0, rel=1e-15)
+    assert sticking_tangential_restitution(0.4) == pytest.approx(5.0 / 7.0, rel=1e-15)  # sphere
+    assert sliding_limit(0.5) == pytest.approx(3.0)
+    assert sliding_limit(0.4) == pytest.approx(3.5)
+
+
+def test_rigid_wall_impact_regimes():
+    r, e, mu, vn = 0.1, 0.8, 0.3, 1.0
+    s = mu * (1 + e) * vn
+    stick = rigid_wall_impact(vn, 2.0 * s, 0.0, r, e, mu)  # Psi_1 = 2 < 3: sticks
+    assert not stick.sliding
+    assert stick.vt + stick.omega * r == pytest.approx(0.0, abs=1e-14)  # rolls off
+    assert stick.vt / (2.0 * s) == pytest.approx(2.0 / 3.0)
+    slide = rigid_wall_impact(vn, 5.0 * s, 0.0, r, e, mu)  # Psi_1 = 5 > 3
+    assert slide.sliding
+    assert slide.vt == pytest.approx(5.0 * s - s)  # tangential impulse = mu x normal impulse
+    assert slide.omega * r == pytest.approx(-2.0 * s)
+    assert slide.vn == pytest.approx(e * vn)
+    # continuous at the limit
+    a = rigid_wall_impact(vn, 3.0 * s * (1 - 1e-9), 0.0, r, e, mu)
+    b = rigid_wall_impact(vn, 3.0 * s * (1 + 1e-9), 0.0, r, e, mu)
+    assert a.vt == pytest.approx(b.vt, rel=1e-8) and a.omega == pytest.approx(b.omega, rel=1e-8)
+
+
+def test_rigid_pair_impact_conserves_momentum_and_angular_momentum():
+    m1, m2, r1, r2 = 1.0, 3.0, 0.1, 0.2
+    for w1, w2 in ((5.0, 5.0), (40.0, -3.0), (0.5, 0.2)):
+        out = rigid_pair_impact(m1, m2, r1, r2, 1.0, 0.2, -0.1, w1, w2, 0.7, 0.4)
+        assert m1 * out.vt1 + m2 * out.vt2 == pytest.approx(m1 * 0.2 + m2 * -0.1, abs=1e-14)
+        # angular momentum about the contact point (x = r1, on the line of centres): the
+        # impulse acts there, so it is conserved: -m1 r1 vt1 + I1 w1 + m2 r2 vt2 + I2 w2
+        def L(vt1, vt2, a, b):
+            return -m1 * r1 * vt1 + 0.5 * m1 * r1**2 * a + m2 * r2 * vt2 + 0.5 * m2 * r2**2 * b
+        assert L(out.vt1, out.vt2, out.omega1, out.omega2) == pytest.approx(
+            L(0.2, -0.1, w1, w2), abs=1e-12)
+
+
+def _integrate_impact(k, m, zeta, tension):
+    """Integrate m x'' = -F, F = k x + c x' (cut at zero without tension) from x = 0, x' = 1
+    until the contact ends, with scipy (rtol 1e-11): duration and rebound speed."""
+    c = 2.0 * zeta * math.sqrt(k * m)
+
+    def rhs(t, y):
+        f = k * y[0] + c * y[1]
+        if not tension:
+            f = max(f, 0.0)
+        return [y[1], -f / m]
+
+    def overlap_zero(t, y):
+        return y[0] if t > 0 else 1.0
+
+    def force_zero(t, y):
+        return k * y[0] + c * y[1] if t > 1e-12 else 1.0
+
+    overlap_zero.terminal = force_zero.terminal = True
+    overlap_zero.direction = force_zero.direction = -1
+    events = [overlap_zero] if tension else [overlap_zero, force_zero]
+    sol = solve_ivp(rhs, (0.0, 10.0 * math.pi * math.sqrt(m / k)), [0.0, 1.0], rtol=1e-11,
+                    atol=1e-14, events=events)
+    t_end = min(ev[0] for ev in sol.t_events if len(ev))
+    return t_end, -sol.y[1, -1]
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.2, 0.5, 0.65])
+@pytest.mark.parametrize("tension", [True, False])
+def test_spring_dashpot_formulas_match_numerical_integration(zeta, tension):
+    k, m = 2.0e5, 0.3
+    ref = spring_dashpot(k, m, zeta)
+    t_end, e = _integrate_impact(k, m, zeta, tension)
+    assert ref.duration(tension) == pytest.approx(t_end, rel=1e-7)
+    assert ref.restitution(tension) == pytest.approx(e, rel=1e-7)
+
+
+def test_convergence_order_of_a_power_law():
+    steps = np.array([50, 100, 200, 400])
+    assert convergence_order(steps, 3.0 / steps) == pytest.approx(1.0)
+    assert convergence_order(steps, -7.0 / steps**2) == pytest.approx(2.0)
+
+
+def test_record_pass_rules():
+    assert Record("c", "q", 1.0, 1.004, 5e-3).passed
+    assert not Record("c", "q", 1.0, 1.006, 5e-3).passed
+    assert Record("c", "q", 0.0, 0.09, 0.1, "abs").passed
+    assert not Record("c", "q", 0.0, float("nan"), 0.1, "abs").passed
+    assert Record("c", "q", None, 3.0, None, "info").passed
+    assert Record("c", "q", 1.0, float("nan"), 0.1).to_dict()["got"] is None
