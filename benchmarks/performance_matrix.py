@@ -61,12 +61,13 @@ def main() -> None:
     ap.add_argument("--out", default="docs/performance.json")
     ap.add_argument("--quick", action="store_true", help="only N <= 31,700")
     ap.add_argument("--max-lammps-n", type=int, default=1_000_000)
+    ap.add_argument("--threads", default="1,2", help="comma-separated thread/rank counts")
     args = ap.parse_args()
     rows = []
     for n, settle, steps in PLAN:
         if args.quick and n > 31_700:
             break
-        for threads in (1, 2):
+        for threads in [int(t) for t in args.threads.split(",")]:
             r = row(n, threads, settle, steps, lammps=n <= args.max_lammps_n)
             r["settle"] = settle
             rows.append(r)

@@ -133,6 +133,60 @@ def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
 
 
 @njit
+def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+                        x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
+                        kn, ks, mu, zeta, allow_tension, dt):
+    """Serial twin of ``pair_forces`` that also sums each grain's contact forces into
+    ``fx, fy`` and its shear forces into ``fs_sum`` as it goes (no gather pass).  A grain's
+    terms arrive in the order ``gather_pairs`` adds them (its pairs as j by increasing k, then
+    its pairs as i), so both paths give the same bits."""
+    fx[:n] = 0.0
+    fy[:n] = 0.0
+    fs_sum[:n] = 0.0
+    for i in range(n):
+        xi = x[i]
+        yi = y[i]
+        ri = radius[i]
+        for k in range(i_start[i], i_start[i + 1]):
+            j = pair_j[k]
+            dx = x[j] - xi
+            dy = y[j] - yi
+            rsum = ri + radius[j]
+            d2 = dx * dx + dy * dy
+            if d2 >= rsum * rsum:
+                pair_fs[k] = 0.0
+                pair_fn[k] = 0.0
+                pair_fx[k] = 0.0
+                pair_fy[k] = 0.0
+                continue
+            d = math.sqrt(d2)
+            inv_d = 1.0 / d
+            nx = dx * inv_d
+            ny = dy * inv_d
+            # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
+            spin = omega[j] * radius[j] + omega[i] * ri
+            rvx = vx[j] - vx[i] + spin * ny
+            rvy = vy[j] - vy[i] - spin * nx
+            v_n = rvx * nx + rvy * ny
+            v_t = -rvx * ny + rvy * nx
+            m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
+            cn = 2.0 * zeta * math.sqrt(kn * m_eff)
+            fn, fs = linear_law(rsum - d, v_n, v_t, pair_fs[k], kn, ks, cn, mu, allow_tension, dt)
+            pair_fs[k] = fs
+            pair_fn[k] = fn
+            fkx = fn * nx - fs * ny
+            fky = fn * ny + fs * nx
+            pair_fx[k] = fkx
+            pair_fy[k] = fky
+            fx[j] += fkx
+            fy[j] += fky
+            fs_sum[j] += fs
+            fx[i] -= fkx
+            fy[i] -= fky
+            fs_sum[i] += fs
+
+
+@njit
 def closest_point(px, py, ax, ay, bx, by):
     """Closest point of segment A-B to P, and where it lies: 0 on the face, 1 at A, 2 at B."""
     ux = bx - ax

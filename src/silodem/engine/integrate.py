@@ -1,13 +1,15 @@
-"""Central-difference (leap-frog) integration, the paper's eqs. (6)-(9), fused with the gather
-of the contact forces on each grain.
+"""Central-difference (leap-frog) integration, the paper's eqs. (6)-(9), and the gather of the
+contact forces on each grain.
 
 Velocities live at half steps: with the forces F(t) of positions x(t),
 
     v(t + dt/2) = v(t - dt/2) + (F(t)/m + g) dt,       omega(t + dt/2) = omega(t - dt/2) + M(t)/I dt
     x(t + dt)   = x(t) + v(t + dt/2) dt
 
-F(t), M(t) are summed per grain in a fixed order (its pairs as i, its pairs as j, its wall
-contacts), so the result has the same bits for any number of threads.  The torque of a contact
+F(t), M(t) are summed per grain in a fixed order (its pairs as j by increasing pair index,
+its pairs as i, its wall contacts) by ``gather_pairs`` (parallel path) or on the fly by
+``contact.pair_forces_scatter`` (serial path), so a run has the same bits for any number of
+threads.  The torque of a contact
 on each of its grains is -r * F_s (see ``silodem.engine.contact``).
 
 PFC local damping (Itasca PFC2D manual, "local damping"): with alpha > 0 each component of the
@@ -27,12 +29,34 @@ _CHUNKS = 64
 
 
 @kernel
-def gather_and_leapfrog(n, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
-                        w_start, wc_fx, wc_fy, wc_fs,
-                        x, y, vx, vy, omega, fx, fy, torque, radius, mass, inv_mass, inv_inertia,
-                        x_ref, y_ref, gravity, alpha, dt):
-    """Sum the contact forces on each of the first ``n`` grains (stored in ``fx, fy, torque``),
-    advance them one step, and return the displacements since the last neighbour-list build:
+def gather_pairs(n, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs, fx, fy, fs_sum):
+    """Per grain, the sum of its grain-grain contact forces (into ``fx, fy``) and of their
+    shear forces (into ``fs_sum``): pairs where it is j (increasing k), then where it is i."""
+    for p in prange(n):
+        sx = 0.0
+        sy = 0.0
+        ss = 0.0
+        for q in range(j_start[p], j_start[p + 1]):
+            k = j_pairs[q]
+            sx += pair_fx[k]
+            sy += pair_fy[k]
+            ss += pair_fs[k]
+        for k in range(i_start[p], i_start[p + 1]):
+            sx -= pair_fx[k]
+            sy -= pair_fy[k]
+            ss += pair_fs[k]
+        fx[p] = sx
+        fy[p] = sy
+        fs_sum[p] = ss
+
+
+@kernel
+def walls_and_leapfrog(n, w_start, wc_fx, wc_fy, wc_fs,
+                       x, y, vx, vy, omega, fx, fy, torque, radius, mass, inv_mass, inv_inertia,
+                       x_ref, y_ref, gravity, alpha, dt):
+    """Add each grain's wall contacts to the grain-grain sums (``fx, fy``; ``torque`` holds the
+    sum of shear forces on entry and the torque -r * sum(F_s) on exit), advance the first ``n``
+    grains one step, and return the displacements since the last neighbour-list build:
     (largest squared displacement [m^2] (inf if a position is not finite), and the bounding box
     min dx, max dx, min dy, max dy of the displacement vectors [m])."""
     chunk_max = np.zeros(_CHUNKS)
@@ -45,18 +69,9 @@ def gather_and_leapfrog(n, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
         loy = np.inf
         hiy = -np.inf
         for p in range(c * size, min(n, (c + 1) * size)):
-            sx = 0.0
-            sy = 0.0
-            ss = 0.0
-            for k in range(i_start[p], i_start[p + 1]):
-                sx -= pair_fx[k]
-                sy -= pair_fy[k]
-                ss += pair_fs[k]
-            for q in range(j_start[p], j_start[p + 1]):
-                k = j_pairs[q]
-                sx += pair_fx[k]
-                sy += pair_fy[k]
-                ss += pair_fs[k]
+            sx = fx[p]
+            sy = fy[p]
+            ss = torque[p]
             for k in range(w_start[p], w_start[p + 1]):
                 sx += wc_fx[k]
                 sy += wc_fy[k]
