@@ -211,8 +211,9 @@ class NeighborList:
         empty_i = np.zeros(0, dtype=np.int64)
         self.pair_j = empty_i
         self.pair_fs = self.pair_fn = self.pair_fx = self.pair_fy = np.zeros(0)
-        self.i_start = self.j_start = np.zeros(1, dtype=np.int64)
-        self.j_pairs = empty_i
+        self.i_start = np.zeros(1, dtype=np.int64)
+        self._j_start: np.ndarray | None = None
+        self._j_pairs: np.ndarray | None = None
         self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
         self.w_start = np.zeros(1, dtype=np.int64)
@@ -232,6 +233,20 @@ class NeighborList:
     @pair_i.setter
     def pair_i(self, value: np.ndarray) -> None:
         self._pair_i = value
+
+    @property
+    def j_start(self) -> np.ndarray:
+        """Pairs listed by their second grain (for the parallel gather), built on demand:
+        the pairs of grain p as j are ``j_pairs[j_start[p]:j_start[p+1]]``."""
+        if self._j_start is None:
+            self._j_start, self._j_pairs = _csr_by(self.pair_j, self.i_start.size - 1)
+        return self._j_start
+
+    @property
+    def j_pairs(self) -> np.ndarray:
+        if self._j_pairs is None:
+            self._j_start, self._j_pairs = _csr_by(self.pair_j, self.i_start.size - 1)
+        return self._j_pairs
 
     @property
     def wc_i(self) -> np.ndarray:
@@ -283,7 +298,8 @@ class NeighborList:
                 "escaped the domain (unstable run?)"
             )
         cell_start, members = cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy)
-        p.permute(members)  # sort the grains by cell
+        # sort the grains by cell; forces are recomputed by the step and the references reset
+        p.permute(members, skip=("fx", "fy", "torque", "x_ref", "y_ref"))
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
         i_start, pair_j = self._list_pairs(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy,
@@ -305,7 +321,7 @@ class NeighborList:
         self.pair_fn = np.zeros(pair_j.size)
         self.pair_fx = np.zeros(pair_j.size)
         self.pair_fy = np.zeros(pair_j.size)
-        self.j_start, self.j_pairs = _csr_by(pair_j, n)
+        self._j_start = self._j_pairs = None
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)

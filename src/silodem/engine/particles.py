@@ -92,11 +92,14 @@ class Particles:
             arr[:m] = arr[idx]
         self.n = m
 
-    def permute(self, order: np.ndarray) -> None:
-        """Reorder the live particles: new index k holds old index ``order[k]``."""
+    def permute(self, order: np.ndarray, skip: tuple[str, ...] = ()) -> None:
+        """Reorder the live particles: new index k holds old index ``order[k]``.  Fields in
+        ``skip`` are left as they are (the caller overwrites them)."""
         n = self.n
         tmp = np.empty(n)
         for name in _FLOAT_FIELDS:
+            if name in skip:
+                continue
             arr = getattr(self, name)
             np.take(arr[:n], order, out=tmp)
             arr[:n] = tmp
