@@ -48,6 +48,9 @@ class Simulation:
         self.time = 0.0
         self.steps = 0
         self._stale = True  # the neighbour list must be rebuilt before the next force pass
+        # called with the simulation right before each neighbour-list build: the place to move
+        # grains across a periodic boundary, as LAMMPS remaps atoms only when it re-neighbours
+        self.before_rebuild: list = []
         self._drift = 0.0  # largest grain displacement since the last rebuild [m]
         self._wall_drift = 0.0
         self._spread = (0.0, 0.0, 0.0, 0.0)  # bounding box of the displacements [m]
@@ -75,6 +78,8 @@ class Simulation:
     def step(self) -> None:
         p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
         if self._stale or self._list_expired():
+            for hook in self.before_rebuild:
+                hook(self)
             nb.rebuild(p, w)
             self._stale = False
             self._wall_drift = 0.0
