@@ -44,7 +44,7 @@ def plot(rows: list[dict], path: Path) -> None:
                 label=f"silodem, {threads} thread{'s' * (threads > 1)}")
         lam = [r for r in sel if "lammps" in r]
         ax.plot([r["n"] for r in lam], [r["lammps"]["particle_steps_per_s"] / 1e6 for r in lam],
-                style, mfc="none", ls="--",
+                style.replace("-", "--"), mfc="none",
                 label=f"LAMMPS, {threads} rank{'s' * (threads > 1)}")
     ax.set_xscale("log")
     ax.set_xlabel("grains N")
