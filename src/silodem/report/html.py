@@ -134,7 +134,35 @@ def _event_rows(events: dict) -> list[tuple[str, str]]:
     return out
 
 
-def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]]) -> str:
+_SNAPSHOT_CAPTIONS = {
+    "end-of-filling": "Force network at the end of filling (settled), from the saved frames.",
+    "early-discharge": "Force network early in the discharge (15 % of the discharge time).",
+    "late-discharge": "Force network late in the discharge (75 % of the discharge time).",
+}
+
+
+def render_snapshots(folder: Path, fig_dir: Path) -> list[tuple[str, str, bytes]]:
+    """Force-network pictures of the end of filling, early and late discharge (from the
+    frames recorder, silodem.viz); written to ``fig_dir/network_<view>.png``."""
+    from silodem.viz import force_network_pngs
+
+    try:
+        pngs = force_network_pngs(folder / "results.h5")
+    except (KeyError, ValueError, OSError):  # no frames in this results file
+        pngs = {}
+    out = []
+    for view, caption in _SNAPSHOT_CAPTIONS.items():
+        name = f"network_{view.replace('-', '_')}"
+        if view not in pngs:
+            (fig_dir / f"{name}.png").unlink(missing_ok=True)
+            continue
+        _atomic_write(fig_dir / f"{name}.png", pngs[view])
+        out.append((name, caption, pngs[view]))
+    return out
+
+
+def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
+               snapshots: list[tuple[str, str, bytes]] = ()) -> str:
     res = a.res
     cfg = res.cfg
     title = f"silodem report: {cfg.name}"
@@ -165,6 +193,13 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]]) -> str:
         parts.append(f"<figure id='{spec.name}'><img alt='{html.escape(spec.name)}' "
                      f"src='data:image/png;base64,{b64}'><figcaption><b>{html.escape(label)}"
                      f"</b>{html.escape(spec.caption)}</figcaption></figure>")
+    if snapshots:
+        parts.append("<h2>Force network snapshots</h2>")
+    for name, caption, png in snapshots:
+        b64 = base64.b64encode(png).decode("ascii")
+        parts.append(f"<figure id='{name}'><img alt='{html.escape(name)}' "
+                     f"src='data:image/png;base64,{b64}'><figcaption>{html.escape(caption)}"
+                     "</figcaption></figure>")
     parts.append("<h2>Run events</h2>" + _table(_event_rows(res.events), ("event", "value")))
     parts.append("<h2>Configuration</h2><pre>" + html.escape(res.config_toml) + "</pre>")
     parts.append("</body></html>")
@@ -176,6 +211,7 @@ def write_report(folder: Path | str) -> Path:
     folder = Path(folder)
     a = analyse(load_results(folder))
     figures = render_figures(a, folder / "figures")
+    snapshots = render_snapshots(folder, folder / "figures")
     path = folder / "report.html"
-    _atomic_write(path, build_html(a, figures).encode("utf-8"))
+    _atomic_write(path, build_html(a, figures, snapshots).encode("utf-8"))
     return path
