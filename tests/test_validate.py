@@ -176,3 +176,17 @@ def test_record_pass_rules():
     assert not Record("c", "q", 0.0, float("nan"), 0.1, "abs").passed
     assert Record("c", "q", None, 3.0, None, "info").passed
     assert Record("c", "q", 1.0, float("nan"), 0.1).to_dict()["got"] is None
+
+
+def test_beverloo_fits_recover_known_laws():
+    from silodem.validate.beverloo import fit_free, fit_three_halves
+
+    d, rho, g, t = 0.01, 2000.0, 9.81, 0.01
+    D = np.array([6.0, 9.0, 13.5, 20.0, 30.0]) * d
+    for C, k, b in ((0.6, 1.4, 1.5), (0.9, 2.0, 1.5), (0.5, 1.0, 1.7)):
+        W = C * rho * math.sqrt(g) * (D - k * d) ** b * t
+        fit = fit_free(D, W, 0.01 * W, d, rho, g, t)
+        assert (fit.C, fit.k, fit.b) == pytest.approx((C, k, b), rel=1e-4)
+        if b == 1.5:
+            lin = fit_three_halves(D, W, d, rho, g, t)
+            assert (lin.C, lin.k) == pytest.approx((C, k), rel=1e-9)

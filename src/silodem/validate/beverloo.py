@@ -1,9 +1,226 @@
-"""Beverloo discharge rates (work in progress)."""
+"""Beverloo: the steady discharge rate of a flat-bottomed 2D silo against the 2D Beverloo law.
+
+    W = C rho_b sqrt(g) (D - k d)^(3/2) t            (Beverloo, Leniger & van de Velde 1961;
+                                                        in 2D the exponent is 3/2: Mankoc et al.
+                                                        2007, Janda et al. 2012)
+
+Set-up: ``SiloRun`` on flat-bottomed silos, grains of mean diameter d = 1 cm (radii uniform in
+[0.4 d, 0.6 d], thickness d), grain and wall friction tan(26.57 deg) = 0.5, restitution 0.5,
+k_n = k_s = 8e4 N/m (overlaps below 1 % of the radius); outlet widths D/d = 6, 9, 13.5, 20, 30;
+cell width B = 1.02 max(2.5 D, D + 30 d) (walls far enough from the outlet not to matter);
+filled by pouring to a height H = B (so H >= 2.5 D, Beverloo's condition, and H/B the same for
+every width); the gate is then withdrawn and every grain that leaves is put back at a random
+free place in a band of 20 d above the surface (``discharge.reinsert``), so that the fill
+height, hence the rate, stays steady.  The run stops after one silo-full of grains or at a time
+limit chosen to let about a thousand grains pass at the smallest outlet.
+
+Measured: the steady rate W = slope of the discharged mass m(t) from 20 % to 95 % of the mass
+that left (the start-up and the last, partly counted samples left out), with its batch-means
+standard error (``measure.discharge.steady_rate``), averaged over two fills (seeds 1, 2); the
+bulk density rho_b of the settled fill.
+
+Checks: the exponent b of W = A (D - k d)^b fitted with A, k and b free is 1.5 +- 0.1; the rate
+at D = 9 d changes by no more than 5 % when the fill height is doubled (H = B -> 2 B).
+Reported: C and k of the law with the exponent fixed at 3/2 (W^(2/3) is linear in D), and k of
+the free fit.
+"""
 
 from __future__ import annotations
 
-from silodem.validate.records import Record
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from silodem.config import Config
+from silodem.measure.discharge import steady_rate
+from silodem.silo.procedure import SiloRun
+from silodem.validate.records import Record, absolute, info, rel
+
+CASE = "Beverloo"
+D_GRAIN = 0.01  # mean grain diameter d [m]
+WIDTHS = (6.0, 9.0, 13.5, 20.0, 30.0)  # D/d
+FILL = 1.0  # fill height H / B, the same for every outlet width (H >= 2.5 D: Beverloo's regime)
+HEIGHT_CHECK = (9.0, 2.0)  # D/d of the fill-height check, and the factor on H
+BAND = 20.0  # re-insertion band above the surface / d
+SEEDS = (1, 2)  # independent fills per outlet width; their rates are averaged
+EXPONENT_TOL = 0.1
+HEIGHT_TOL = 0.05
+G = 9.81
+
+
+@dataclass(frozen=True)
+class Discharge:
+    D: float  # outlet width [m]
+    B: float  # cell width [m]
+    H: float  # fill height [m]
+    n: int  # grains
+    rate: float  # steady rate [kg/s]
+    err: float  # standard error [kg/s]
+    rho_b: float  # bulk density of the settled fill [kg/m^3]
+    passed: int  # grains that left during the run
+    end: str  # why the discharge stopped
+    t: np.ndarray  # time after the gate opened [s]
+    m: np.ndarray  # discharged mass [kg]
+
+
+def grains_for(B: float, H: float) -> int:
+    """Grains that fill a width B to a height H [m] at a solid fraction of 0.82 (radii uniform
+    in [0.4 d, 0.6 d]: mean area pi d^2 (1 + 0.2^2/3) / 4)."""
+    area = math.pi * D_GRAIN**2 * (1.0 + 0.2**2 / 3.0) / 4.0
+    return round(0.82 * B * H / area)
+
+
+def cell_width(D_over_d: float) -> float:
+    """B = 1.02 max(2.5 D, D + 30 d) [m]."""
+    return 1.02 * max(2.5 * D_over_d, D_over_d + 30.0) * D_GRAIN
+
+
+def config(D_over_d: float, H_over_B: float, max_time: float, seed: int = 1) -> Config:
+    d = D_GRAIN
+    D = D_over_d * d
+    B = cell_width(D_over_d)
+    H = H_over_B * B
+    grain = {"density": 2500.0, "radius_min": 0.4 * d, "radius_max": 0.6 * d, "thickness": d,
+             "kn": 8e4, "ks": 8e4, "friction_deg": 26.57, "restitution": 0.5}
+    return Config.model_validate({
+        "name": f"validate-beverloo-D{D_over_d:g}-H{H_over_B:g}B", "seed": seed,
+        "description": "validation: Beverloo discharge with re-insertion (silodem validate)",
+        "material": grain,
+        "walls": {"kn": 8e4, "ks": 8e4, "friction_deg": 26.57},
+        "silo": {"kind": "flat", "cell_width": B, "wall_height": H + (BAND + 2.0) * d,
+                 "outlet_width": D},
+        "fill": {"method": "pour", "n_particles": grains_for(B, H), "rate": 20000.0,
+                 "band_height": BAND * d},
+        "settle": {"criterion": "kinetic_energy", "threshold": 1e-9, "max_time": 1.0,
+                   "min_time": 0.3},
+        "discharge": {"enabled": True, "reinsert": True, "stop_fraction": 1.0,
+                      "max_time": max_time, "clog_time": 1.0},
+        "output": {"png": False, "sample_interval": 0.01},
+        "checkpoint": {"enabled": False},
+    })
+
+
+def max_time(D_over_d: float) -> float:
+    """Enough time for about 1500 grains at the smallest outlets (W ~ D^1.5) [s]."""
+    return float(np.clip(6.0 * (6.0 / D_over_d) ** 1.5, 1.5, 6.0))
+
+
+def discharge(D_over_d: float, H_over_B: float = FILL, seed: int = 1) -> Discharge:
+    cfg = config(D_over_d, H_over_B, max_time(D_over_d), seed)
+    run = SiloRun(cfg)
+    run.run()
+    ts = run.series.as_arrays()
+    sel = ts["phase"] == 2
+    t0 = float(run.events["discharge_start_time"])
+    t, m = ts["time"][sel] - t0, ts["discharged_mass"][sel]
+    r = steady_rate(t, m, lo=0.2, hi=0.95)
+    snap = run.snapshots["settled"].particles
+    d = D_GRAIN
+    level = float(run.events["fill_level"])
+    lo, hi = 2.0 * d, level - 2.0 * d
+    inside = (snap["y"] > lo) & (snap["y"] < hi)
+    mass = cfg.material.density * math.pi * snap["radius"] ** 2 * cfg.material.thickness
+    rho_b = float(mass[inside].sum() / ((hi - lo) * cfg.silo.cell_width * cfg.material.thickness))
+    return Discharge(cfg.silo.outlet_width, cfg.silo.cell_width, level, cfg.fill.n_particles,
+                     r.rate, r.err, rho_b, run.state.discharged_count,
+                     str(run.events.get("discharge_end_reason", "")), t, m)
+
+
+@dataclass(frozen=True)
+class Rate:
+    """The mean steady rate of independent fills at one outlet width and fill height."""
+
+    D: float  # [m]
+    B: float  # [m]
+    H: float  # mean fill level [m]
+    rate: float  # [kg/s]
+    err: float  # standard error: batch-means errors combined, or the seeds' spread if larger
+    runs: list[Discharge]
+
+
+def mean_rate(D_over_d: float, H_over_B: float = FILL) -> Rate:
+    runs = [discharge(D_over_d, H_over_B, seed) for seed in SEEDS]
+    rates = np.array([r.rate for r in runs])
+    n = rates.size
+    err = math.sqrt(sum(r.err**2 for r in runs)) / n
+    if n > 1:
+        err = max(err, float(np.std(rates, ddof=1)) / math.sqrt(n))
+    return Rate(runs[0].D, runs[0].B, float(np.mean([r.H for r in runs])),
+                float(rates.mean()), err, runs)
+
+
+@dataclass(frozen=True)
+class BeverlooFit:
+    C: float
+    k: float
+    b: float
+    b_err: float
+
+
+def fit_free(D, W, W_err, d: float, rho_b: float, g: float, t: float) -> BeverlooFit:
+    """W = C rho_b sqrt(g) (D - k d)^b t with C, k and b free: weighted least squares on ln W
+    (scipy curve_fit, sigma = W_err / W); k is bounded below min(D)/d."""
+    from scipy.optimize import curve_fit
+
+    D, W, W_err = (np.asarray(a, dtype=float) for a in (D, W, W_err))
+    scale = rho_b * math.sqrt(g) * t
+
+    def model(x, lnC, k, b):
+        return lnC + b * np.log(np.maximum(x - k * d, 1e-12)) + math.log(scale)
+
+    p0 = [math.log(0.6), 1.0, 1.5]
+    bounds = ([-10.0, -5.0, 0.5], [10.0, 0.95 * D.min() / d, 3.0])
+    popt, pcov = curve_fit(model, D, np.log(W), p0=p0, sigma=W_err / W, absolute_sigma=True,
+                           bounds=bounds, maxfev=20000)
+    err = float(np.sqrt(pcov[2, 2])) if np.all(np.isfinite(pcov)) else float("nan")
+    return BeverlooFit(float(math.exp(popt[0])), float(popt[1]), float(popt[2]), err)
+
+
+def fit_three_halves(D, W, d: float, rho_b: float, g: float, t: float) -> BeverlooFit:
+    """C and k with the exponent fixed at 3/2: W^(2/3) = (C rho_b sqrt(g) t)^(2/3) (D - k d) is
+    a straight line in D (least squares)."""
+    D, W = np.asarray(D, dtype=float), np.asarray(W, dtype=float)
+    slope, intercept = np.polyfit(D, W ** (2.0 / 3.0), 1)
+    C = slope**1.5 / (rho_b * math.sqrt(g) * t)
+    return BeverlooFit(float(C), float(-intercept / slope / d), 1.5, 0.0)
 
 
 def run(quick: bool = False) -> tuple[list[Record], dict]:
-    return [], {}
+    rates = [mean_rate(w) for w in WIDTHS]
+    D_h, factor = HEIGHT_CHECK
+    base = next((r for r, w in zip(rates, WIDTHS) if w == D_h), None) or mean_rate(D_h)
+    tall = mean_rate(D_h, factor * FILL)
+    d, t = D_GRAIN, D_GRAIN
+    rho_b = float(np.mean([run.rho_b for r in rates for run in r.runs]))
+    D = np.array([r.D for r in rates])
+    W = np.array([r.rate for r in rates])
+    W_err = np.array([r.err for r in rates])
+    free = fit_free(D, W, W_err, d, rho_b, G, t)
+    fixed = fit_three_halves(D, W, d, rho_b, G, t)
+    records: list[Record] = []
+    for r in rates:
+        each = ", ".join(f"{run.rate:.4g}" for run in r.runs)
+        passed = sum(run.passed for run in r.runs)
+        ends = ",".join(sorted({run.end for run in r.runs}))
+        records.append(info(f"{CASE}, D/d = {r.D / d:g}, B/d = {r.B / d:.3g}, "
+                            f"{r.runs[0].n} grains, re-insertion, {len(r.runs)} fills",
+                            "steady discharge rate W", r.rate, "kg/s",
+                            note=f"+- {r.err:.2g} kg/s; fills: {each}; {passed} grains passed; "
+                            f"stopped by {ends}"))
+    label = f"{CASE}, {len(rates)} outlet widths D/d = {WIDTHS[0]:g}..{WIDTHS[-1]:g}"
+    records += [
+        absolute(label, "exponent b of W = A (D - k d)^b (A, k, b fitted)", 1.5, free.b,
+                 EXPONENT_TOL, note=f"2D Beverloo: 3/2; fit +- {free.b_err:.2g}"),
+        info(label, "free fit: k", free.k),
+        info(label, "C of W = C rho_b sqrt(g) (D - k d)^1.5 t", fixed.C),
+        info(label, "k of W = C rho_b sqrt(g) (D - k d)^1.5 t", fixed.k),
+        info(label, "bulk density rho_b of the settled fills", rho_b, "kg/m^3"),
+        rel(f"{CASE}, D/d = {D_h:g}, fill height {base.H / d:.0f} d -> {tall.H / d:.0f} d",
+            f"steady rate at {factor:.3g} x the fill height", base.rate, tall.rate, HEIGHT_TOL,
+            "kg/s", note=f"Beverloo: independent of the fill height; +- {base.err:.2g} and "
+            f"{tall.err:.2g} kg/s"),
+    ]
+    data = {"rates": rates, "base": base, "tall": tall, "free": free, "fixed": fixed,
+            "rho_b": rho_b, "d": d, "t": t, "g": G}
+    return records, data
