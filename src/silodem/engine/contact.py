@@ -91,6 +91,29 @@ def linear_law(overlap, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt):
     return fn, fs
 
 
+@numba.njit(inline="always", cache=True)
+def pair_contact(dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, zeta, allow_tension, dt):
+    """One grain-grain candidate from scalars: centre offset j - i (dx, dy) [m], radius sum
+    [m], velocity difference v_j - v_i [m/s], spin sum w_i r_i + w_j r_j [m/s], effective mass
+    [kg], shear force of the last step [N].  Returns (F_n, F_s, force on j x, y) [N]; all zero
+    when the grains do not touch."""
+    d2 = dx * dx + dy * dy
+    if d2 >= rsum * rsum:
+        return 0.0, 0.0, 0.0, 0.0
+    d = math.sqrt(d2)
+    inv_d = 1.0 / d
+    nx = dx * inv_d
+    ny = dy * inv_d
+    # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
+    rvx = dvx + spin * ny
+    rvy = dvy - spin * nx
+    v_n = rvx * nx + rvy * ny
+    v_t = -rvx * ny + rvy * nx
+    cn = 2.0 * zeta * math.sqrt(kn * m_eff)
+    fn, fs = linear_law(rsum - d, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt)
+    return fn, fs, fn * nx - fs * ny, fn * ny + fs * nx
+
+
 @kernel
 def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
                 x, y, vx, vy, omega, radius, inv_mass,
@@ -98,38 +121,16 @@ def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
     """Grain-grain contacts of the candidate list, grain by grain (CSR ``i_start``): updates the
     shear history ``pair_fs`` and writes the normal force and the force on j."""
     for i in prange(n):
-        xi = x[i]
-        yi = y[i]
-        ri = radius[i]
         for k in range(i_start[i], i_start[i + 1]):
             j = pair_j[k]
-            dx = x[j] - xi
-            dy = y[j] - yi
-            rsum = ri + radius[j]
-            d2 = dx * dx + dy * dy
-            if d2 >= rsum * rsum:
-                pair_fs[k] = 0.0
-                pair_fn[k] = 0.0
-                pair_fx[k] = 0.0
-                pair_fy[k] = 0.0
-                continue
-            d = math.sqrt(d2)
-            inv_d = 1.0 / d
-            nx = dx * inv_d
-            ny = dy * inv_d
-            # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
-            spin = omega[j] * radius[j] + omega[i] * ri
-            rvx = vx[j] - vx[i] + spin * ny
-            rvy = vy[j] - vy[i] - spin * nx
-            v_n = rvx * nx + rvy * ny
-            v_t = -rvx * ny + rvy * nx
-            m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
-            cn = 2.0 * zeta * math.sqrt(kn * m_eff)
-            fn, fs = linear_law(rsum - d, v_n, v_t, pair_fs[k], kn, ks, cn, mu, allow_tension, dt)
+            fn, fs, fkx, fky = pair_contact(
+                x[j] - x[i], y[j] - y[i], radius[i] + radius[j], vx[j] - vx[i], vy[j] - vy[i],
+                omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
+                pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
             pair_fs[k] = fs
             pair_fn[k] = fn
-            pair_fx[k] = fn * nx - fs * ny
-            pair_fy[k] = fn * ny + fs * nx
+            pair_fx[k] = fkx
+            pair_fy[k] = fky
 
 
 @njit
@@ -144,38 +145,14 @@ def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
     fy[:n] = 0.0
     fs_sum[:n] = 0.0
     for i in range(n):
-        xi = x[i]
-        yi = y[i]
-        ri = radius[i]
         for k in range(i_start[i], i_start[i + 1]):
             j = pair_j[k]
-            dx = x[j] - xi
-            dy = y[j] - yi
-            rsum = ri + radius[j]
-            d2 = dx * dx + dy * dy
-            if d2 >= rsum * rsum:
-                pair_fs[k] = 0.0
-                pair_fn[k] = 0.0
-                pair_fx[k] = 0.0
-                pair_fy[k] = 0.0
-                continue
-            d = math.sqrt(d2)
-            inv_d = 1.0 / d
-            nx = dx * inv_d
-            ny = dy * inv_d
-            # velocity of j's contact point relative to i's: v_j + w_j x (-r_j n) - v_i - w_i x (r_i n)
-            spin = omega[j] * radius[j] + omega[i] * ri
-            rvx = vx[j] - vx[i] + spin * ny
-            rvy = vy[j] - vy[i] - spin * nx
-            v_n = rvx * nx + rvy * ny
-            v_t = -rvx * ny + rvy * nx
-            m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
-            cn = 2.0 * zeta * math.sqrt(kn * m_eff)
-            fn, fs = linear_law(rsum - d, v_n, v_t, pair_fs[k], kn, ks, cn, mu, allow_tension, dt)
+            fn, fs, fkx, fky = pair_contact(
+                x[j] - x[i], y[j] - y[i], radius[i] + radius[j], vx[j] - vx[i], vy[j] - vy[i],
+                omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
+                pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
             pair_fs[k] = fs
             pair_fn[k] = fn
-            fkx = fn * nx - fs * ny
-            fky = fn * ny + fs * nx
             pair_fx[k] = fkx
             pair_fy[k] = fky
             fx[j] += fkx
