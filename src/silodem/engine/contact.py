@@ -121,11 +121,13 @@ def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
     """Grain-grain contacts of the candidate list, grain by grain (CSR ``i_start``): updates the
     shear history ``pair_fs`` and writes the normal force and the force on j."""
     for i in prange(n):
+        xi, yi, ri, vxi, vyi = x[i], y[i], radius[i], vx[i], vy[i]
+        spin_i, inv_mi = omega[i] * radius[i], inv_mass[i]
         for k in range(i_start[i], i_start[i + 1]):
             j = pair_j[k]
             fn, fs, fkx, fky = pair_contact(
-                x[j] - x[i], y[j] - y[i], radius[i] + radius[j], vx[j] - vx[i], vy[j] - vy[i],
-                omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
+                x[j] - xi, y[j] - yi, ri + radius[j], vx[j] - vxi, vy[j] - vyi,
+                omega[j] * radius[j] + spin_i, 1.0 / (inv_mi + inv_mass[j]),
                 pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
             pair_fs[k] = fs
             pair_fn[k] = fn
@@ -145,11 +147,18 @@ def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
     fy[:n] = 0.0
     fs_sum[:n] = 0.0
     for i in range(n):
+        # grain i's sums so far hold all its pairs as j (they have a smaller first grain);
+        # its own pairs follow in k order, summed in registers (same order, same bits)
+        sx = fx[i]
+        sy = fy[i]
+        ss = fs_sum[i]
+        xi, yi, ri, vxi, vyi = x[i], y[i], radius[i], vx[i], vy[i]
+        spin_i, inv_mi = omega[i] * radius[i], inv_mass[i]
         for k in range(i_start[i], i_start[i + 1]):
             j = pair_j[k]
             fn, fs, fkx, fky = pair_contact(
-                x[j] - x[i], y[j] - y[i], radius[i] + radius[j], vx[j] - vx[i], vy[j] - vy[i],
-                omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
+                x[j] - xi, y[j] - yi, ri + radius[j], vx[j] - vxi, vy[j] - vyi,
+                omega[j] * radius[j] + spin_i, 1.0 / (inv_mi + inv_mass[j]),
                 pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
             pair_fs[k] = fs
             pair_fn[k] = fn
@@ -158,9 +167,12 @@ def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
             fx[j] += fkx
             fy[j] += fky
             fs_sum[j] += fs
-            fx[i] -= fkx
-            fy[i] -= fky
-            fs_sum[i] += fs
+            sx -= fkx
+            sy -= fky
+            ss += fs
+        fx[i] = sx
+        fy[i] = sy
+        fs_sum[i] = ss
 
 
 @njit

@@ -59,35 +59,39 @@ def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, skin
 
     The grains must be sorted by cell (row-major), so that cell c holds the index range
     cell_start[c]:cell_start[c+1]; then a half stencil (the grain's own cell after i, and the
-    cells east, north-west, north and north-east, all of higher index) finds each pair once."""
-    for i in prange(n):
-        cx = min(max(int((x[i] - xmin) / cell_size), 0), ncx - 1)
-        cy = min(max(int((y[i] - ymin) / cell_size), 0), ncy - 1)
-        k = 0
-        base = i * stride
-        last = stride - 1
-        xi = x[i]
-        yi = y[i]
-        ri = radius[i] + skin
-        for s in range(5):
-            if s == 0:
-                nx, ny = cx, cy
-            elif s == 1:
-                nx, ny = cx + 1, cy
-            else:
-                nx, ny = cx + s - 3, cy + 1
-            if nx < 0 or nx >= ncx or ny >= ncy:
-                continue
-            c = ny * ncx + nx
-            first = i + 1 if s == 0 else cell_start[c]
-            for j in range(first, cell_start[c + 1]):
+    cells east, north-west, north and north-east, all of higher index) finds each pair once.
+    In row-major order that stencil is two contiguous index ranges: own cell + east, and
+    north-west..north-east; the loop runs over cells so each cell works them out once."""
+    for c in prange(ncx * ncy):
+        cx = c % ncx
+        cy = c // ncx
+        end_a = cell_start[c + 2] if cx + 1 < ncx else cell_start[c + 1]
+        lo_b = hi_b = 0
+        if cy + 1 < ncy:
+            row = (cy + 1) * ncx
+            lo_b = cell_start[row + max(cx - 1, 0)]
+            hi_b = cell_start[row + min(cx + 1, ncx - 1) + 1]
+        for i in range(cell_start[c], cell_start[c + 1]):
+            k = 0
+            base = i * stride
+            last = stride - 1
+            xi = x[i]
+            yi = y[i]
+            ri = radius[i] + skin
+            for j in range(i + 1, end_a):
                 dx = x[j] - xi
                 dy = y[j] - yi
                 cut = ri + radius[j]
                 # branch-free: always write, advance only for a candidate
                 buf[base + min(k, last)] = j
                 k += dx * dx + dy * dy < cut * cut
-        counts[i] = k
+            for j in range(lo_b, hi_b):
+                dx = x[j] - xi
+                dy = y[j] - yi
+                cut = ri + radius[j]
+                buf[base + min(k, last)] = j
+                k += dx * dx + dy * dy < cut * cut
+            counts[i] = k
 
 
 @kernel
@@ -101,25 +105,25 @@ def _compact(n, buf, stride, start, out):
 
 
 @kernel
-def _wall_candidates_of(n, x, y, radius, w_ax, w_ay, w_bx, w_by, w_active, w_one_sided, skin,
-                        counts, wc_w, offsets, fill):
-    """Count or write the walls near each grain (r + skin; 3r + skin for one-sided walls)."""
+def _wall_candidates_of(n, x, y, radius, w_lox, w_hix, w_loy, w_hiy, w_ax, w_ay, w_bx, w_by,
+                        w_active, w_one_sided, skin, counts, buf, stride):
+    """The walls near each grain (r + skin; 3r + skin for one-sided walls), written to
+    ``buf[p*stride : p*stride+stride]`` like ``_pairs_of``; ``w_lo*, w_hi*`` are each wall's
+    bounding box (a quick first test)."""
     for p in prange(n):
-        k = offsets[p] if fill else 0
+        k = 0
+        base = p * stride
+        last = stride - 1
+        reach = 3.0 * radius[p] + skin
         for w in range(w_ax.shape[0]):
-            reach = 3.0 * radius[p] + skin
-            if (w_active[w] and x[p] > min(w_ax[w], w_bx[w]) - reach
-                    and x[p] < max(w_ax[w], w_bx[w]) + reach
-                    and y[p] > min(w_ay[w], w_by[w]) - reach
-                    and y[p] < max(w_ay[w], w_by[w]) + reach):
+            if (w_active[w] and x[p] > w_lox[w] - reach and x[p] < w_hix[w] + reach
+                    and y[p] > w_loy[w] - reach and y[p] < w_hiy[w] + reach):
                 cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
                 cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
                 if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
-                    if fill:
-                        wc_w[k] = w
+                    buf[base + min(k, last)] = w
                     k += 1
-        if not fill:
-            counts[p] = k
+        counts[p] = k
 
 
 @kernel
@@ -181,18 +185,6 @@ def _csr_by(index, n):
     return start, out
 
 
-def _two_pass(fn, n, args, counts_dtype=np.int64):
-    """Run a count/fill kernel pair; return (start, filled array)."""
-    counts = np.zeros(n, dtype=counts_dtype)
-    dummy = np.zeros(0, dtype=np.int64)
-    fn(*args, counts, dummy, dummy, False)
-    start = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(counts, out=start[1:])
-    out = np.empty(int(start[-1]), dtype=np.int64)
-    fn(*args, counts, out, start, True)
-    return start, out
-
-
 class NeighborList:
     """Verlet list of grain-grain and grain-wall candidates, with their contact state.
 
@@ -220,7 +212,9 @@ class NeighborList:
         self.slot_of_uid = np.zeros(0, dtype=np.int64)
         self._pair_i: np.ndarray | None = empty_i
         self._wc_i: np.ndarray | None = empty_i
-        self._stride = 12  # room per grain in the search buffer (grows if a grain needs more)
+        # room per grain in the search buffers (grows when a grain needs more)
+        self._pair_stride = 12
+        self._wall_stride = 2
         self._buf = np.zeros(0, dtype=np.int64)
 
     # first grain of each candidate, expanded from the CSR starts on demand (measurements only)
@@ -258,19 +252,20 @@ class NeighborList:
     def wc_i(self, value: np.ndarray) -> None:
         self._wc_i = value
 
-    def _list_pairs(self, n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start):
-        """Candidate pairs in CSR form (i_start, pair_j), in one pass over the cells."""
+    def _strided(self, search, n, args, name):
+        """Run a search kernel that writes up to ``stride`` entries per grain into a strided
+        buffer (widening it and searching again if a grain had more), then compact the entries
+        to CSR form: returns (start, entries)."""
         while True:
-            stride = self._stride
+            stride = getattr(self, name)
             if self._buf.size < n * stride:
                 self._buf = np.empty(n * stride, dtype=np.int64)
             counts = np.empty(n, dtype=np.int64)
-            _pairs_of.pick(n)(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start,
-                              self.skin, counts, self._buf, stride)
+            search.pick(n)(*args, counts, self._buf, stride)
             most = int(counts.max()) if n else 0
             if most <= stride:
                 break
-            self._stride = most + 4  # a crowded grain: widen the buffer and search again
+            setattr(self, name, most + 4)  # a crowded grain: widen the buffer and search again
         start = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(counts, out=start[1:])
         out = np.empty(int(start[-1]), dtype=np.int64)
@@ -302,16 +297,19 @@ class NeighborList:
         p.permute(members, skip=("fx", "fy", "torque", "x_ref", "y_ref"))
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
-        i_start, pair_j = self._list_pairs(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy,
-                                           cell_start)
+        i_start, pair_j = self._strided(
+            _pairs_of, n, (n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin),
+            "_pair_stride")
         pair_fs = np.empty(pair_j.size)
         _carry_pairs.pick(n)(n, uid, self.slot_of_uid, i_start, pair_j, pair_fs,
                              self.i_start, self.pair_j, self.pair_fs)
 
-        w_start, wc_w = _two_pass(
-            _wall_candidates_of.pick(n), n,
-            (n, x, y, radius, walls.ax, walls.ay, walls.bx, walls.by, walls.active,
-             walls.one_sided, self.skin))
+        wb = walls
+        w_start, wc_w = self._strided(
+            _wall_candidates_of, n,
+            (n, x, y, radius, np.minimum(wb.ax, wb.bx), np.maximum(wb.ax, wb.bx),
+             np.minimum(wb.ay, wb.by), np.maximum(wb.ay, wb.by), wb.ax, wb.ay, wb.bx, wb.by,
+             wb.active, wb.one_sided, self.skin), "_wall_stride")
         wc_fs = np.empty(wc_w.size)
         wc_fn = np.empty(wc_w.size)
         _carry_walls.pick(n)(n, uid, self.slot_of_uid, w_start, wc_w, wc_fs, wc_fn,
