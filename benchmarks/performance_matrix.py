@@ -1,10 +1,15 @@
 """Throughput of silodem and LAMMPS on the benchmark silo over N, threads and MPI ranks.
 
     python benchmarks/performance_matrix.py [--out docs/performance.json] [--quick]
+    python benchmarks/performance_matrix.py --scaling [--out docs/scaling.json]
 
 Each row runs `silodem bench --json [--lammps]` in a fresh process (so compilation and memory are
 per row).  Steps per size are chosen so a row takes minutes, not hours; both codes always run the
 same deck with the same SETTLE and STEPS.  The plot goes next to the JSON (.png).
+
+``--scaling`` measures the cost per particle-step against N at a fixed column height (the deck's
+NY = 200, the silo made wider instead), so that every N reaches the same flow state after the
+same SETTLE steps; with NY = 2 NX a tall column is still mostly falling, which flatters large N.
 """
 
 from __future__ import annotations
@@ -27,6 +32,34 @@ def row(n: int, threads: int, settle: int, steps: int, lammps: bool) -> dict:
         cmd.append("--lammps")
     out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
     return json.loads(out)
+
+
+SCALING = [10_000, 31_700, 100_000, 300_000, 1_000_000]
+SCALING_ROWS, SCALING_SETTLE, SCALING_STEPS = 200, 3_000, 300
+
+
+def scaling_row(n: int, threads: int) -> dict:
+    code = ("import json, dataclasses; from silodem.bench import run_silodem; "
+            f"r = run_silodem({n}, {threads}, {SCALING_STEPS}, {SCALING_SETTLE}, "
+            f"rows={SCALING_ROWS}); print(json.dumps(dataclasses.asdict(r)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(out)
+
+
+def scaling(out: Path, threads_list: list[int]) -> None:
+    rows = []
+    for n in SCALING:
+        for threads in threads_list:
+            r = scaling_row(n, threads)
+            r["ns_per_particle_step"] = 1e9 * threads / r["particle_steps_per_s"]
+            r["settle"], r["ny"] = SCALING_SETTLE, SCALING_ROWS
+            rows.append(r)
+            print(f"N={r['n']:8d} (NX={r['nx']}, NY={r['ny']}) threads={threads} "
+                  f"{r['particle_steps_per_s'] / 1e6:7.2f} M/s  "
+                  f"{r['ns_per_particle_step']:6.1f} core-ns per particle-step  "
+                  f"mem {r['peak_memory_bytes'] / 1e6:6.0f} MB", flush=True)
+            out.write_text(json.dumps(rows, indent=1))
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -62,7 +95,12 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="only N <= 31,700")
     ap.add_argument("--max-lammps-n", type=int, default=1_000_000)
     ap.add_argument("--threads", default="1,2", help="comma-separated thread/rank counts")
+    ap.add_argument("--scaling", action="store_true",
+                    help="cost per particle-step against N at a fixed column height")
     args = ap.parse_args()
+    if args.scaling:
+        scaling(Path(args.out), [int(t) for t in args.threads.split(",")])
+        return
     rows = []
     for n, settle, steps in PLAN:
         if args.quick and n > 31_700:

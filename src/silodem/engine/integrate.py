@@ -7,7 +7,7 @@ Velocities live at half steps: with the forces F(t) of positions x(t),
     x(t + dt)   = x(t) + v(t + dt/2) dt
 
 F(t), M(t) are summed per grain in a fixed order (its pairs as j by increasing pair index,
-its pairs as i, its wall contacts) by ``gather_pairs`` (parallel path) or on the fly by
+its pairs as i, its wall contacts) by ``pair_sums`` inside ``walls_and_leapfrog`` (parallel path) or on the fly by
 ``contact.pair_forces_scatter`` (serial path), so a run has the same bits for any number of
 threads.  The torque of a contact
 on each of its grains is -r * F_s (see ``silodem.engine.contact``).
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from silodem.jit import kernel, prange
@@ -28,35 +29,34 @@ from silodem.jit import kernel, prange
 _CHUNKS = 64
 
 
-@kernel
-def gather_pairs(n, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs, fx, fy, fs_sum):
-    """Per grain, the sum of its grain-grain contact forces (into ``fx, fy``) and of their
-    shear forces (into ``fs_sum``): pairs where it is j (increasing k), then where it is i."""
-    for p in prange(n):
-        sx = 0.0
-        sy = 0.0
-        ss = 0.0
-        for q in range(j_start[p], j_start[p + 1]):
-            k = j_pairs[q]
-            sx += pair_fx[k]
-            sy += pair_fy[k]
-            ss += pair_fs[k]
-        for k in range(i_start[p], i_start[p + 1]):
-            sx -= pair_fx[k]
-            sy -= pair_fy[k]
-            ss += pair_fs[k]
-        fx[p] = sx
-        fy[p] = sy
-        fs_sum[p] = ss
+@numba.njit(inline="always", cache=True)
+def pair_sums(p, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs):
+    """Grain p's sums of its grain-grain contact forces and of their shear forces [N], from the
+    per-pair forces (force on j): pairs where it is j (increasing k), then where it is i."""
+    sx = 0.0
+    sy = 0.0
+    ss = 0.0
+    for q in range(j_start[p], j_start[p + 1]):
+        k = j_pairs[q]
+        sx += pair_fx[k]
+        sy += pair_fy[k]
+        ss += pair_fs[k]
+    for k in range(i_start[p], i_start[p + 1]):
+        sx -= pair_fx[k]
+        sy -= pair_fy[k]
+        ss += pair_fs[k]
+    return sx, sy, ss
 
 
 @kernel
-def walls_and_leapfrog(n, w_start, wc_fx, wc_fy, wc_fs,
+def walls_and_leapfrog(n, gather, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
+                       w_start, wc_fx, wc_fy, wc_fs,
                        x, y, vx, vy, omega, fx, fy, torque, radius, mass, inv_mass, inv_inertia,
                        x_ref, y_ref, gravity, alpha, dt):
-    """Add each grain's wall contacts to the grain-grain sums (``fx, fy``; ``torque`` holds the
-    sum of shear forces on entry and the torque -r * sum(F_s) on exit), advance the first ``n``
-    grains one step, and return the displacements since the last neighbour-list build:
+    """Sum each grain's grain-grain contacts (``gather``: from the per-pair forces, with
+    ``pair_sums``; else they are already in ``fx, fy``, and ``torque`` holds the sum of their
+    shear forces) and its wall contacts, store the totals (``torque``: -r * sum(F_s)), advance
+    the first ``n`` grains one step, and return the displacements since the last neighbour-list build:
     (largest squared displacement [m^2] (inf if a position is not finite), and the bounding box
     min dx, max dx, min dy, max dy of the displacement vectors [m])."""
     chunk_max = np.zeros(_CHUNKS)
@@ -69,9 +69,12 @@ def walls_and_leapfrog(n, w_start, wc_fx, wc_fy, wc_fs,
         loy = np.inf
         hiy = -np.inf
         for p in range(c * size, min(n, (c + 1) * size)):
-            sx = fx[p]
-            sy = fy[p]
-            ss = torque[p]
+            if gather:
+                sx, sy, ss = pair_sums(p, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs)
+            else:
+                sx = fx[p]
+                sy = fy[p]
+                ss = torque[p]
             for k in range(w_start[p], w_start[p + 1]):
                 sx += wc_fx[k]
                 sy += wc_fy[k]
