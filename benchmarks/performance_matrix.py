@@ -35,7 +35,7 @@ def row(n: int, threads: int, settle: int, steps: int, lammps: bool) -> dict:
 
 
 SCALING = [10_000, 31_700, 100_000, 300_000, 1_000_000]
-SCALING_ROWS, SCALING_SETTLE, SCALING_STEPS = 200, 3_000, 300
+SCALING_ROWS, SCALING_SETTLE, SCALING_STEPS = 200, 3_000, 1_000
 
 
 def scaling_row(n: int, threads: int) -> dict:
