@@ -114,6 +114,22 @@ def pair_contact(dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, zeta, 
     return fn, fs, fn * nx - fs * ny, fn * ny + fs * nx
 
 
+@numba.njit(inline="always", cache=True)
+def pair_update(i, j, k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx, vy, omega, radius,
+                inv_mass, kn, ks, mu, zeta, allow_tension, dt):
+    """Candidate k = (i, j) from the grain arrays: updates the shear history ``pair_fs[k]``,
+    writes the normal force and the force on j, and returns (F_s, force on j x, y) [N]."""
+    fn, fs, fkx, fky = pair_contact(
+        x[j] - x[i], y[j] - y[i], radius[i] + radius[j], vx[j] - vx[i], vy[j] - vy[i],
+        omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
+        pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
+    pair_fs[k] = fs
+    pair_fn[k] = fn
+    pair_fx[k] = fkx
+    pair_fy[k] = fky
+    return fs, fkx, fky
+
+
 @kernel
 def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
                 x, y, vx, vy, omega, radius, inv_mass,
@@ -121,18 +137,9 @@ def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
     """Grain-grain contacts of the candidate list, grain by grain (CSR ``i_start``): updates the
     shear history ``pair_fs`` and writes the normal force and the force on j."""
     for i in prange(n):
-        xi, yi, ri, vxi, vyi = x[i], y[i], radius[i], vx[i], vy[i]
-        spin_i, inv_mi = omega[i] * radius[i], inv_mass[i]
         for k in range(i_start[i], i_start[i + 1]):
-            j = pair_j[k]
-            fn, fs, fkx, fky = pair_contact(
-                x[j] - xi, y[j] - yi, ri + radius[j], vx[j] - vxi, vy[j] - vyi,
-                omega[j] * radius[j] + spin_i, 1.0 / (inv_mi + inv_mass[j]),
-                pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
-            pair_fs[k] = fs
-            pair_fn[k] = fn
-            pair_fx[k] = fkx
-            pair_fy[k] = fky
+            pair_update(i, pair_j[k], k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx, vy,
+                        omega, radius, inv_mass, kn, ks, mu, zeta, allow_tension, dt)
 
 
 @njit
@@ -141,8 +148,8 @@ def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
                         kn, ks, mu, zeta, allow_tension, dt):
     """Serial twin of ``pair_forces`` that also sums each grain's contact forces into
     ``fx, fy`` and its shear forces into ``fs_sum`` as it goes (no gather pass).  A grain's
-    terms arrive in the order ``gather_pairs`` adds them (its pairs as j by increasing k, then
-    its pairs as i), so both paths give the same bits."""
+    terms arrive in the order ``integrate.pair_sums`` adds them (its pairs as j by increasing
+    k, then its pairs as i), so both paths give the same bits."""
     fx[:n] = 0.0
     fy[:n] = 0.0
     fs_sum[:n] = 0.0
@@ -152,18 +159,11 @@ def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
         sx = fx[i]
         sy = fy[i]
         ss = fs_sum[i]
-        xi, yi, ri, vxi, vyi = x[i], y[i], radius[i], vx[i], vy[i]
-        spin_i, inv_mi = omega[i] * radius[i], inv_mass[i]
         for k in range(i_start[i], i_start[i + 1]):
             j = pair_j[k]
-            fn, fs, fkx, fky = pair_contact(
-                x[j] - xi, y[j] - yi, ri + radius[j], vx[j] - vxi, vy[j] - vyi,
-                omega[j] * radius[j] + spin_i, 1.0 / (inv_mi + inv_mass[j]),
-                pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
-            pair_fs[k] = fs
-            pair_fn[k] = fn
-            pair_fx[k] = fkx
-            pair_fy[k] = fky
+            fs, fkx, fky = pair_update(i, j, k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx,
+                                       vy, omega, radius, inv_mass, kn, ks, mu, zeta,
+                                       allow_tension, dt)
             fx[j] += fkx
             fy[j] += fky
             fs_sum[j] += fs
