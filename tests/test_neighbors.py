@@ -51,6 +51,35 @@ def test_verlet_list_equals_brute_force_on_random_polydisperse_grains(seed):
     assert np.all(sim.neighbors.pair_i < sim.neighbors.pair_j)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_strips_make_the_pair_loop_race_free(seed):
+    """The pair loop runs strips of one parity at once; that is race-free only if every pair
+    has its second grain in the first grain's strip or the next one (so strip s writes to s and
+    s + 1 only).  Checked on every pair of a random packing with many strips; the strips must
+    also tile the grains, cut at cell-row boundaries, and hold similar numbers of grains."""
+    from silodem.engine.neighbors import STRIPS
+
+    rng = np.random.default_rng(seed)
+    p = _random_grains(rng, 6000, 20.0)
+    sim = Simulation(p, Walls(), law(), dt=1e-4, gravity=0.0, skin=0.03)
+    nb = sim.neighbors
+    nb.rebuild(p, sim.walls)
+    starts = nb.strip_start
+    assert starts[0] == 0 and starts[-1] == p.n and np.all(np.diff(starts) >= 0)
+    assert 2 * STRIPS // 3 < starts.size - 1 <= STRIPS
+    sizes = np.diff(starts)
+    assert sizes.max() < 2.5 * p.n / STRIPS  # about equal: rows hold ~p.n / 170 grains here
+    strip = np.searchsorted(starts, np.arange(p.n), side="right") - 1
+    step = strip[nb.pair_j] - strip[nb.pair_i]
+    assert set(np.unique(step)) <= {0, 1}
+    assert np.count_nonzero(step) > 100  # pairs across strip boundaries were tested
+    # cut at row boundaries: no two grains of one cell row in different strips
+    y = p.view("y")
+    row = np.floor((y - y.min()) / (2.0 * p.view("radius").max() + nb.skin)).astype(int)
+    assert np.all(np.diff(row) >= 0)  # sorted row-major
+    assert np.all(row[starts[1:-1] - 1] < row[starts[1:-1]])
+
+
 def test_touching_contacts_equal_brute_force_over_many_steps():
     """Grains falling and colliding in a closed box: at every check, the contacts the kernels
     found (non-zero force; tension on, so every overlap has one) are exactly the overlapping

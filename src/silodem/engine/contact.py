@@ -130,37 +130,21 @@ def pair_update(i, j, k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx, vy, omega
     return fs, fkx, fky
 
 
-@kernel
-def pair_forces(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
-                x, y, vx, vy, omega, radius, inv_mass,
+@numba.njit(inline="always", cache=True)
+def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+                x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                 kn, ks, mu, zeta, allow_tension, dt):
-    """Grain-grain contacts of the candidate list, grain by grain (CSR ``i_start``): updates the
-    shear history ``pair_fs`` and writes the normal force and the force on j."""
-    for i in prange(n):
-        for k in range(i_start[i], i_start[i + 1]):
-            pair_update(i, pair_j[k], k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx, vy,
-                        omega, radius, inv_mass, kn, ks, mu, zeta, allow_tension, dt)
-
-
-@njit
-def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
-                        x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
-                        kn, ks, mu, zeta, allow_tension, dt):
-    """Serial twin of ``pair_forces`` that also sums each grain's contact forces into
-    ``fx, fy`` and its shear forces into ``fs_sum`` as it goes (no gather pass).  A grain's
-    terms arrive in the order ``integrate.pair_sums`` adds them (its pairs as j by increasing
-    k, then its pairs as i), so both paths give the same bits."""
-    fx[:n] = 0.0
-    fy[:n] = 0.0
-    fs_sum[:n] = 0.0
-    for i in range(n):
-        # grain i's sums so far hold all its pairs as j (they have a smaller first grain);
-        # its own pairs follow in k order, summed in registers (same order, same bits)
+    """The candidates of the grains of strip ``s``, in index order: contact law, and each force
+    added to the sums of both grains (grain i's own pairs summed in registers)."""
+    for i_ in range(strip_start[s], strip_start[s + 1]):
+        # unsigned indices: numba then skips its negative-index test on every access (-10 to
+        # -25 % time here)
+        i = numba.uint64(i_)
         sx = fx[i]
         sy = fy[i]
         ss = fs_sum[i]
-        for k in range(i_start[i], i_start[i + 1]):
-            j = pair_j[k]
+        for k in range(i_start[i_], i_start[i_ + 1]):
+            j = numba.uint64(pair_j[k])
             fs, fkx, fky = pair_update(i, j, k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx,
                                        vy, omega, radius, inv_mass, kn, ks, mu, zeta,
                                        allow_tension, dt)
@@ -173,6 +157,42 @@ def pair_forces_scatter(n, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
         fx[i] = sx
         fy[i] = sy
         fs_sum[i] = ss
+
+
+@kernel
+def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+                x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
+                kn, ks, mu, zeta, allow_tension, dt):
+    """Grain-grain contacts of the candidate list, and each grain's sums of their forces.
+
+    Updates the shear history ``pair_fs``, writes the normal force ``pair_fn`` and the force on
+    j ``pair_fx, pair_fy`` of every candidate, and adds each force to ``fx, fy`` of both grains
+    and its shear force to ``fs_sum`` of both (one evaluation per pair).
+
+    The grains are cut into strips of whole cell rows (``strip_start``, from the rebuild); the
+    half stencil reaches at most one row up, so a strip writes only to its own grains and to
+    the first row of the next strip.  The even strips run first, then the odd ones: two strips
+    of one parity never write the same grain, so they run in parallel with no race, and every
+    grain receives its terms in the same order with or without threads (its own strip's pairs
+    in index order, then the lower strip's): the same bits for any thread count.  Each even
+    strip first zeroes the sums of its grains and of the next strip's.  ``strip_seq`` lists the
+    even strips, then the odd ones, in the order the threads share them out (balance only: the
+    order within a parity changes no result)."""
+    n_strips = strip_start.shape[0] - 1
+    n_even = (n_strips + 1) // 2
+    for h in prange(n_even):
+        s = strip_seq[h]
+        for g in range(strip_start[s], strip_start[min(s + 2, n_strips)]):
+            fx[g] = 0.0
+            fy[g] = 0.0
+            fs_sum[g] = 0.0
+        strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy, x, y,
+                    vx, vy, omega, radius, inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta,
+                    allow_tension, dt)
+    for h in prange(n_strips - n_even):
+        strip_pairs(strip_seq[n_even + h], strip_start, i_start, pair_j, pair_fs, pair_fn,
+                    pair_fx, pair_fy, x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
+                    kn, ks, mu, zeta, allow_tension, dt)
 
 
 @njit

@@ -1,16 +1,14 @@
-"""Central-difference (leap-frog) integration, the paper's eqs. (6)-(9), and the gather of the
-contact forces on each grain.
+"""Central-difference (leap-frog) integration, the paper's eqs. (6)-(9), after adding each
+grain's wall-contact forces to its sums.
 
 Velocities live at half steps: with the forces F(t) of positions x(t),
 
     v(t + dt/2) = v(t - dt/2) + (F(t)/m + g) dt,       omega(t + dt/2) = omega(t - dt/2) + M(t)/I dt
     x(t + dt)   = x(t) + v(t + dt/2) dt
 
-F(t), M(t) are summed per grain in a fixed order (its pairs as j by increasing pair index,
-its pairs as i, its wall contacts) by ``pair_sums`` inside ``walls_and_leapfrog`` (parallel path) or on the fly by
-``contact.pair_forces_scatter`` (serial path), so a run has the same bits for any number of
-threads.  The torque of a contact
-on each of its grains is -r * F_s (see ``silodem.engine.contact``).
+F(t), M(t) are summed per grain in a fixed order: its grain-grain contacts by
+``contact.pair_forces`` (see there), then its wall contacts here, so a run has the same bits
+for any number of threads.  The torque of a contact on each of its grains is -r * F_s (see ``silodem.engine.contact``).
 
 PFC local damping (Itasca PFC2D manual, "local damping"): with alpha > 0 each component of the
 unbalanced force (contacts + gravity) and of the moment is reduced by alpha*|F| in the direction
@@ -29,35 +27,14 @@ from silodem.jit import kernel, prange
 _CHUNKS = 64
 
 
-@numba.njit(inline="always", cache=True)
-def pair_sums(p, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs):
-    """Grain p's sums of its grain-grain contact forces and of their shear forces [N], from the
-    per-pair forces (force on j): pairs where it is j (increasing k), then where it is i."""
-    sx = 0.0
-    sy = 0.0
-    ss = 0.0
-    for q in range(j_start[p], j_start[p + 1]):
-        k = j_pairs[q]
-        sx += pair_fx[k]
-        sy += pair_fy[k]
-        ss += pair_fs[k]
-    for k in range(i_start[p], i_start[p + 1]):
-        sx -= pair_fx[k]
-        sy -= pair_fy[k]
-        ss += pair_fs[k]
-    return sx, sy, ss
-
-
 @kernel
-def walls_and_leapfrog(n, gather, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs,
-                       w_start, wc_fx, wc_fy, wc_fs,
+def walls_and_leapfrog(n, w_start, wc_fx, wc_fy, wc_fs,
                        x, y, vx, vy, omega, fx, fy, torque, radius, mass, inv_mass, inv_inertia,
                        x_ref, y_ref, gravity, alpha, dt):
-    """Sum each grain's grain-grain contacts (``gather``: from the per-pair forces, with
-    ``pair_sums``; else they are already in ``fx, fy``, and ``torque`` holds the sum of their
-    shear forces) and its wall contacts, store the totals (``torque``: -r * sum(F_s)), advance
-    the first ``n`` grains one step, and return the displacements since the last neighbour-list build:
-    (largest squared displacement [m^2] (inf if a position is not finite), and the bounding box
+    """Add each grain's wall contacts to the sums of its grain-grain contacts (``fx, fy``, and
+    in ``torque`` the sum of their shear forces, from ``contact.pair_forces``), store the
+    totals (``torque``: -r * sum(F_s)), advance the first ``n`` grains one step, and return the
+    displacements since the last neighbour-list build: (largest squared displacement [m^2] (inf if a position is not finite), and the bounding box
     min dx, max dx, min dy, max dy of the displacement vectors [m])."""
     chunk_max = np.zeros(_CHUNKS)
     box = np.zeros((_CHUNKS, 4))
@@ -68,14 +45,12 @@ def walls_and_leapfrog(n, gather, i_start, j_start, j_pairs, pair_fx, pair_fy, p
         hix = -np.inf
         loy = np.inf
         hiy = -np.inf
-        for p in range(c * size, min(n, (c + 1) * size)):
-            if gather:
-                sx, sy, ss = pair_sums(p, i_start, j_start, j_pairs, pair_fx, pair_fy, pair_fs)
-            else:
-                sx = fx[p]
-                sy = fy[p]
-                ss = torque[p]
-            for k in range(w_start[p], w_start[p + 1]):
+        for p_ in range(c * size, min(n, (c + 1) * size)):
+            p = numba.uint64(p_)  # unsigned: no negative-index test on each access
+            sx = fx[p]
+            sy = fy[p]
+            ss = torque[p]
+            for k in range(w_start[p_], w_start[p_ + 1]):
                 sx += wc_fx[k]
                 sy += wc_fy[k]
                 ss += wc_fs[k]

@@ -25,6 +25,7 @@ from silodem.errors import UnstableRunError
 from silodem.jit import kernel, njit, prange
 
 _MAX_CELLS_PER_GRAIN = 64
+STRIPS = 64  # strips of cell rows for the pair loop (contact.pair_forces): 32 per parity
 
 
 @njit
@@ -168,21 +169,31 @@ def _carry_walls(n, uid, slot_of_uid, w_start, wc_w, wc_fs, wc_fn,
             wc_fn[k] = fn
 
 
-@njit
-def _csr_by(index, n):
-    """For each value v in 0..n-1 the positions where ``index`` equals v (counting sort)."""
-    start = np.zeros(n + 1, dtype=np.int64)
-    for k in range(index.shape[0]):
-        start[index[k] + 1] += 1
-    for v in range(n):
-        start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    out = np.empty(index.shape[0], dtype=np.int64)
-    for k in range(index.shape[0]):
-        v = index[k]
-        out[fill[v]] = k
-        fill[v] += 1
-    return start, out
+def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
+    """Cut the cell rows into at most ``n_strips`` runs of whole rows holding about equal
+    numbers of grains (grains sorted by cell, row-major): returns the first grain of each strip
+    and n at the end.  Depends on the positions only, never on the thread count."""
+    row_start = cell_start[::ncx][: ncy + 1]
+    n = int(row_start[-1])
+    targets = n * np.arange(1, n_strips) / n_strips
+    cuts = np.unique(np.clip(np.searchsorted(row_start, targets), 1, ncy - 1)) if ncy > 1 \
+        else np.zeros(0, dtype=np.int64)
+    return np.concatenate(([0], row_start[cuts], [n])).astype(np.int64)
+
+
+def strip_sequence(n_strips):
+    """The order in which ``contact.pair_forces`` hands out the strips: the even strips, then
+    the odd ones, each set in van der Corput order (0, 4, 2, 6, 1, ... of their rank), so that
+    each thread's contiguous share of a parity spans the whole height of the silo (the contact
+    work sits in the packed lower part; in height order one thread would get all of it)."""
+    seq = []
+    for parity in (0, 1):
+        strips = np.arange(parity, n_strips, 2)
+        m = strips.size
+        bits = max(1, int(m - 1).bit_length())
+        rank = [int(format(h, f"0{bits}b")[::-1], 2) for h in range(m)]
+        seq.append(strips[np.argsort(rank, kind="stable")])
+    return np.concatenate(seq).astype(np.int64)
 
 
 class NeighborList:
@@ -190,7 +201,9 @@ class NeighborList:
 
     Per grain pair k (grouped by i): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N]
     (history), normal force ``pair_fn`` [N] and force on j ``pair_fx, pair_fy`` [N] of the last
-    step; ``j_start, j_pairs`` list the pairs by their second grain.  Per grain-wall candidate
+    step; ``strip_start`` cuts the grains into strips of whole cell rows (``strips_of``),
+    handed out to the pair loop in the order ``strip_seq`` (``strip_sequence``).  Per
+    grain-wall candidate
     k (grouped by grain): ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force
     on the grain).
     """
@@ -204,8 +217,8 @@ class NeighborList:
         self.pair_j = empty_i
         self.pair_fs = self.pair_fn = self.pair_fx = self.pair_fy = np.zeros(0)
         self.i_start = np.zeros(1, dtype=np.int64)
-        self._j_start: np.ndarray | None = None
-        self._j_pairs: np.ndarray | None = None
+        self.strip_start = np.zeros(2, dtype=np.int64)
+        self.strip_seq = np.zeros(1, dtype=np.int64)
         self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
         self.w_start = np.zeros(1, dtype=np.int64)
@@ -227,20 +240,6 @@ class NeighborList:
     @pair_i.setter
     def pair_i(self, value: np.ndarray) -> None:
         self._pair_i = value
-
-    @property
-    def j_start(self) -> np.ndarray:
-        """Pairs listed by their second grain (for the parallel gather), built on demand:
-        the pairs of grain p as j are ``j_pairs[j_start[p]:j_start[p+1]]``."""
-        if self._j_start is None:
-            self._j_start, self._j_pairs = _csr_by(self.pair_j, self.i_start.size - 1)
-        return self._j_start
-
-    @property
-    def j_pairs(self) -> np.ndarray:
-        if self._j_pairs is None:
-            self._j_start, self._j_pairs = _csr_by(self.pair_j, self.i_start.size - 1)
-        return self._j_pairs
 
     @property
     def wc_i(self) -> np.ndarray:
@@ -319,7 +318,8 @@ class NeighborList:
         self.pair_fn = np.zeros(pair_j.size)
         self.pair_fx = np.zeros(pair_j.size)
         self.pair_fy = np.zeros(pair_j.size)
-        self._j_start = self._j_pairs = None
+        self.strip_start = strips_of(cell_start, ncx, ncy)
+        self.strip_seq = strip_sequence(self.strip_start.size - 1)
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)

@@ -4,10 +4,10 @@ One step, in the order the code runs it (``Simulation.step``):
 
 1. rebuild the neighbour list if two grains may have closed in by ``skin`` or a grain may have
    reached a wall since the last build (see ``_list_expired``), or grains/walls changed;
-2. grain-grain contact forces (contact law on every candidate pair);
+2. grain-grain contact forces (contact law on every candidate pair), summed per grain as they
+   are computed (even strips of cell rows, then odd ones: race-free with threads);
 3. grain-wall contact forces;
-4. per grain: sum the forces and torques of its contacts (serial: summed on the fly in step 2;
-   parallel: gathered from the per-pair forces here), then integrate (leap-frog, gravity,
+4. per grain: add its wall-contact forces to its sums, then integrate (leap-frog, gravity,
    optional local damping); note the displacements;
 5. move the walls that have a velocity; advance the clock.
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from silodem.engine.contact import GrainLaw, pair_forces, pair_forces_scatter, wall_forces
+from silodem.engine.contact import GrainLaw, pair_forces, wall_forces
 from silodem.engine.integrate import walls_and_leapfrog
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
@@ -85,26 +85,16 @@ class Simulation:
             self._stale = False
             self._wall_drift = 0.0
         n = p.n
-        gather = pair_forces.pick(n) is pair_forces.parallel
-        if gather:  # per pair here, summed per grain in walls_and_leapfrog
-            pair_forces.parallel(n, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn, nb.pair_fx,
-                                 nb.pair_fy, p.x, p.y, p.vx, p.vy, p.omega, p.radius,
-                                 p.inv_mass, law.kn, law.ks, law.mu, law.zeta,
-                                 law.allow_tension, dt)
-            j_start, j_pairs = nb.j_start, nb.j_pairs
-        else:  # one serial pass that sums as it goes, in the same order
-            pair_forces_scatter(n, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn, nb.pair_fx,
-                                nb.pair_fy, p.x, p.y, p.vx, p.vy, p.omega, p.radius,
-                                p.inv_mass, p.fx, p.fy, p.torque, law.kn, law.ks, law.mu,
-                                law.zeta, law.allow_tension, dt)
-            j_start = j_pairs = nb.i_start  # not read without the gather
+        pair_forces.pick(n)(nb.strip_start, nb.strip_seq, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn,
+                            nb.pair_fx, nb.pair_fy, p.x, p.y, p.vx, p.vy, p.omega, p.radius,
+                            p.inv_mass, p.fx, p.fy, p.torque, law.kn, law.ks, law.mu, law.zeta,
+                            law.allow_tension, dt)
         wall_forces.pick(n)(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                             p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
                             w.ax, w.ay, w.bx, w.by, w.vx, w.vy, w.kn, w.ks, w.mu, w.active,
                             w.cap_a, w.cap_b, w.one_sided, law.zeta, law.allow_tension, dt)
         max_d2, *self._spread = walls_and_leapfrog.pick(n)(
-            n, gather, nb.i_start, j_start, j_pairs, nb.pair_fx, nb.pair_fy, nb.pair_fs,
-            nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs,
+            n, nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs,
             p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius, p.mass, p.inv_mass,
             p.inv_inertia, p.x_ref, p.y_ref, self.gravity, law.local_damping, dt)
         if not np.isfinite(max_d2):
