@@ -18,6 +18,7 @@ by looking through the few old candidates of grain min(old a, old b), O(P) in al
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from silodem.engine.contact import closest_point
@@ -80,16 +81,18 @@ def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, skin
             yi = y[i]
             ri = radius[i] + skin
             for j in range(i + 1, end_a):
-                dx = x[j] - xi
-                dy = y[j] - yi
-                cut = ri + radius[j]
+                u = numba.uint64(j)  # unsigned: no negative-index test on each access
+                dx = x[u] - xi
+                dy = y[u] - yi
+                cut = ri + radius[u]
                 # branch-free: always write, advance only for a candidate
                 buf[base + min(k, last)] = j
                 k += dx * dx + dy * dy < cut * cut
             for j in range(lo_b, hi_b):
-                dx = x[j] - xi
-                dy = y[j] - yi
-                cut = ri + radius[j]
+                u = numba.uint64(j)
+                dx = x[u] - xi
+                dy = y[u] - yi
+                cut = ri + radius[u]
                 buf[base + min(k, last)] = j
                 k += dx * dx + dy * dy < cut * cut
             counts[i] = k
