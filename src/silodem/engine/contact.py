@@ -115,23 +115,23 @@ def pair_contact(dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, zeta, 
 
 
 @numba.njit(inline="always", cache=True)
-def pair_update(i, j, k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx, vy, omega, radius,
+def pair_update(i, j, k, pair_fs, pair_fn, x, y, vx, vy, omega, radius,
                 inv_mass, kn, ks, mu, zeta, allow_tension, dt):
     """Candidate k = (i, j) from the grain arrays: updates the shear history ``pair_fs[k]``,
-    writes the normal force and the force on j, and returns (F_s, force on j x, y) [N]."""
+    writes the normal force ``pair_fn[k]``, and returns (F_s, force on j x, y) [N].  The force
+    vector is not stored: two fewer stores per pair, and ``quantities.grain_contacts`` rebuilds
+    it from F_n and F_s."""
     fn, fs, fkx, fky = pair_contact(
         x[j] - x[i], y[j] - y[i], radius[i] + radius[j], vx[j] - vx[i], vy[j] - vy[i],
         omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
         pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
     pair_fs[k] = fs
     pair_fn[k] = fn
-    pair_fx[k] = fkx
-    pair_fy[k] = fky
     return fs, fkx, fky
 
 
 @numba.njit(inline="always", cache=True)
-def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn,
                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                 kn, ks, mu, zeta, allow_tension, dt):
     """The candidates of the grains of strip ``s``, in index order: contact law, and each force
@@ -145,7 +145,7 @@ def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair
         ss = fs_sum[i]
         for k in range(i_start[i_], i_start[i_ + 1]):
             j = numba.uint64(pair_j[k])
-            fs, fkx, fky = pair_update(i, j, k, pair_fs, pair_fn, pair_fx, pair_fy, x, y, vx,
+            fs, fkx, fky = pair_update(i, j, k, pair_fs, pair_fn, x, y, vx,
                                        vy, omega, radius, inv_mass, kn, ks, mu, zeta,
                                        allow_tension, dt)
             fx[j] += fkx
@@ -160,13 +160,13 @@ def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair
 
 
 @kernel
-def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy,
+def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                 kn, ks, mu, zeta, allow_tension, dt):
     """Grain-grain contacts of the candidate list, and each grain's sums of their forces.
 
-    Updates the shear history ``pair_fs``, writes the normal force ``pair_fn`` and the force on
-    j ``pair_fx, pair_fy`` of every candidate, and adds each force to ``fx, fy`` of both grains
+    Updates the shear history ``pair_fs`` and writes the normal force ``pair_fn`` of every
+    candidate, and adds each force to ``fx, fy`` of both grains
     and its shear force to ``fs_sum`` of both (one evaluation per pair).
 
     The grains are cut into strips of whole cell rows (``strip_start``, from the rebuild); the
@@ -186,12 +186,12 @@ def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn, pair_
             fx[g] = 0.0
             fy[g] = 0.0
             fs_sum[g] = 0.0
-        strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, pair_fx, pair_fy, x, y,
+        strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, x, y,
                     vx, vy, omega, radius, inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta,
                     allow_tension, dt)
     for h in prange(n_strips - n_even):
         strip_pairs(strip_seq[n_even + h], strip_start, i_start, pair_j, pair_fs, pair_fn,
-                    pair_fx, pair_fy, x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
+                    x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                     kn, ks, mu, zeta, allow_tension, dt)
 
 

@@ -203,12 +203,10 @@ class NeighborList:
     """Verlet list of grain-grain and grain-wall candidates, with their contact state.
 
     Per grain pair k (grouped by i): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N]
-    (history), normal force ``pair_fn`` [N] and force on j ``pair_fx, pair_fy`` [N] of the last
-    step; ``strip_start`` cuts the grains into strips of whole cell rows (``strips_of``),
-    handed out to the pair loop in the order ``strip_seq`` (``strip_sequence``).  Per
-    grain-wall candidate
-    k (grouped by grain): ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force
-    on the grain).
+    (history) and normal force ``pair_fn`` [N] of the last step; ``strip_start`` cuts the
+    grains into strips of whole cell rows (``strips_of``), handed out to the pair loop in the
+    order ``strip_seq`` (``strip_sequence``).  Per grain-wall candidate k (grouped by grain):
+    ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force on the grain).
     """
 
     def __init__(self, skin: float) -> None:
@@ -218,7 +216,7 @@ class NeighborList:
         self.rebuilds = 0
         empty_i = np.zeros(0, dtype=np.int64)
         self.pair_j = empty_i
-        self.pair_fs = self.pair_fn = self.pair_fx = self.pair_fy = np.zeros(0)
+        self.pair_fs = self.pair_fn = np.zeros(0)
         self.i_start = np.zeros(1, dtype=np.int64)
         self.strip_start = np.zeros(2, dtype=np.int64)
         self.strip_seq = np.zeros(1, dtype=np.int64)
@@ -319,8 +317,6 @@ class NeighborList:
 
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
-        self.pair_fx = np.zeros(pair_j.size)
-        self.pair_fy = np.zeros(pair_j.size)
         self.strip_start = strips_of(cell_start, ncx, ncy)
         self.strip_seq = strip_sequence(self.strip_start.size - 1)
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn

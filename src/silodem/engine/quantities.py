@@ -40,10 +40,18 @@ def _touching(fn: np.ndarray, fs: np.ndarray) -> np.ndarray:
 
 
 def grain_contacts(sim: Simulation) -> ContactTable:
-    nb = sim.neighbors
+    """The force on j is F_n n + F_s t with n the unit vector from i to j and t = (-n_y, n_x)
+    (``contact`` module), n taken from the current positions: the step computed the forces at
+    the positions it started from, so the direction differs by one step's motion (a relative
+    |v dt / d| ~ 1e-4 in a dense flow), and the vector stays parallel to the branch vector
+    that stress measurements pair it with."""
+    nb, p = sim.neighbors, sim.particles
     m = _touching(nb.pair_fn, nb.pair_fs)
-    return ContactTable(nb.pair_i[m], nb.pair_j[m], nb.pair_fn[m], nb.pair_fs[m],
-                        nb.pair_fx[m], nb.pair_fy[m])
+    i, j, fn, fs = nb.pair_i[m], nb.pair_j[m], nb.pair_fn[m], nb.pair_fs[m]
+    dx, dy = p.x[j] - p.x[i], p.y[j] - p.y[i]
+    dist = np.hypot(dx, dy)
+    nx, ny = dx / dist, dy / dist
+    return ContactTable(i, j, fn, fs, fn * nx - fs * ny, fn * ny + fs * nx)
 
 
 def wall_contacts(sim: Simulation) -> WallContactTable:
@@ -82,7 +90,7 @@ def unbalanced_force_ratio(sim: Simulation) -> float:
     unbalanced = np.mean(np.hypot(p.fx[:n], fy))
     pm = _touching(nb.pair_fn, nb.pair_fs)
     wm = _touching(nb.wc_fn, nb.wc_fs)
-    mags = np.concatenate([np.hypot(nb.pair_fx[pm], nb.pair_fy[pm]),
+    mags = np.concatenate([np.hypot(nb.pair_fn[pm], nb.pair_fs[pm]),
                            np.hypot(nb.wc_fx[wm], nb.wc_fy[wm])])
     if mags.size == 0 or mags.mean() == 0.0:
         return float("inf")
