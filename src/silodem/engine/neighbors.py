@@ -18,6 +18,8 @@ by looking through the few old candidates of grain min(old a, old b), O(P) in al
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -199,6 +201,11 @@ def strip_sequence(n_strips):
     return np.concatenate(seq).astype(np.int64)
 
 
+@functools.lru_cache(maxsize=64)
+def _strip_sequence_cached(n_strips):
+    return tuple(strip_sequence(n_strips))  # a rebuild then costs no Python loop over strips
+
+
 class NeighborList:
     """Verlet list of grain-grain and grain-wall candidates, with their contact state.
 
@@ -318,7 +325,7 @@ class NeighborList:
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
         self.strip_start = strips_of(cell_start, ncx, ncy)
-        self.strip_seq = strip_sequence(self.strip_start.size - 1)
+        self.strip_seq = np.array(_strip_sequence_cached(self.strip_start.size - 1))
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)
