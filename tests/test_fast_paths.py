@@ -77,3 +77,42 @@ def test_forces_torques_and_history_equal_brute_force(seed, parallel, monkeypatc
         assert engine_hist[key] == pytest.approx(fs, abs=1e-9 * scale)
     assert sim.neighbors.rebuilds > 5
     assert most > 50
+
+
+def test_contact_table_forces_add_up_to_each_grains_total():
+    """``quantities.grain_contacts`` rebuilds each force vector from F_n, F_s and the normal at
+    the current positions.  With Newton's third law and the wall contacts, the vectors must add
+    up to the total force the step applied to every grain, up to the turn of each normal during
+    the step: |n(t + dt) - n(t)| <= 2 |v_j - v_i| dt / distance (v: the half-step velocity that
+    moved the grains), a bound worked out per contact and summed per grain."""
+    from silodem.engine import quantities as q
+
+    x, y, r, v = _random_state(5)
+    sim = _engine(x, y, r, v)
+    p = sim.particles
+    for _ in range(40):
+        sim.step()
+    checked = 0
+    for _ in range(5):
+        sim.step()
+        n = p.n
+        gc, wc = q.grain_contacts(sim), q.wall_contacts(sim)
+        sx, sy, bound = np.zeros(n), np.zeros(n), np.zeros(n)
+        np.add.at(sx, gc.j, gc.fx)
+        np.add.at(sy, gc.j, gc.fy)
+        np.add.at(sx, gc.i, -gc.fx)
+        np.add.at(sy, gc.i, -gc.fy)
+        np.add.at(sx, wc.grain, wc.fx)
+        np.add.at(sy, wc.grain, wc.fy)
+        dist = np.hypot(p.x[gc.j] - p.x[gc.i], p.y[gc.j] - p.y[gc.i])
+        turn = 2.0 * np.hypot(p.vx[gc.j] - p.vx[gc.i], p.vy[gc.j] - p.vy[gc.i]) * DT / dist
+        per_contact = np.hypot(gc.fn, gc.fs) * turn
+        np.add.at(bound, gc.i, per_contact)
+        np.add.at(bound, gc.j, per_contact)
+        scale = np.abs(p.view("fx")).max()
+        slack = bound + 1e-9 * scale
+        assert np.all(np.abs(sx - p.view("fx")) <= slack)
+        assert np.all(np.abs(sy - p.view("fy")) <= slack)
+        assert bound.max() < 0.05 * scale  # the bound is tight enough to mean something
+        checked += gc.i.size
+    assert checked > 500
