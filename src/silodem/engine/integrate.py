@@ -50,13 +50,16 @@ def walls_and_leapfrog(n, w_start, wc_fx, wc_fy, wc_fs,
             sx = fx[p]
             sy = fy[p]
             ss = torque[p]
-            for k in range(w_start[p_], w_start[p_ + 1]):
-                sx += wc_fx[k]
-                sy += wc_fy[k]
-                ss += wc_fs[k]
+            k0 = w_start[p_]
+            k1 = w_start[p_ + 1]
+            if k1 > k0:  # a grain touching no wall keeps its stored sums: no store, no write-back
+                for k in range(k0, k1):
+                    sx += wc_fx[k]
+                    sy += wc_fy[k]
+                    ss += wc_fs[k]
+                fx[p] = sx
+                fy[p] = sy
             mz = -radius[p] * ss
-            fx[p] = sx
-            fy[p] = sy
             torque[p] = mz
             fty = sy - mass[p] * gravity
             if alpha > 0.0:
