@@ -166,8 +166,8 @@ def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
     """Grain-grain contacts of the candidate list, and each grain's sums of their forces.
 
     Updates the shear history ``pair_fs`` and writes the normal force ``pair_fn`` of every
-    candidate, and adds each force to ``fx, fy`` of both grains
-    and its shear force to ``fs_sum`` of both (one evaluation per pair).
+    candidate, and adds each force to ``fx, fy`` and its shear force to ``fs_sum`` of both
+    grains (one evaluation per pair).
 
     The grains are cut into strips of whole cell rows (``strip_start``, from the rebuild); the
     half stencil reaches at most one row up, so a strip writes only to its own grains and to

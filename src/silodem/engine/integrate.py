@@ -8,7 +8,8 @@ Velocities live at half steps: with the forces F(t) of positions x(t),
 
 F(t), M(t) are summed per grain in a fixed order: its grain-grain contacts by
 ``contact.pair_forces`` (see there), then its wall contacts here, so a run has the same bits
-for any number of threads.  The torque of a contact on each of its grains is -r * F_s (see ``silodem.engine.contact``).
+for any number of threads.  The torque of a contact on each of its grains is -r * F_s (see
+``silodem.engine.contact``).
 
 PFC local damping (Itasca PFC2D manual, "local damping"): with alpha > 0 each component of the
 unbalanced force (contacts + gravity) and of the moment is reduced by alpha*|F| in the direction
@@ -34,7 +35,8 @@ def walls_and_leapfrog(n, w_start, wc_fx, wc_fy, wc_fs,
     """Add each grain's wall contacts to the sums of its grain-grain contacts (``fx, fy``, and
     in ``torque`` the sum of their shear forces, from ``contact.pair_forces``), store the
     totals (``torque``: -r * sum(F_s)), advance the first ``n`` grains one step, and return the
-    displacements since the last neighbour-list build: (largest squared displacement [m^2] (inf if a position is not finite), and the bounding box
+    displacements since the last neighbour-list build: (largest squared displacement [m^2]
+    (inf if a position is not finite), and the bounding box
     min dx, max dx, min dy, max dy of the displacement vectors [m])."""
     chunk_max = np.zeros(_CHUNKS)
     box = np.zeros((_CHUNKS, 4))

@@ -181,16 +181,19 @@ def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
     row_start = cell_start[::ncx][: ncy + 1]
     n = int(row_start[-1])
     targets = n * np.arange(1, n_strips) / n_strips
-    cuts = np.unique(np.clip(np.searchsorted(row_start, targets), 1, ncy - 1)) if ncy > 1 \
-        else np.zeros(0, dtype=np.int64)
+    cuts = np.zeros(0, dtype=np.int64)
+    if ncy > 1:
+        cuts = np.unique(np.clip(np.searchsorted(row_start, targets), 1, ncy - 1))
     return np.concatenate(([0], row_start[cuts], [n])).astype(np.int64)
 
 
-def strip_sequence(n_strips):
+@functools.lru_cache(maxsize=64)
+def strip_sequence(n_strips: int) -> tuple[int, ...]:
     """The order in which ``contact.pair_forces`` hands out the strips: the even strips, then
     the odd ones, each set in van der Corput order (0, 4, 2, 6, 1, ... of their rank), so that
     each thread's contiguous share of a parity spans the whole height of the silo (the contact
-    work sits in the packed lower part; in height order one thread would get all of it)."""
+    work sits in the packed lower part; in height order one thread would get all of it).
+    Cached: a rebuild then runs no Python loop over the strips."""
     seq = []
     for parity in (0, 1):
         strips = np.arange(parity, n_strips, 2)
@@ -198,12 +201,7 @@ def strip_sequence(n_strips):
         bits = max(1, int(m - 1).bit_length())
         rank = [int(format(h, f"0{bits}b")[::-1], 2) for h in range(m)]
         seq.append(strips[np.argsort(rank, kind="stable")])
-    return np.concatenate(seq).astype(np.int64)
-
-
-@functools.lru_cache(maxsize=64)
-def _strip_sequence_cached(n_strips):
-    return tuple(strip_sequence(n_strips))  # a rebuild then costs no Python loop over strips
+    return tuple(int(s) for s in np.concatenate(seq))
 
 
 class NeighborList:
@@ -325,7 +323,7 @@ class NeighborList:
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
         self.strip_start = strips_of(cell_start, ncx, ncy)
-        self.strip_seq = np.array(_strip_sequence_cached(self.strip_start.size - 1))
+        self.strip_seq = np.array(strip_sequence(self.strip_start.size - 1), dtype=np.int64)
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)

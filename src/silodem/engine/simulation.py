@@ -85,9 +85,9 @@ class Simulation:
             self._stale = False
             self._wall_drift = 0.0
         n = p.n
-        pair_forces.pick(n)(nb.strip_start, nb.strip_seq, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn,
-                            p.x, p.y, p.vx, p.vy, p.omega, p.radius,
-                            p.inv_mass, p.fx, p.fy, p.torque, law.kn, law.ks, law.mu, law.zeta,
+        pair_forces.pick(n)(nb.strip_start, nb.strip_seq, nb.i_start, nb.pair_j, nb.pair_fs,
+                            nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
+                            p.fx, p.fy, p.torque, law.kn, law.ks, law.mu, law.zeta,
                             law.allow_tension, dt)
         wall_forces.pick(n)(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                             p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
