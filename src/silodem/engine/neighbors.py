@@ -29,6 +29,9 @@ from silodem.jit import kernel, njit, prange
 
 _MAX_CELLS_PER_GRAIN = 64
 STRIPS = 64  # strips of cell rows for the pair loop (contact.pair_forces): 32 per parity
+# candidate lists and their starts hold 32-bit indices: the pair loop streams them every step,
+# and half the bytes make it 8 % faster at 3e5 grains (none at 3e4; docs/performance.md)
+INDEX = np.int32
 
 
 @njit
@@ -184,7 +187,7 @@ def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
     cuts = np.zeros(0, dtype=np.int64)
     if ncy > 1:
         cuts = np.unique(np.clip(np.searchsorted(row_start, targets), 1, ncy - 1))
-    return np.concatenate(([0], row_start[cuts], [n])).astype(np.int64)
+    return np.concatenate(([0], row_start[cuts], [n])).astype(INDEX)
 
 
 @functools.lru_cache(maxsize=64)
@@ -219,28 +222,29 @@ class NeighborList:
             raise ValueError("neighbour skin must be positive")
         self.skin = float(skin)
         self.rebuilds = 0
-        empty_i = np.zeros(0, dtype=np.int64)
+        empty_i = np.zeros(0, dtype=INDEX)
         self.pair_j = empty_i
         self.pair_fs = self.pair_fn = np.zeros(0)
-        self.i_start = np.zeros(1, dtype=np.int64)
-        self.strip_start = np.zeros(2, dtype=np.int64)
-        self.strip_seq = np.zeros(1, dtype=np.int64)
+        self.i_start = np.zeros(1, dtype=INDEX)
+        self.strip_start = np.zeros(2, dtype=INDEX)
+        self.strip_seq = np.zeros(1, dtype=INDEX)
         self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
-        self.w_start = np.zeros(1, dtype=np.int64)
+        self.w_start = np.zeros(1, dtype=INDEX)
         self.slot_of_uid = np.zeros(0, dtype=np.int64)
         self._pair_i: np.ndarray | None = empty_i
         self._wc_i: np.ndarray | None = empty_i
         # room per grain in the search buffers (grows when a grain needs more)
         self._pair_stride = 12
         self._wall_stride = 2
-        self._buf = np.zeros(0, dtype=np.int64)
+        self._buf = np.zeros(0, dtype=INDEX)
 
     # first grain of each candidate, expanded from the CSR starts on demand (measurements only)
     @property
     def pair_i(self) -> np.ndarray:
         if self._pair_i is None:
-            self._pair_i = np.repeat(np.arange(self.i_start.size - 1), np.diff(self.i_start))
+            self._pair_i = np.repeat(np.arange(self.i_start.size - 1, dtype=INDEX),
+                                      np.diff(self.i_start))
         return self._pair_i
 
     @pair_i.setter
@@ -250,7 +254,8 @@ class NeighborList:
     @property
     def wc_i(self) -> np.ndarray:
         if self._wc_i is None:
-            self._wc_i = np.repeat(np.arange(self.w_start.size - 1), np.diff(self.w_start))
+            self._wc_i = np.repeat(np.arange(self.w_start.size - 1, dtype=INDEX),
+                                    np.diff(self.w_start))
         return self._wc_i
 
     @wc_i.setter
@@ -264,16 +269,20 @@ class NeighborList:
         while True:
             stride = getattr(self, name)
             if self._buf.size < n * stride:
-                self._buf = np.empty(n * stride, dtype=np.int64)
+                self._buf = np.empty(n * stride, dtype=INDEX)
             counts = np.empty(n, dtype=np.int64)
             search.pick(n)(*args, counts, self._buf, stride)
             most = int(counts.max()) if n else 0
             if most <= stride:
                 break
             setattr(self, name, most + 4)  # a crowded grain: widen the buffer and search again
-        start = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(counts, out=start[1:])
-        out = np.empty(int(start[-1]), dtype=np.int64)
+        total = np.cumsum(counts)
+        if n and total[-1] > np.iinfo(INDEX).max:
+            raise UnstableRunError(f"{int(total[-1])} contact candidates: more than 32-bit "
+                                   "indices hold (grains crowded together: unstable run?)")
+        start = np.zeros(n + 1, dtype=INDEX)
+        start[1:] = total
+        out = np.empty(int(start[-1]), dtype=INDEX)
         _compact.pick(n)(n, self._buf, stride, start, out)
         return start, out
 
@@ -323,12 +332,12 @@ class NeighborList:
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
         self.strip_start = strips_of(cell_start, ncx, ncy)
-        self.strip_seq = np.array(strip_sequence(self.strip_start.size - 1), dtype=np.int64)
+        self.strip_seq = np.array(strip_sequence(self.strip_start.size - 1), dtype=INDEX)
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)
         self._pair_i = None
-        self._wc_i = np.repeat(np.arange(n, dtype=np.int64), np.diff(w_start))
+        self._wc_i = np.repeat(np.arange(n, dtype=INDEX), np.diff(w_start))
 
         slot = np.full(p.next_uid, -1, dtype=np.int64)
         slot[uid] = np.arange(n, dtype=np.int64)
