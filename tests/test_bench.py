@@ -36,6 +36,7 @@ def test_bench_json_smoke():
     assert out["n"] == deck_lattice(nx, ny)[0].size
     assert out["threads"] == 1 and out["steps"] == 40
     assert out["particle_steps_per_s"] > 0 and out["peak_memory_bytes"] > 0
+    assert 0 <= out["list_builds"] <= out["steps"]  # at most one build per step
 
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
@@ -43,3 +44,4 @@ def test_bench_runs_lammps_on_the_same_silo():
     out = _bench("--n", "400", "--steps", "40", "--settle", "60", "--json", "--lammps")
     assert out["lammps"]["n"] == out["n"]  # the same lattice, grain for grain
     assert out["ratio_vs_lammps"] > 0
+    assert 0 <= out["lammps"]["list_builds"] <= out["steps"]  # read from LAMMPS's own log

@@ -58,11 +58,13 @@ class BenchResult:
     peak_memory_bytes: int
     nx: int
     ny: int
+    list_builds: int  # neighbour-list builds during the timed steps
 
     def line(self) -> str:
         return (f"{self.code:8s} n = {self.n:8d}  threads/ranks = {self.threads}  "
                 f"steps = {self.steps}  {self.seconds:8.3f} s  "
-                f"{self.particle_steps_per_s / 1e6:8.3f} M particle-steps/s")
+                f"{self.particle_steps_per_s / 1e6:8.3f} M particle-steps/s  "
+                f"{self.list_builds} list builds")
 
 
 def lattice_size(n: int) -> tuple[int, int]:
@@ -137,13 +139,15 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
         nx, ny = max(4, round(n / (1.6 * rows - 3))), rows
     sim, _, top = build(nx, ny)
     advance(sim, top, settle)
+    builds = sim.neighbors.rebuilds
     t0 = time.perf_counter()
     advance(sim, top, steps)
     seconds = time.perf_counter() - t0
+    builds = sim.neighbors.rebuilds - builds
     n_real = sim.particles.n
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     return BenchResult("silodem", n_real, threads, steps, seconds, n_real * steps / seconds,
-                       peak, nx, ny)
+                       peak, nx, ny, builds)
 
 
 def deck_path() -> Path:
@@ -151,6 +155,7 @@ def deck_path() -> Path:
 
 
 _LOOP = re.compile(r"Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms")
+_BUILDS = re.compile(r"Neighbor list builds = (\d+)")
 
 
 def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchResult:
@@ -174,8 +179,9 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
         raise RuntimeError(f"LAMMPS failed (exit {proc.returncode}): {tail}")
     seconds, procs, nsteps, atoms = loops[-1]
     seconds, nsteps, atoms = float(seconds), int(nsteps), int(atoms)
+    builds = _BUILDS.findall(proc.stdout)
     return BenchResult("lammps", atoms, int(procs), nsteps, seconds, atoms * nsteps / seconds,
-                       0, nx, ny)
+                       0, nx, ny, int(builds[-1]) if builds else -1)
 
 
 def bench(n: int, threads: int, steps: int, settle: int, lammps: bool) -> list[BenchResult]:
