@@ -37,6 +37,7 @@ def test_bench_json_smoke():
     assert out["threads"] == 1 and out["steps"] == 40
     assert out["particle_steps_per_s"] > 0 and out["peak_memory_bytes"] > 0
     assert 0 <= out["list_builds"] <= out["steps"]  # at most one build per step
+    assert 0 <= out["build_seconds"] <= out["seconds"]  # a part of the timed steps
 
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
@@ -45,3 +46,4 @@ def test_bench_runs_lammps_on_the_same_silo():
     assert out["lammps"]["n"] == out["n"]  # the same lattice, grain for grain
     assert out["ratio_vs_lammps"] > 0
     assert 0 <= out["lammps"]["list_builds"] <= out["steps"]  # read from LAMMPS's own log
+    assert 0 <= out["lammps"]["build_seconds"] <= out["lammps"]["seconds"]

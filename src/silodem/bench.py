@@ -59,6 +59,7 @@ class BenchResult:
     nx: int
     ny: int
     list_builds: int  # neighbour-list builds during the timed steps
+    build_seconds: float  # time spent building them [s] (LAMMPS: its "Neigh" time)
 
     def line(self) -> str:
         return (f"{self.code:8s} n = {self.n:8d}  threads/ranks = {self.threads}  "
@@ -140,6 +141,15 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
     sim, _, top = build(nx, ny)
     advance(sim, top, settle)
     builds = sim.neighbors.rebuilds
+    build_time = [0.0]
+    rebuild = sim.neighbors.rebuild
+
+    def timed_rebuild(*args):
+        t = time.perf_counter()
+        rebuild(*args)
+        build_time[0] += time.perf_counter() - t
+
+    sim.neighbors.rebuild = timed_rebuild  # this run only: time the list builds
     t0 = time.perf_counter()
     advance(sim, top, steps)
     seconds = time.perf_counter() - t0
@@ -147,7 +157,7 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
     n_real = sim.particles.n
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     return BenchResult("silodem", n_real, threads, steps, seconds, n_real * steps / seconds,
-                       peak, nx, ny, builds)
+                       peak, nx, ny, builds, build_time[0])
 
 
 def deck_path() -> Path:
@@ -156,6 +166,7 @@ def deck_path() -> Path:
 
 _LOOP = re.compile(r"Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms")
 _BUILDS = re.compile(r"Neighbor list builds = (\d+)")
+_NEIGH = re.compile(r"^Neigh\s*\|\s*([0-9.eE+-]+)", re.MULTILINE)
 
 
 def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchResult:
@@ -180,8 +191,10 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
     seconds, procs, nsteps, atoms = loops[-1]
     seconds, nsteps, atoms = float(seconds), int(nsteps), int(atoms)
     builds = _BUILDS.findall(proc.stdout)
+    neigh = _NEIGH.findall(proc.stdout)
     return BenchResult("lammps", atoms, int(procs), nsteps, seconds, atoms * nsteps / seconds,
-                       0, nx, ny, int(builds[-1]) if builds else -1)
+                       0, nx, ny, int(builds[-1]) if builds else -1,
+                       float(neigh[-1]) if neigh else float("nan"))
 
 
 def bench(n: int, threads: int, steps: int, settle: int, lammps: bool) -> list[BenchResult]:

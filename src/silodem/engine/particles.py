@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from silodem.jit import kernel, prange
+
 _FLOAT_FIELDS = (
     "x", "y", "vx", "vy", "omega", "radius", "mass", "inv_mass", "inv_inertia",
     "fx", "fy", "torque", "x_ref", "y_ref",
@@ -101,8 +103,7 @@ class Particles:
             if name in skip:
                 continue
             arr = getattr(self, name)
-            np.take(arr[:n], order, out=tmp)
-            arr[:n] = tmp
+            _reorder.pick(n)(arr, order, tmp)
         self.uid[:n] = self.uid[:n][order]
 
     # --- read-only views and derived quantities (never change state) -------------------
@@ -119,3 +120,14 @@ class Particles:
 
     def total_mass(self) -> float:
         return float(np.sum(self.mass[: self.n]))
+
+
+@kernel
+def _reorder(arr, order, tmp):
+    """arr[k] <- arr[order[k]] for k < order.size, through ``tmp`` (in threads: a gather, then a
+    copy back; numpy's take is serial)."""
+    n = order.shape[0]
+    for k in prange(n):
+        tmp[k] = arr[order[k]]
+    for k in prange(n):
+        arr[k] = tmp[k]
