@@ -7,9 +7,11 @@ Each row runs `silodem bench --json [--lammps]` in a fresh process (so compilati
 per row).  Steps per size are chosen so a row takes minutes, not hours; both codes always run the
 same deck with the same SETTLE and STEPS.  The plot goes next to the JSON (.png).
 
-``--scaling`` measures the cost per particle-step against N at a fixed column height (the deck's
-NY = 200, the silo made wider instead), so that every N reaches the same flow state after the
-same SETTLE steps; with NY = 2 NX a tall column is still mostly falling, which flatters large N.
+``--scaling`` measures the cost per particle-step against N on 1, 3, 10, 30 and 100 copies of
+one silo (NX = 32, NY = 200) side by side, so that every N is in the same flow state: with
+NY = 2 NX a tall column is still mostly falling, and a silo made wider with one outlet has a
+smaller share of flowing grains; both flatter large N.  Each row also gives the cost without
+the neighbour-list builds and their number.
 """
 
 from __future__ import annotations
@@ -34,14 +36,18 @@ def row(n: int, threads: int, settle: int, steps: int, lammps: bool) -> dict:
     return json.loads(out)
 
 
-SCALING = [10_000, 31_700, 100_000, 300_000, 1_000_000]
-SCALING_ROWS, SCALING_SETTLE, SCALING_STEPS = 200, 3_000, 1_000
+# copies of one silo (NX = 32, NY = 200: 10,144 grains) side by side: N from 1e4 to 1e6, and
+# every silo does the same work at every N, so the cost per particle-step shows what N alone
+# costs (caches, memory), not a different flow state (a wider silo with one outlet has a
+# smaller share of flowing grains)
+SCALING_COPIES = [1, 3, 10, 30, 100]
+SCALING_N, SCALING_ROWS, SCALING_SETTLE, SCALING_STEPS = 10_000, 200, 3_000, 1_000
 
 
-def scaling_row(n: int, threads: int) -> dict:
+def scaling_row(copies: int, threads: int) -> dict:
     code = ("import json, dataclasses; from silodem.bench import run_silodem; "
-            f"r = run_silodem({n}, {threads}, {SCALING_STEPS}, {SCALING_SETTLE}, "
-            f"rows={SCALING_ROWS}); print(json.dumps(dataclasses.asdict(r)))")
+            f"r = run_silodem({SCALING_N}, {threads}, {SCALING_STEPS}, {SCALING_SETTLE}, "
+            f"rows={SCALING_ROWS}, copies={copies}); print(json.dumps(dataclasses.asdict(r)))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     return json.loads(out)
@@ -52,15 +58,20 @@ def scaling(out: Path, threads_list: list[int], passes: int = 1) -> None:
     pass, not one N); then the best (lowest) cost per N and thread count, and its spread."""
     rows = []
     for pass_ in range(1, passes + 1):
-        for n in SCALING:
+        for copies in SCALING_COPIES:
             for threads in threads_list:
-                r = scaling_row(n, threads)
+                r = scaling_row(copies, threads)
                 r["ns_per_particle_step"] = 1e9 * threads / r["particle_steps_per_s"]
                 r["settle"], r["ny"], r["pass"] = SCALING_SETTLE, SCALING_ROWS, pass_
+                r["copies"] = copies
+                r["ns_without_builds"] = (1e9 * threads * (r["seconds"] - r["build_seconds"])
+                                          / (r["n"] * r["steps"]))
                 rows.append(r)
-                print(f"pass {pass_} N={r['n']:8d} (NX={r['nx']}, NY={r['ny']}) "
+                print(f"pass {pass_} N={r['n']:8d} ({copies} x NX={r['nx']}, NY={r['ny']}) "
                       f"threads={threads} {r['particle_steps_per_s'] / 1e6:7.2f} M/s  "
-                      f"{r['ns_per_particle_step']:6.1f} core-ns per particle-step  "
+                      f"{r['ns_per_particle_step']:6.1f} core-ns per particle-step "
+                      f"({r['ns_without_builds']:5.1f} without list builds, "
+                      f"{r['list_builds']} builds)  "
                       f"mem {r['peak_memory_bytes'] / 1e6:6.0f} MB", flush=True)
                 out.write_text(json.dumps(rows, indent=1))
     for threads in threads_list:

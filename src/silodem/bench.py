@@ -87,10 +87,16 @@ def deck_lattice(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, float, float
     return gx.ravel(), gy.ravel(), width, top
 
 
-def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05) -> tuple[Simulation, float, float]:
-    x, y, width, top = deck_lattice(nx, ny)
+def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
+          copies: int = 1) -> tuple[Simulation, float, float]:
+    """The deck's silo (``copies = 1``), or ``copies`` identical silos side by side, each with
+    its own walls, outlet and grains (the same radii in each): N grows while every silo does the
+    same work, which isolates what the system size alone costs (``--scaling``)."""
+    x0, y0, width, top = deck_lattice(nx, ny)
     rng = np.random.default_rng(seed)
-    radius = 0.5 * (0.18 + 0.04 * rng.random(x.size))
+    r0 = 0.5 * (0.18 + 0.04 * rng.random(x0.size))
+    x = np.concatenate([x0 + c * width for c in range(copies)])
+    y, radius = np.tile(y0, copies), np.tile(r0, copies)
     p = Particles(x.size)
     p.add(x, y, radius, 835.0)
     k_grain = 2 * K_CONTACT  # two equal grains in series give K_CONTACT
@@ -98,13 +104,18 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05) -> tuple[Simu
     mu_g, mu_w = math.tan(math.radians(25.0)), math.tan(math.radians(24.0))
     w = Walls()
     kw = k_grain * k_wall / (k_grain + k_wall)
-    xl, xr = width / 2 - SLOT / 2, width / 2 + SLOT / 2
-    w.add("left", (0.0, top), (0.0, Y_BOTTOM), kw, kw, mu_w, one_sided=True)
-    w.add("right", (width, Y_BOTTOM), (width, top), kw, kw, mu_w, one_sided=True)
-    w.add("floor_left", (0.0, 0.0), (xl, 0.0), kw, kw, mu_w, one_sided=True)
-    w.add("slot_left", (xl, 0.0), (xl, -0.2), kw, kw, mu_w, one_sided=True)
-    w.add("slot_right", (xr, -0.2), (xr, 0.0), kw, kw, mu_w, one_sided=True)
-    w.add("floor_right", (xr, 0.0), (width, 0.0), kw, kw, mu_w, one_sided=True)
+    for c in range(copies):
+        a, b = c * width, (c + 1) * width
+        xl, xr = a + width / 2 - SLOT / 2, a + width / 2 + SLOT / 2
+        tag = f"_{c}" if copies > 1 else ""
+        # side walls twice as high as the column: a grain thrown above the top stays in its
+        # silo, as between the deck's infinite xplane walls
+        w.add("left" + tag, (a, 2 * top), (a, Y_BOTTOM), kw, kw, mu_w, one_sided=True)
+        w.add("right" + tag, (b, Y_BOTTOM), (b, 2 * top), kw, kw, mu_w, one_sided=True)
+        w.add("floor_left" + tag, (a, 0.0), (xl, 0.0), kw, kw, mu_w, one_sided=True)
+        w.add("slot_left" + tag, (xl, 0.0), (xl, -0.2), kw, kw, mu_w, one_sided=True)
+        w.add("slot_right" + tag, (xr, -0.2), (xr, 0.0), kw, kw, mu_w, one_sided=True)
+        w.add("floor_right" + tag, (xr, 0.0), (b, 0.0), kw, kw, mu_w, one_sided=True)
     law = GrainLaw(kn=K_CONTACT, ks=K_CONTACT, mu=mu_g, zeta=damping_ratio_from_restitution(0.5))
     sim = Simulation(p, w, law, dt=DT, gravity=9.81, skin=skin)
     return sim, width, top
@@ -126,11 +137,12 @@ def advance(sim: Simulation, top: float, steps: int) -> None:
 
 
 def run_silodem(n: int, threads: int, steps: int, settle: int,
-                rows: int | None = None) -> BenchResult:
+                rows: int | None = None, copies: int = 1) -> BenchResult:
     """Throughput of silodem on the benchmark silo of about ``n`` grains.  ``rows`` fixes the
-    deck's NY (column height) and widens the silo instead, so that runs of different N reach
-    the same flow state after the same SETTLE steps (used for the cost-per-particle-step
-    scaling; the default NY = 2 NX matches ``--lammps``)."""
+    deck's NY (column height) and widens the silo instead; ``copies`` puts that many such
+    silos side by side (N = copies x n), so that every N is in the same flow state (used for
+    the cost-per-particle-step scaling; the default, NY = 2 NX and one silo, matches
+    ``--lammps``)."""
     import numba
 
     numba.set_num_threads(threads)
@@ -138,7 +150,7 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
         nx, ny = lattice_size(n)
     else:
         nx, ny = max(4, round(n / (1.6 * rows - 3))), rows
-    sim, _, top = build(nx, ny)
+    sim, _, top = build(nx, ny, copies=copies)
     advance(sim, top, settle)
     builds = sim.neighbors.rebuilds
     build_time = [0.0]

@@ -19,6 +19,7 @@ by looking through the few old candidates of grain min(old a, old b), O(P) in al
 from __future__ import annotations
 
 import functools
+import math
 
 import numba
 import numpy as np
@@ -113,40 +114,94 @@ def _compact(n, buf, stride, start, out):
             out[o + k] = buf[base + k]
 
 
+@njit
+def walls_by_cell(w_lox, w_hix, w_loy, w_hiy, w_active, reach, xmin, ymin, cell_size, ncx,
+                  ncy):
+    """The active walls whose bounding box, widened by ``reach`` [m], overlaps each cell (CSR:
+    cell c's walls are ``walls[start[c]:start[c+1]]``, in ascending wall index).  The wall
+    search then looks at a grain's own cell's walls only: O(N + cells covered), not O(N x
+    walls)."""
+    nw = w_lox.shape[0]
+    lo_x = np.empty(nw, dtype=np.int64)
+    hi_x = np.empty(nw, dtype=np.int64)
+    lo_y = np.empty(nw, dtype=np.int64)
+    hi_y = np.empty(nw, dtype=np.int64)
+    start = np.zeros(ncx * ncy + 1, dtype=np.int64)
+    for w in range(nw):
+        a = math.floor((w_lox[w] - reach - xmin) / cell_size)
+        b = math.floor((w_hix[w] + reach - xmin) / cell_size)
+        c = math.floor((w_loy[w] - reach - ymin) / cell_size)
+        d = math.floor((w_hiy[w] + reach - ymin) / cell_size)
+        if not w_active[w] or b < 0 or a >= ncx or d < 0 or c >= ncy:
+            lo_x[w] = 1  # an empty range: the wall is off or away from every grain
+            hi_x[w] = 0
+            lo_y[w] = hi_y[w] = 0
+            continue
+        lo_x[w] = max(a, 0)
+        hi_x[w] = min(b, ncx - 1)
+        lo_y[w] = max(c, 0)
+        hi_y[w] = min(d, ncy - 1)
+        for cy in range(lo_y[w], hi_y[w] + 1):
+            for cx in range(lo_x[w], hi_x[w] + 1):
+                start[cy * ncx + cx + 1] += 1
+    for c in range(ncx * ncy):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    walls = np.empty(start[-1], dtype=np.int64)
+    for w in range(nw):  # ascending w: each cell's list is sorted
+        for cy in range(lo_y[w], hi_y[w] + 1):
+            for cx in range(lo_x[w], hi_x[w] + 1):
+                c = cy * ncx + cx
+                walls[fill[c]] = w
+                fill[c] += 1
+    return start, walls
+
+
 @kernel
 def _wall_candidates_of(n, x, y, radius, w_lox, w_hix, w_loy, w_hiy, w_ax, w_ay, w_bx, w_by,
-                        w_active, w_one_sided, skin, counts, buf, stride):
-    """The walls near each grain (r + skin; 3r + skin for one-sided walls), written to
-    ``buf[p*stride : p*stride+stride]`` like ``_pairs_of``; ``w_lo*, w_hi*`` are each wall's
-    bounding box (a quick first test)."""
+                        w_active, w_one_sided, skin, xmin, ymin, cell_size, ncx, ncy,
+                        cell_wstart, cell_walls, counts, buf, stride):
+    """The walls near each grain (r + skin; 3r + skin for one-sided walls) among those of its
+    cell (``walls_by_cell``), written to ``buf[p*stride : p*stride+stride]`` like
+    ``_pairs_of``; ``w_lo*, w_hi*`` are each wall's bounding box (a quick first test)."""
     for p in prange(n):
         k = 0
         base = p * stride
         last = stride - 1
         reach = 3.0 * radius[p] + skin
-        for w in range(w_ax.shape[0]):
-            if (w_active[w] and x[p] > w_lox[w] - reach and x[p] < w_hix[w] + reach
+        cx = min(max(int((x[p] - xmin) / cell_size), 0), ncx - 1)
+        cy = min(max(int((y[p] - ymin) / cell_size), 0), ncy - 1)
+        c = cy * ncx + cx
+        for q in range(cell_wstart[c], cell_wstart[c + 1]):
+            w = cell_walls[q]
+            if (x[p] > w_lox[w] - reach and x[p] < w_hix[w] + reach
                     and y[p] > w_loy[w] - reach and y[p] < w_hiy[w] + reach):
-                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
+                cx_, cy_, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
                 cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
-                if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
+                if (x[p] - cx_) ** 2 + (y[p] - cy_) ** 2 < cut * cut:
                     buf[base + min(k, last)] = w
                     k += 1
         counts[p] = k
 
 
 @kernel
-def _carry_pairs(n, uid, slot_of_uid, i_start, pair_j, pair_fs,
-                 old_i_start, old_pair_j, old_pair_fs):
-    """Shear force of each new candidate from the old list (0 for a new pair)."""
+def _old_index(n, uid, slot_of_uid, old_of):
+    """Each grain's index at the last build (-1 for a grain added since): one lookup per
+    grain, so that the carry-over below does one per candidate, not two."""
     nslot = slot_of_uid.shape[0]
     for a in prange(n):
-        oa = slot_of_uid[uid[a]] if uid[a] < nslot else -1
+        old_of[a] = slot_of_uid[uid[a]] if uid[a] < nslot else -1
+
+
+@kernel
+def _carry_pairs(n, old_of, i_start, pair_j, pair_fs, old_i_start, old_pair_j, old_pair_fs):
+    """Shear force of each new candidate from the old list (0 for a new pair)."""
+    for a in prange(n):
+        oa = old_of[a]
         for k in range(i_start[a], i_start[a + 1]):
             fs = 0.0
             if oa >= 0:
-                ub = uid[pair_j[k]]
-                ob = slot_of_uid[ub] if ub < nslot else -1
+                ob = old_of[pair_j[k]]
                 if ob >= 0:
                     lo = min(oa, ob)
                     hi = max(oa, ob)
@@ -158,12 +213,11 @@ def _carry_pairs(n, uid, slot_of_uid, i_start, pair_j, pair_fs,
 
 
 @kernel
-def _carry_walls(n, uid, slot_of_uid, w_start, wc_w, wc_fs, wc_fn,
+def _carry_walls(n, old_of, w_start, wc_w, wc_fs, wc_fn,
                  old_w_start, old_wc_w, old_wc_fs, old_wc_fn):
     """Shear and normal force ("the contact exists") of each new grain-wall candidate."""
-    nslot = slot_of_uid.shape[0]
     for a in prange(n):
-        oa = slot_of_uid[uid[a]] if uid[a] < nslot else -1
+        oa = old_of[a]
         for k in range(w_start[a], w_start[a + 1]):
             fs = 0.0
             fn = 0.0
@@ -314,19 +368,26 @@ class NeighborList:
         i_start, pair_j = self._strided(
             _pairs_of, n, (n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin),
             "_pair_stride")
+        old_of = np.empty(n, dtype=INDEX)
+        _old_index.pick(n)(n, uid, self.slot_of_uid, old_of)
         pair_fs = np.empty(pair_j.size)
-        _carry_pairs.pick(n)(n, uid, self.slot_of_uid, i_start, pair_j, pair_fs,
+        _carry_pairs.pick(n)(n, old_of, i_start, pair_j, pair_fs,
                              self.i_start, self.pair_j, self.pair_fs)
 
         wb = walls
+        w_box = (np.minimum(wb.ax, wb.bx), np.maximum(wb.ax, wb.bx),
+                 np.minimum(wb.ay, wb.by), np.maximum(wb.ay, wb.by))
+        r_max = float(radius.max()) if n else 0.0
+        cell_wstart, cell_walls = walls_by_cell(*w_box, wb.active, 3.0 * r_max + self.skin,
+                                                xmin, ymin, cell_size, ncx, ncy)
         w_start, wc_w = self._strided(
             _wall_candidates_of, n,
-            (n, x, y, radius, np.minimum(wb.ax, wb.bx), np.maximum(wb.ax, wb.bx),
-             np.minimum(wb.ay, wb.by), np.maximum(wb.ay, wb.by), wb.ax, wb.ay, wb.bx, wb.by,
-             wb.active, wb.one_sided, self.skin), "_wall_stride")
+            (n, x, y, radius, *w_box, wb.ax, wb.ay, wb.bx, wb.by, wb.active, wb.one_sided,
+             self.skin, xmin, ymin, cell_size, ncx, ncy, cell_wstart, cell_walls),
+            "_wall_stride")
         wc_fs = np.empty(wc_w.size)
         wc_fn = np.empty(wc_w.size)
-        _carry_walls.pick(n)(n, uid, self.slot_of_uid, w_start, wc_w, wc_fs, wc_fn,
+        _carry_walls.pick(n)(n, old_of, w_start, wc_w, wc_fs, wc_fn,
                              self.w_start, self.wc_w, self.wc_fs, self.wc_fn)
 
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
