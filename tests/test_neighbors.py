@@ -138,3 +138,41 @@ def test_contact_history_survives_rebuilds():
     np.testing.assert_allclose(a.particles.view("x")[ua], b.particles.view("x")[ub], atol=1e-9)
     np.testing.assert_allclose(a.particles.view("omega")[ua], b.particles.view("omega")[ub],
                                atol=1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_wall_candidates_equal_brute_force_with_many_walls(seed):
+    """The wall search looks only at the walls binned to a grain's cell; on 500 random grains
+    and 60 random segments (some one-sided, some switched off, some far outside the grains)
+    its candidates must be exactly the (grain, wall) pairs within r + skin (3 r + skin for a
+    one-sided wall) of the segment, found by testing every pair, in ascending wall order."""
+    rng = np.random.default_rng(seed)
+    p = _random_grains(rng, 500, 4.0)
+    w = Walls()
+    for k in range(60):
+        a = rng.uniform(-1.0, 5.0, 2)
+        b = a + rng.normal(0.0, 1.5, 2)
+        if k % 10 == 9:  # far from every grain
+            a, b = a + 40.0, b + 40.0
+        w.add(f"w{k}", tuple(a), tuple(b), 1e5, 1e5, 0.3, one_sided=bool(k % 3 == 0))
+        if k % 7 == 3:
+            w.set_active(f"w{k}", False)
+    skin = 0.03
+    sim = Simulation(p, w, law(), dt=1e-4, gravity=0.0, skin=skin)
+    sim.neighbors.rebuild(p, w)
+    x, y, r, uid = (p.view(name) for name in ("x", "y", "radius", "uid"))
+    expected = []
+    for g in np.argsort(uid):  # brute force: every grain against every wall
+        for k in range(w.ax.size):
+            if not w.active[k]:
+                continue
+            ux, uy = w.bx[k] - w.ax[k], w.by[k] - w.ay[k]
+            s = np.clip(((x[g] - w.ax[k]) * ux + (y[g] - w.ay[k]) * uy) / (ux * ux + uy * uy),
+                        0.0, 1.0)
+            dist = np.hypot(x[g] - w.ax[k] - s * ux, y[g] - w.ay[k] - s * uy)
+            if dist < r[g] * (3.0 if w.one_sided[k] else 1.0) + skin:
+                expected.append((int(uid[g]), k))
+    nb = sim.neighbors
+    found = sorted((int(uid[g]), int(k)) for g, k in zip(nb.wc_i, nb.wc_w))
+    assert found == sorted(expected) and len(expected) > 100
+    assert np.all(np.diff(nb.wc_w)[np.diff(nb.wc_i) == 0] > 0)  # ascending per grain
