@@ -60,7 +60,7 @@ def cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy):
 
 
 @kernel
-def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, skin,
+def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows, skin,
               counts, buf, stride):
     """The candidates j > i of every grain i, written to ``buf[i*stride : i*stride+stride]``
     (only the first ``stride`` of them; ``counts[i]`` is the true number).
@@ -69,39 +69,49 @@ def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, skin
     cell_start[c]:cell_start[c+1]; then a half stencil (the grain's own cell after i, and the
     cells east, north-west, north and north-east, all of higher index) finds each pair once.
     In row-major order that stencil is two contiguous index ranges: own cell + east, and
-    north-west..north-east; the loop runs over cells so each cell works them out once."""
-    for c in prange(ncx * ncy):
-        cx = c % ncx
-        cy = c // ncx
-        end_a = cell_start[c + 2] if cx + 1 < ncx else cell_start[c + 1]
-        lo_b = hi_b = 0
-        if cy + 1 < ncy:
-            row = (cy + 1) * ncx
-            lo_b = cell_start[row + max(cx - 1, 0)]
-            hi_b = cell_start[row + min(cx + 1, ncx - 1) + 1]
-        for i in range(cell_start[c], cell_start[c + 1]):
-            k = 0
-            base = i * stride
-            last = stride - 1
-            xi = x[i]
-            yi = y[i]
-            ri = radius[i] + skin
-            for j in range(i + 1, end_a):
-                u = numba.uint64(j)  # unsigned: no negative-index test on each access
-                dx = x[u] - xi
-                dy = y[u] - yi
-                cut = ri + radius[u]
-                # branch-free: always write, advance only for a candidate
-                buf[base + min(k, last)] = j
-                k += dx * dx + dy * dy < cut * cut
-            for j in range(lo_b, hi_b):
-                u = numba.uint64(j)
-                dx = x[u] - xi
-                dy = y[u] - yi
-                cut = ri + radius[u]
-                buf[base + min(k, last)] = j
-                k += dx * dx + dy * dy < cut * cut
-            counts[i] = k
+    north-west..north-east; the loop runs over cells so each cell works them out once.  The
+    threads share out the strips of cell rows (``rows``, from ``strip_rows``), which hold equal
+    numbers of grains: in cell order one thread got the packed lower half, the other the empty
+    upper half."""
+    for s in prange(rows.shape[0] - 1):
+        for c in range(rows[s] * ncx, rows[s + 1] * ncx):
+            _search_cell(c, x, y, radius, ncx, ncy, cell_start, skin, counts, buf, stride)
+
+
+@numba.njit(inline="always", cache=True)
+def _search_cell(c, x, y, radius, ncx, ncy, cell_start, skin, counts, buf, stride):
+    """The candidates of the grains of cell ``c`` (see ``_pairs_of``)."""
+    cx = c % ncx
+    cy = c // ncx
+    end_a = cell_start[c + 2] if cx + 1 < ncx else cell_start[c + 1]
+    lo_b = hi_b = 0
+    if cy + 1 < ncy:
+        row = (cy + 1) * ncx
+        lo_b = cell_start[row + max(cx - 1, 0)]
+        hi_b = cell_start[row + min(cx + 1, ncx - 1) + 1]
+    for i in range(cell_start[c], cell_start[c + 1]):
+        k = 0
+        base = i * stride
+        last = stride - 1
+        xi = x[i]
+        yi = y[i]
+        ri = radius[i] + skin
+        for j in range(i + 1, end_a):
+            u = numba.uint64(j)  # unsigned: no negative-index test on each access
+            dx = x[u] - xi
+            dy = y[u] - yi
+            cut = ri + radius[u]
+            # branch-free: always write, advance only for a candidate
+            buf[base + min(k, last)] = j
+            k += dx * dx + dy * dy < cut * cut
+        for j in range(lo_b, hi_b):
+            u = numba.uint64(j)
+            dx = x[u] - xi
+            dy = y[u] - yi
+            cut = ri + radius[u]
+            buf[base + min(k, last)] = j
+            k += dx * dx + dy * dy < cut * cut
+        counts[i] = k
 
 
 @kernel
@@ -231,17 +241,24 @@ def _carry_walls(n, old_of, w_start, wc_w, wc_fs, wc_fn,
             wc_fn[k] = fn
 
 
-def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
+def strip_rows(cell_start, ncx, ncy, n_strips=STRIPS):
     """Cut the cell rows into at most ``n_strips`` runs of whole rows holding about equal
-    numbers of grains (grains sorted by cell, row-major): returns the first grain of each strip
-    and n at the end.  Depends on the positions only, never on the thread count."""
+    numbers of grains (grains sorted by cell, row-major): returns the first cell row of each
+    strip and ncy at the end.  Depends on the positions only, never on the thread count."""
     row_start = cell_start[::ncx][: ncy + 1]
     n = int(row_start[-1])
     targets = n * np.arange(1, n_strips) / n_strips
     cuts = np.zeros(0, dtype=np.int64)
     if ncy > 1:
         cuts = np.unique(np.clip(np.searchsorted(row_start, targets), 1, ncy - 1))
-    return np.concatenate(([0], row_start[cuts], [n])).astype(INDEX)
+    return np.concatenate(([0], cuts, [ncy])).astype(INDEX)
+
+
+def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
+    """The strips of ``strip_rows`` as grain ranges: the first grain of each strip, and n at
+    the end."""
+    rows = strip_rows(cell_start, ncx, ncy, n_strips)
+    return cell_start[rows.astype(np.int64) * ncx].astype(INDEX)
 
 
 @functools.lru_cache(maxsize=64)
@@ -365,8 +382,10 @@ class NeighborList:
         p.permute(members, skip=("fx", "fy", "torque", "x_ref", "y_ref"))
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
+        rows = strip_rows(cell_start, ncx, ncy)
         i_start, pair_j = self._strided(
-            _pairs_of, n, (n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, self.skin),
+            _pairs_of, n,
+            (n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows, self.skin),
             "_pair_stride")
         old_of = np.empty(n, dtype=INDEX)
         _old_index.pick(n)(n, uid, self.slot_of_uid, old_of)
@@ -392,7 +411,7 @@ class NeighborList:
 
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
-        self.strip_start = strips_of(cell_start, ncx, ncy)
+        self.strip_start = cell_start[rows.astype(np.int64) * ncx].astype(INDEX)
         self.strip_seq = np.array(strip_sequence(self.strip_start.size - 1), dtype=INDEX)
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
