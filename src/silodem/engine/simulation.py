@@ -95,8 +95,8 @@ class Simulation:
                             w.cap_a, w.cap_b, w.one_sided, law.zeta, law.allow_tension, dt)
         max_d2, *self._spread = walls_and_leapfrog.pick(n)(
             n, nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs,
-            p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius, p.mass, p.inv_mass,
-            p.inv_inertia, p.x_ref, p.y_ref, self.gravity, law.local_damping, dt)
+            p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius, p.mass,
+            p.x_ref, p.y_ref, self.gravity, law.local_damping, dt)
         if not np.isfinite(max_d2):
             raise UnstableRunError(
                 f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
