@@ -362,7 +362,8 @@ class NeighborList:
         p = particles
         n = p.n
         x, y, radius = p.view("x"), p.view("y"), p.view("radius")
-        cell_size = 2.0 * (float(radius.max()) if n else 1.0) + self.skin
+        r_max = float(radius.max()) if n else 0.0
+        cell_size = 2.0 * (r_max if n else 1.0) + self.skin
         if n:
             xmin, xmax = float(x.min()), float(x.max())
             ymin, ymax = float(y.min()), float(y.max())
@@ -396,7 +397,6 @@ class NeighborList:
         wb = walls
         w_box = (np.minimum(wb.ax, wb.bx), np.maximum(wb.ax, wb.bx),
                  np.minimum(wb.ay, wb.by), np.maximum(wb.ay, wb.by))
-        r_max = float(radius.max()) if n else 0.0
         cell_wstart, cell_walls = walls_by_cell(*w_box, wb.active, 3.0 * r_max + self.skin,
                                                 xmin, ymin, cell_size, ncx, ncy)
         w_start, wc_w = self._strided(
