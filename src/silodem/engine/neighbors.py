@@ -2,8 +2,8 @@
 
 At each rebuild every pair closer than r_i + r_j + skin is listed once (i < j), grouped by i
 (CSR: the candidates of grain i are ``pair_j[i_start[i]:i_start[i+1]]``), and every grain closer
-than r + skin to an active wall (3r + skin for one-sided walls) gets a grain-wall candidate,
-grouped by grain the same way (``w_start``).  The list stays valid while no grain has moved more
+than r + skin to an active wall (3r + skin for one-sided walls; only the walls binned to its
+cell are tested) gets a grain-wall candidate, grouped by grain the same way (``w_start``).  The list stays valid while no grain has moved more
 than skin/2 since the rebuild (two grains then close by at most ``skin``); the integrator reports
 the largest displacement and the simulation rebuilds when it passes skin/2.
 
@@ -35,6 +35,14 @@ STRIPS = 64  # strips of cell rows for the pair loop (contact.pair_forces): 32 p
 INDEX = np.int32
 
 
+@numba.njit(inline="always", cache=True)
+def cell_of(px, py, xmin, ymin, cell_size, ncx, ncy):
+    """Row-major index of the cell holding the point (px, py), clamped to the grid."""
+    cx = min(max(int((px - xmin) / cell_size), 0), ncx - 1)
+    cy = min(max(int((py - ymin) / cell_size), 0), ncy - 1)
+    return cy * ncx + cx
+
+
 @njit
 def cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy):
     """Counting sort of the grains by cell (row-major).  Returns ``cell_start`` and
@@ -43,9 +51,7 @@ def cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy):
     cell = np.empty(n, dtype=np.int64)
     start = np.zeros(ncell + 1, dtype=np.int64)
     for p in range(n):
-        cx = min(max(int((x[p] - xmin) / cell_size), 0), ncx - 1)
-        cy = min(max(int((y[p] - ymin) / cell_size), 0), ncy - 1)
-        c = cy * ncx + cx
+        c = cell_of(x[p], y[p], xmin, ymin, cell_size, ncx, ncy)
         cell[p] = c
         start[c + 1] += 1
     for c in range(ncell):
@@ -169,26 +175,24 @@ def walls_by_cell(w_lox, w_hix, w_loy, w_hiy, w_active, reach, xmin, ymin, cell_
 
 @kernel
 def _wall_candidates_of(n, x, y, radius, w_lox, w_hix, w_loy, w_hiy, w_ax, w_ay, w_bx, w_by,
-                        w_active, w_one_sided, skin, xmin, ymin, cell_size, ncx, ncy,
+                        w_one_sided, skin, xmin, ymin, cell_size, ncx, ncy,
                         cell_wstart, cell_walls, counts, buf, stride):
-    """The walls near each grain (r + skin; 3r + skin for one-sided walls) among those of its
-    cell (``walls_by_cell``), written to ``buf[p*stride : p*stride+stride]`` like
+    """The walls near each grain (r + skin; 3r + skin for one-sided walls) among the active
+    walls of its cell (``walls_by_cell``), written to ``buf[p*stride : p*stride+stride]`` like
     ``_pairs_of``; ``w_lo*, w_hi*`` are each wall's bounding box (a quick first test)."""
     for p in prange(n):
         k = 0
         base = p * stride
         last = stride - 1
         reach = 3.0 * radius[p] + skin
-        cx = min(max(int((x[p] - xmin) / cell_size), 0), ncx - 1)
-        cy = min(max(int((y[p] - ymin) / cell_size), 0), ncy - 1)
-        c = cy * ncx + cx
+        c = cell_of(x[p], y[p], xmin, ymin, cell_size, ncx, ncy)
         for q in range(cell_wstart[c], cell_wstart[c + 1]):
             w = cell_walls[q]
             if (x[p] > w_lox[w] - reach and x[p] < w_hix[w] + reach
                     and y[p] > w_loy[w] - reach and y[p] < w_hiy[w] + reach):
-                cx_, cy_, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
+                cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
                 cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
-                if (x[p] - cx_) ** 2 + (y[p] - cy_) ** 2 < cut * cut:
+                if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
                     buf[base + min(k, last)] = w
                     k += 1
         counts[p] = k
@@ -254,11 +258,15 @@ def strip_rows(cell_start, ncx, ncy, n_strips=STRIPS):
     return np.concatenate(([0], cuts, [ncy])).astype(INDEX)
 
 
-def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
-    """The strips of ``strip_rows`` as grain ranges: the first grain of each strip, and n at
-    the end."""
-    rows = strip_rows(cell_start, ncx, ncy, n_strips)
+def first_grains(cell_start, ncx, rows):
+    """Strips of cell rows (``strip_rows``) as grain ranges: the first grain of each strip,
+    and n at the end."""
     return cell_start[rows.astype(np.int64) * ncx].astype(INDEX)
+
+
+def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
+    """The strips of ``strip_rows`` as grain ranges (``first_grains``)."""
+    return first_grains(cell_start, ncx, strip_rows(cell_start, ncx, ncy, n_strips))
 
 
 @functools.lru_cache(maxsize=64)
@@ -401,7 +409,7 @@ class NeighborList:
                                                 xmin, ymin, cell_size, ncx, ncy)
         w_start, wc_w = self._strided(
             _wall_candidates_of, n,
-            (n, x, y, radius, *w_box, wb.ax, wb.ay, wb.bx, wb.by, wb.active, wb.one_sided,
+            (n, x, y, radius, *w_box, wb.ax, wb.ay, wb.bx, wb.by, wb.one_sided,
              self.skin, xmin, ymin, cell_size, ncx, ncy, cell_wstart, cell_walls),
             "_wall_stride")
         wc_fs = np.empty(wc_w.size)
@@ -411,7 +419,7 @@ class NeighborList:
 
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
-        self.strip_start = cell_start[rows.astype(np.int64) * ncx].astype(INDEX)
+        self.strip_start = first_grains(cell_start, ncx, rows)
         self.strip_seq = np.array(strip_sequence(self.strip_start.size - 1), dtype=INDEX)
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
