@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from silodem.jit import kernel, njit, prange
+from silodem.jit import kernel, prange
 
 
 def series(k_a: float, k_b: float) -> float:
@@ -195,7 +195,7 @@ def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
                     kn, ks, mu, zeta, allow_tension, dt)
 
 
-@njit
+@numba.njit(inline="always", cache=True)
 def closest_point(px, py, ax, ay, bx, by):
     """Closest point of segment A-B to P, and where it lies: 0 on the face, 1 at A, 2 at B."""
     ux = bx - ax
@@ -208,60 +208,48 @@ def closest_point(px, py, ax, ay, bx, by):
     return ax + s * ux, ay + s * uy, 0
 
 
-@kernel
-def wall_forces(wc_i, wc_w, wc_fs, wc_fn, wc_fx, wc_fy,
-                x, y, vx, vy, omega, radius, mass,
-                w_ax, w_ay, w_bx, w_by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b,
-                w_one_sided, zeta, allow_tension, dt):
-    """Grain-wall contacts of the candidate list; the force written is the force on the grain.
+@numba.njit(inline="always", cache=True)
+def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu,
+                 active, cap_a, cap_b, one_sided, fs_old, fn_old, zeta, allow_tension, dt):
+    """One grain-wall candidate from scalars: the grain at (px, py) [m] with velocity
+    (pvx, pvy) [m/s], spin ``pomega`` [rad/s], radius ``r`` [m] and mass ``m`` [kg]; the wall
+    from (ax, ay) to (bx, by) [m] with its velocity, stiffnesses, friction and flags (one
+    entry of each ``Walls.arrays()``); the candidate's shear and normal force of the last step
+    [N].  Returns (F_n, F_s, force on the grain x, y) [N], all zero when they do not touch.
+    Scalars only, no arrays: numba then keeps no reference counts in the caller's loop.
 
     n points from the closest point of the wall to the grain's centre.  One-sided walls: a
     contact on the face that already exists (non-zero force at the last step) keeps the wall's
     inner normal and the overlap r - (signed distance) even after the centre has been pressed
     past the line (soft contacts, fast impacts), so the grain is pushed back, not through; a new
     contact can only start from the inner side."""
-    for k in prange(wc_i.shape[0]):
-        i = wc_i[k]
-        w = wc_w[k]
-        touching = False
-        d = 0.0
-        nx = 0.0
-        ny = 0.0
-        if w_active[w]:
-            cx, cy, where = closest_point(x[i], y[i], w_ax[w], w_ay[w], w_bx[w], w_by[w])
-            if where == 0 and w_one_sided[w]:
-                ux = w_bx[w] - w_ax[w]
-                uy = w_by[w] - w_ay[w]
-                length = math.sqrt(ux * ux + uy * uy)
-                nx = -uy / length
-                ny = ux / length
-                d = (x[i] - cx) * nx + (y[i] - cy) * ny
-                existing = wc_fn[k] != 0.0 or wc_fs[k] != 0.0
-                touching = d < radius[i] and (d > 0.0 or existing)
-            else:
-                counts = where == 0 or (where == 1 and w_cap_a[w]) or (where == 2 and w_cap_b[w])
-                dx = x[i] - cx
-                dy = y[i] - cy
-                d = math.sqrt(dx * dx + dy * dy)
-                touching = counts and 0.0 < d < radius[i]
-                if touching:
-                    nx = dx / d
-                    ny = dy / d
-        if not touching:
-            wc_fs[k] = 0.0
-            wc_fn[k] = 0.0
-            wc_fx[k] = 0.0
-            wc_fy[k] = 0.0
-            continue
-        # grain contact point velocity v + w x (-r n), relative to the wall's velocity
-        rvx = vx[i] + omega[i] * radius[i] * ny - w_vx[w]
-        rvy = vy[i] - omega[i] * radius[i] * nx - w_vy[w]
-        v_n = rvx * nx + rvy * ny
-        v_t = -rvx * ny + rvy * nx
-        cn = 2.0 * zeta * math.sqrt(w_kn[w] * mass[i])
-        fn, fs = linear_law(radius[i] - d, v_n, v_t, wc_fs[k], w_kn[w], w_ks[w], cn, w_mu[w],
-                            allow_tension, dt)
-        wc_fs[k] = fs
-        wc_fn[k] = fn
-        wc_fx[k] = fn * nx - fs * ny
-        wc_fy[k] = fn * ny + fs * nx
+    if not active:
+        return 0.0, 0.0, 0.0, 0.0
+    cx, cy, where = closest_point(px, py, ax, ay, bx, by)
+    if where == 0 and one_sided:
+        ux = bx - ax
+        uy = by - ay
+        length = math.sqrt(ux * ux + uy * uy)
+        nx = -uy / length
+        ny = ux / length
+        d = (px - cx) * nx + (py - cy) * ny
+        existing = fn_old != 0.0 or fs_old != 0.0
+        if not (d < r and (d > 0.0 or existing)):
+            return 0.0, 0.0, 0.0, 0.0
+    else:
+        counts = where == 0 or (where == 1 and cap_a) or (where == 2 and cap_b)
+        dx = px - cx
+        dy = py - cy
+        d = math.sqrt(dx * dx + dy * dy)
+        if not (counts and 0.0 < d < r):
+            return 0.0, 0.0, 0.0, 0.0
+        nx = dx / d
+        ny = dy / d
+    # grain contact point velocity v + w x (-r n), relative to the wall's velocity
+    rvx = pvx + pomega * r * ny - w_vx
+    rvy = pvy - pomega * r * nx - w_vy
+    v_n = rvx * nx + rvy * ny
+    v_t = -rvx * ny + rvy * nx
+    cn = 2.0 * zeta * math.sqrt(w_kn * m)
+    fn, fs = linear_law(r - d, v_n, v_t, fs_old, w_kn, w_ks, cn, w_mu, allow_tension, dt)
+    return fn, fs, fn * nx - fs * ny, fn * ny + fs * nx

@@ -6,10 +6,9 @@ One step, in the order the code runs it (``Simulation.step``):
    reached a wall since the last build (see ``_list_expired``), or grains/walls changed;
 2. grain-grain contact forces (contact law on every candidate pair), summed per grain as they
    are computed (even strips of cell rows, then odd ones: race-free with threads);
-3. grain-wall contact forces;
-4. per grain: add its wall-contact forces to its sums, then integrate (leap-frog, gravity,
-   optional local damping); note the displacements;
-5. move the walls that have a velocity; advance the clock.
+3. per grain: its grain-wall contact forces, added to its sums, then integrate (leap-frog,
+   gravity, optional local damping); note the displacements;
+4. move the walls that have a velocity; advance the clock.
 
 Nothing else changes the state inside a step: measurements read the arrays between steps.
 """
@@ -18,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from silodem.engine.contact import GrainLaw, pair_forces, wall_forces
+from silodem.engine.contact import GrainLaw, pair_forces
 from silodem.engine.integrate import walls_and_leapfrog
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
@@ -89,14 +88,10 @@ class Simulation:
                             nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
                             p.fx, p.fy, p.torque, law.kn, law.ks, law.mu, law.zeta,
                             law.allow_tension, dt)
-        wall_forces.pick(n)(nb.wc_i, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
-                            p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass,
-                            w.ax, w.ay, w.bx, w.by, w.vx, w.vy, w.kn, w.ks, w.mu, w.active,
-                            w.cap_a, w.cap_b, w.one_sided, law.zeta, law.allow_tension, dt)
         max_d2, *self._spread = walls_and_leapfrog.pick(n)(
-            n, nb.w_start, nb.wc_fx, nb.wc_fy, nb.wc_fs,
+            n, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy, w.arrays(),
             p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius, p.mass,
-            p.x_ref, p.y_ref, self.gravity, law.local_damping, dt)
+            p.x_ref, p.y_ref, self.gravity, law.zeta, law.allow_tension, law.local_damping, dt)
         if not np.isfinite(max_d2):
             raise UnstableRunError(
                 f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "

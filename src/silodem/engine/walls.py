@@ -98,6 +98,12 @@ class Walls:
                             shared = True
                 (self.cap_a if which == 0 else self.cap_b)[w] = not shared
 
+    def arrays(self) -> tuple:
+        """The per-wall arrays in the order the contact kernels unpack them
+        (``contact.wall_contact``)."""
+        return (self.ax, self.ay, self.bx, self.by, self.vx, self.vy, self.kn, self.ks,
+                self.mu, self.active, self.cap_a, self.cap_b, self.one_sided)
+
     def advance(self, dt: float) -> float:
         """Move the walls by velocity*dt; return the largest displacement [m]."""
         if not np.any(self.vx) and not np.any(self.vy):
