@@ -318,7 +318,8 @@ class NeighborList:
         self._wall_stride = 2
         self._buf = np.zeros(0, dtype=INDEX)
 
-    # first grain of each candidate, expanded from the CSR starts on demand (measurements only)
+    # first grain of each candidate, expanded from the CSR starts on demand (measurements only;
+    # the step works from the CSR starts)
     @property
     def pair_i(self) -> np.ndarray:
         if self._pair_i is None:
@@ -424,8 +425,7 @@ class NeighborList:
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)
-        self._pair_i = None
-        self._wc_i = np.repeat(np.arange(n, dtype=INDEX), np.diff(w_start))
+        self._pair_i = self._wc_i = None  # expanded on demand (measurements only)
 
         slot = np.full(p.next_uid, -1, dtype=np.int64)
         slot[uid] = np.arange(n, dtype=np.int64)
