@@ -8,11 +8,13 @@ Velocities live at half steps: with the forces F(t) of positions x(t),
 
 F(t), M(t) are summed per grain in a fixed order: its grain-grain contacts by
 ``contact.pair_forces`` (see there), then its wall contacts here (``contact.wall_contact``, in
-candidate order), so a run has the same bits for any number of threads.  The wall contacts are
-computed in the same pass as the update, while the grain's state is in registers: a separate
-pass over the wall candidates would fetch the scattered grains next to the walls from memory
-once more (at 1e6 grains it cost 5 ns per grain and step, a fifth of the step).  The torque of a contact on each of its grains is -r * F_s (see
-``silodem.engine.contact``).
+candidate order), so a run has the same bits for any number of threads.  The torque of a
+contact on each of its grains is -r * F_s (see ``silodem.engine.contact``).
+
+The wall contacts are computed in the same pass as the update, while the grain's state is in
+registers: a separate pass over the wall candidates would fetch the grains next to the walls,
+scattered through the arrays, from memory once more (at 1e6 grains that cost 5 ns per grain
+and step, a fifth of the step).
 
 PFC local damping (Itasca PFC2D manual, "local damping"): with alpha > 0 each component of the
 unbalanced force (contacts + gravity) and of the moment is reduced by alpha*|F| in the direction
@@ -40,10 +42,10 @@ def walls_and_leapfrog(n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
     neighbour list, walls ``Walls.arrays()``, ``contact.wall_contact``) and add them to the
     sums of its grain-grain contacts (``fx, fy``, and in ``torque`` the sum of their shear
     forces, from ``contact.pair_forces``), store the totals (``torque``: -r * sum(F_s)),
-    advance the first ``n`` grains one step, and return the
-    displacements since the last neighbour-list build: (largest squared displacement [m^2]
-    (inf if a position is not finite), and the bounding box
-    min dx, max dx, min dy, max dy of the displacement vectors [m])."""
+    advance the first ``n`` grains one step, and return the displacements since the last
+    neighbour-list build: (largest squared displacement [m^2] (inf if a position is not
+    finite), and the bounding box min dx, max dx, min dy, max dy of the displacement
+    vectors [m])."""
     ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b, w_one_sided = walls
     chunk_max = np.zeros(_CHUNKS)
     box = np.zeros((_CHUNKS, 4))
