@@ -3,9 +3,11 @@ H/B given on the command line (docs/validation.md, section 5, fifth session).
 
     python docs/validation/orifice_stress.py 1      # H = B
     python docs/validation/orifice_stress.py 2      # H = 2 B
+    python docs/validation/orifice_stress.py 6 39.78   # H = 6 B in a silo of B = 39.78 d
 
 The silo, grains and re-insertion are those of ``silodem validate`` (``validate.beverloo``,
-D = 9 d, seed 1, 3 s of discharge).  From 0.5 s after the gate opens, at the end of every
+D = 9 d, seed 1, 3 s of discharge; B = 76.5 d, or the width B/d given as a second argument,
+e.g. 39.78 = 1.02 (D + 30 d), the narrowest the issue allows).  From 0.5 s after the gate opens, at the end of every
 check interval: the Love-Weber stress (``measure.stress``) of the grains whose centres lie in
 boxes of width D over the outlet (heights 0-D, D-2D, 2D-4D above the floor) and in a box of
 the same size in the corner next to the left wall, and the mean vertical pressure on the two
@@ -23,6 +25,9 @@ from silodem.silo.procedure import SiloRun
 from silodem.validate import beverloo as bev
 
 H_over_B = float(sys.argv[1])
+if len(sys.argv) > 2:  # another cell width: every width in validate.beverloo comes from here
+    B_over_d = float(sys.argv[2])
+    bev.cell_width = lambda D_over_d=None: B_over_d * bev.D_GRAIN
 cfg = bev.config(9.0, H_over_B, 3.0, seed=1)
 run = SiloRun(cfg)
 D, B, t = cfg.silo.outlet_width, cfg.silo.cell_width, cfg.material.thickness
