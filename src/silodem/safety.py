@@ -140,7 +140,7 @@ def energy_bound(run: SiloRun) -> float:
 def grain_kinetic_energies(run: SiloRun) -> np.ndarray:
     p = run.sim.particles
     v2 = p.view("vx") ** 2 + p.view("vy") ** 2
-    return 0.5 * p.view("mass") * v2 + 0.5 / p.view("inv_inertia") * p.view("omega") ** 2
+    return 0.5 * p.view("mass") * v2 + 0.5 * p.inertia() * p.view("omega") ** 2
 
 
 def grain_record(run: SiloRun, index: int) -> dict[str, Any]:

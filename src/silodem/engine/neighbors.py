@@ -286,6 +286,11 @@ def strip_sequence(n_strips: int) -> tuple[int, ...]:
     return tuple(int(s) for s in np.concatenate(seq))
 
 
+def _owners(start: np.ndarray) -> np.ndarray:
+    """The grain of each entry of a CSR list grouped by grain (``start``: first entries)."""
+    return np.repeat(np.arange(start.size - 1, dtype=INDEX), np.diff(start))
+
+
 class NeighborList:
     """Verlet list of grain-grain and grain-wall candidates, with their contact state.
 
@@ -323,8 +328,7 @@ class NeighborList:
     @property
     def pair_i(self) -> np.ndarray:
         if self._pair_i is None:
-            self._pair_i = np.repeat(np.arange(self.i_start.size - 1, dtype=INDEX),
-                                      np.diff(self.i_start))
+            self._pair_i = _owners(self.i_start)
         return self._pair_i
 
     @pair_i.setter
@@ -334,8 +338,7 @@ class NeighborList:
     @property
     def wc_i(self) -> np.ndarray:
         if self._wc_i is None:
-            self._wc_i = np.repeat(np.arange(self.w_start.size - 1, dtype=INDEX),
-                                    np.diff(self.w_start))
+            self._wc_i = _owners(self.w_start)
         return self._wc_i
 
     @wc_i.setter

@@ -15,7 +15,7 @@ import numpy as np
 from silodem.jit import kernel, prange
 
 _FLOAT_FIELDS = (
-    "x", "y", "vx", "vy", "omega", "radius", "mass", "inv_mass", "inv_inertia",
+    "x", "y", "vx", "vy", "omega", "radius", "mass", "inv_mass",
     "fx", "fy", "torque", "x_ref", "y_ref",
 )
 
@@ -73,7 +73,6 @@ class Particles:
         mass = density * np.pi * r**2 * thickness
         self.mass[s] = mass
         self.inv_mass[s] = 1.0 / mass
-        self.inv_inertia[s] = 2.0 / (mass * r**2)
         self.fx[s] = 0.0
         self.fy[s] = 0.0
         self.torque[s] = 0.0
@@ -115,8 +114,12 @@ class Particles:
         n = self.n
         m = self.mass[:n]
         v2 = self.vx[:n] ** 2 + self.vy[:n] ** 2
-        inertia = 1.0 / self.inv_inertia[:n]
-        return float(0.5 * np.sum(m * v2) + 0.5 * np.sum(inertia * self.omega[:n] ** 2))
+        return float(0.5 * np.sum(m * v2) + 0.5 * np.sum(self.inertia() * self.omega[:n] ** 2))
+
+    def inertia(self) -> np.ndarray:
+        """Moments of inertia of the live disks about their centres, m r^2 / 2 [kg m^2] (derived,
+        not stored: the step works it out from m and r)."""
+        return 0.5 * self.view("mass") * self.view("radius") ** 2
 
     def total_mass(self) -> float:
         return float(np.sum(self.mass[: self.n]))

@@ -172,9 +172,8 @@ class PairImpact:
 
 def _angular_momentum(p) -> float:
     n = p.n
-    inertia = 1.0 / p.inv_inertia[:n]
     return float(np.sum(p.mass[:n] * (p.x[:n] * p.vy[:n] - p.y[:n] * p.vx[:n])
-                        + inertia * p.omega[:n]))
+                        + p.inertia() * p.omega[:n]))
 
 
 def dem_pair_impact(r1: float, r2: float, v: float, w1: float, w2: float, e: float, mu: float,
