@@ -1,9 +1,9 @@
 """A DEM simulation: the state, the walls, the contact law and the one ordered timestep.
 
-One step, in the order the code runs it (``Simulation.step``):
+One step, in the order the code runs it (``Simulation.run``; ``step`` is ``run(1)``):
 
 1. rebuild the neighbour list if two grains may have closed in by ``skin`` or a grain may have
-   reached a wall since the last build (see ``_list_expired``), or grains/walls changed;
+   reached a wall since the last build (see ``list_expired``), or grains/walls changed;
 2. grain-grain contact forces (contact law on every candidate pair), summed per grain as they
    are computed (even strips of cell rows, then odd ones: race-free with threads);
 3. per grain: its grain-wall contact forces, added to its sums, then integrate (leap-frog,
@@ -15,6 +15,8 @@ Nothing else changes the state inside a step: measurements read the arrays betwe
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from silodem.engine.contact import GrainLaw, pair_forces
@@ -23,6 +25,7 @@ from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
 from silodem.errors import UnstableRunError
+from silodem.jit import njit
 
 
 class Simulation:
@@ -76,48 +79,118 @@ class Simulation:
 
     # --- the timestep ------------------------------------------------------------------------
     def step(self) -> None:
-        p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
-        if self._stale or self._list_expired():
-            for hook in self.before_rebuild:
-                hook(self)
-            nb.rebuild(p, w)
-            self._stale = False
-            self._wall_drift = 0.0
-        n = p.n
-        pair_forces.pick(n)(nb.strip_start, nb.strip_seq, nb.i_start, nb.pair_j, nb.pair_fs,
-                            nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
-                            p.fx, p.fy, p.torque, law.kn, law.ks, law.mu, law.zeta,
-                            law.allow_tension, dt)
-        max_d2, *self._spread = walls_and_leapfrog.pick(n)(
-            n, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy, w.arrays(),
-            p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius, p.mass,
-            p.x_ref, p.y_ref, self.gravity, law.zeta, law.allow_tension, law.local_damping, dt)
-        if not np.isfinite(max_d2):
-            raise UnstableRunError(
-                f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
-                "the run is unstable; reduce the time step"
-            )
-        self._drift = float(np.sqrt(max_d2))
-        self._wall_drift += w.advance(dt)
-        self.time += dt
-        self.steps += 1
-
-    def _list_expired(self) -> bool:
-        """Whether the Verlet list may miss a contact.
-
-        A pair (i, j) left out at the build was at least r_i + r_j + skin apart; it has closed
-        in by at most |D_i - D_j| (D = displacement since the build), which is at most
-        min(2 max|D|, diagonal of the bounding box of all D).  The second bound is the sharper
-        one when the grains move together (a falling column, a discharging bulk), and keeps the
-        list twice as long as the usual max|D| < skin/2 when part of the grains is at rest.
-        A grain-wall candidate is kept within r + skin, so a wall is safe while
-        max|D| + wall drift < skin."""
-        skin = self.neighbors.skin
-        lox, hix, loy, hiy = self._spread
-        diagonal = float(np.hypot(hix - lox, hiy - loy)) if hix >= lox else 0.0
-        return (min(2.0 * self._drift, diagonal) >= skin
-                or self._drift + self._wall_drift >= skin)
+        self.run(1)
 
     def run(self, n_steps: int) -> None:
-        for _ in range(int(n_steps)):
-            self.step()
+        """Advance ``n_steps`` timesteps (the order is in the module docstring).
+
+        Step 1 (the list) runs here; steps 2-4 run in ``serial_steps`` for as many steps as the
+        list stays valid when the serial kernels are the ones to use (small systems, one
+        thread: a compiled loop saves the Python dispatch of each step, most of a step's time
+        below a few thousand grains), and one step at a time with the threaded kernels
+        otherwise.  Both paths call the same kernels in the same order: the same bits."""
+        p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
+        left = int(n_steps)
+        walls_move = w.moving()
+        while left > 0:
+            if self._stale or self._list_expired():
+                for hook in self.before_rebuild:
+                    hook(self)
+                nb.rebuild(p, w)
+                self._stale = False
+                self._wall_drift = 0.0
+            n = p.n
+            serial = pair_forces.pick(n) is pair_forces.serial
+            max_steps = 1 if walls_move or not serial else left
+            done, time, max_d2, *self._spread = (serial_steps if serial else threaded_step)(
+                max_steps, nb.strip_start, nb.strip_seq, nb.i_start, nb.pair_j, nb.pair_fs,
+                nb.pair_fn, n, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
+                w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
+                p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks, law.mu, law.zeta,
+                law.allow_tension, law.local_damping, self.gravity, dt, nb.skin,
+                self._wall_drift, self.time)
+            self.steps += done
+            self.time = time
+            left -= done
+            if not np.isfinite(max_d2):
+                raise UnstableRunError(
+                    f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
+                    "the run is unstable; reduce the time step"
+                )
+            self._drift = float(np.sqrt(max_d2))
+            if walls_move:  # step 4, one step at a time
+                self._wall_drift += w.advance(dt)
+
+    def _list_expired(self) -> bool:
+        """Whether the Verlet list may miss a contact (``list_expired``)."""
+        return list_expired(self._drift, *self._spread, self._wall_drift, self.neighbors.skin)
+
+
+@njit
+def list_expired(drift, lox, hix, loy, hiy, wall_drift, skin):
+    """Whether the Verlet list may miss a contact, from the largest grain displacement since
+    the build ``drift`` [m], the bounding box of the displacement vectors, and how far the
+    walls moved [m].
+
+    A pair (i, j) left out at the build was at least r_i + r_j + skin apart; it has closed in
+    by at most |D_i - D_j| (D = displacement since the build), which is at most
+    min(2 max|D|, diagonal of the bounding box of all D).  The second bound is the sharper one
+    when the grains move together (a falling column, a discharging bulk), and keeps the list
+    twice as long as the usual max|D| < skin/2 when part of the grains is at rest.  A
+    grain-wall candidate is kept within r + skin, so a wall is safe while max|D| + wall drift
+    < skin."""
+    diagonal = math.hypot(hix - lox, hiy - loy) if hix >= lox else 0.0
+    return min(2.0 * drift, diagonal) >= skin or drift + wall_drift >= skin
+
+
+_pair_forces_serial = pair_forces.serial
+_walls_and_leapfrog_serial = walls_and_leapfrog.serial
+
+
+@njit
+def serial_steps(max_steps, strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
+                 n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+                 x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
+                 kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
+                 wall_drift, time):
+    """Steps 2 and 3 with the serial kernels, repeated up to ``max_steps`` times and until the
+    neighbour list expires (``list_expired``) or a position is not finite.  Returns the steps
+    done, the clock [s] after them, the largest squared displacement since the build [m^2]
+    (not finite: the last step attempted was unstable and is not counted) and the bounding
+    box of the displacements [m]."""
+    done = 0
+    max_d2 = lox = hix = loy = hiy = 0.0
+    while done < max_steps:
+        _pair_forces_serial(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
+                            x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
+                            kn, ks, mu, zeta, allow_tension, dt)
+        max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_serial(
+            n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega,
+            fx, fy, torque, radius, mass, x_ref, y_ref, gravity, zeta, allow_tension,
+            local_damping, dt)
+        if not np.isfinite(max_d2):
+            break
+        done += 1
+        time += dt
+        if list_expired(math.sqrt(max_d2), lox, hix, loy, hiy, wall_drift, skin):
+            break
+    return done, time, max_d2, lox, hix, loy, hiy
+
+
+def threaded_step(max_steps, strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
+                  n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+                  x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
+                  kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
+                  wall_drift, time):
+    """Steps 2 and 3 once, with the threaded kernels; the arguments and results of
+    ``serial_steps`` (``max_steps`` is 1)."""
+    pair_forces.parallel(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
+                         x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
+                         kn, ks, mu, zeta, allow_tension, dt)
+    max_d2, lox, hix, loy, hiy = walls_and_leapfrog.parallel(
+        n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega,
+        fx, fy, torque, radius, mass, x_ref, y_ref, gravity, zeta, allow_tension,
+        local_damping, dt)
+    if not np.isfinite(max_d2):
+        return 0, time, max_d2, lox, hix, loy, hiy
+    return 1, time + dt, max_d2, lox, hix, loy, hiy

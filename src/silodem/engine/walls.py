@@ -104,9 +104,13 @@ class Walls:
         return (self.ax, self.ay, self.bx, self.by, self.vx, self.vy, self.kn, self.ks,
                 self.mu, self.active, self.cap_a, self.cap_b, self.one_sided)
 
+    def moving(self) -> bool:
+        """Whether a wall has a velocity."""
+        return bool(np.any(self.vx) or np.any(self.vy))
+
     def advance(self, dt: float) -> float:
         """Move the walls by velocity*dt; return the largest displacement [m]."""
-        if not np.any(self.vx) and not np.any(self.vy):
+        if not self.moving():
             return 0.0
         dx, dy = self.vx * dt, self.vy * dt
         self.ax += dx

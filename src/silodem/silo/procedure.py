@@ -214,10 +214,14 @@ class SiloRun:
         if self.state.phase == "discharge":
             self._remove_discharged()
         self._remove_escaped()
-        for _ in range(n_steps):
-            sim.step()
-            for rec in self.recorders:
-                if sim.steps % rec.every_steps(self.dt) == 0:
+        every = [rec.every_steps(self.dt) for rec in self.recorders]
+        end = sim.steps + n_steps
+        while sim.steps < end:
+            # up to the next step at which a recorder samples (a multiple of its interval)
+            due = min([end] + [(sim.steps // e + 1) * e for e in every])
+            sim.run(due - sim.steps)
+            for rec, e in zip(self.recorders, every):
+                if sim.steps % e == 0:
                     rec.record(self)
         self._report()
 
