@@ -94,10 +94,8 @@ def test_touching_contacts_equal_brute_force_over_many_steps():
     sim = Simulation(p, _box(size), law(1e5, zeta=0.1, tension=True), dt=2e-4, gravity=9.81,
                      skin=0.02)
     checked = 0
-    for step in range(3000):
-        sim.step()
-        if step % 25:
-            continue
+    for _ in range(120):
+        sim.run(25)  # in one call: the compiled loop must stop for every rebuild
         nb = sim.neighbors
         # forces of this step were computed at the positions before the integration: undo it
         x = p.view("x") - p.view("vx") * sim.dt
@@ -108,6 +106,28 @@ def test_touching_contacts_equal_brute_force_over_many_steps():
         assert set(uid[nb.wc_i[nb.wc_fn != 0.0]]) == set(uid[gap < 0.0])
         checked += 1
     assert sim.neighbors.rebuilds > 10 and checked == 120
+
+
+def test_many_steps_in_one_call_equal_the_steps_one_by_one():
+    """``run(n)`` repeats the force and integration kernels in a compiled loop until the list
+    expires; ``step()`` returns to Python after each step, which decides on the rebuild.  Both
+    must rebuild at the same steps and end with the same bits."""
+    def make():
+        rng = np.random.default_rng(11)
+        xs, ys = np.meshgrid(np.linspace(0.2, 2.8, 12), np.linspace(0.2, 2.8, 12))
+        p = Particles(8)
+        p.add(xs.ravel(), ys.ravel(), rng.uniform(0.06, 0.1, xs.size), 1000.0,
+              vx=rng.uniform(-2, 2, xs.size), vy=rng.uniform(-2, 2, xs.size))
+        return Simulation(p, _box(3.0), law(1e5, mu=0.5, zeta=0.2), dt=2e-4, skin=0.02)
+
+    a, b = make(), make()
+    a.run(2000)
+    for _ in range(2000):
+        b.step()
+    assert a.steps == b.steps == 2000 and a.time == b.time
+    assert a.neighbors.rebuilds == b.neighbors.rebuilds > 20
+    for name in ("x", "y", "vx", "vy", "omega"):
+        assert np.array_equal(a.particles.view(name), b.particles.view(name))
 
 
 def test_contact_history_survives_rebuilds():
