@@ -84,11 +84,12 @@ class Simulation:
     def run(self, n_steps: int) -> None:
         """Advance ``n_steps`` timesteps (the order is in the module docstring).
 
-        Step 1 (the list) runs here; steps 2-4 run in ``serial_steps`` for as many steps as the
-        list stays valid when the serial kernels are the ones to use (small systems, one
-        thread: a compiled loop saves the Python dispatch of each step, most of a step's time
-        below a few thousand grains), and one step at a time with the threaded kernels
-        otherwise.  Both paths call the same kernels in the same order: the same bits."""
+        Steps 1 (the list) and 4 (walls) run here; steps 2-3 run in ``serial_steps`` for as
+        many steps as the list stays valid when the serial kernels are the ones to use (small
+        systems, one thread: a compiled loop saves the Python dispatch of each step, a tenth
+        of a step below about 1e4 grains), and one step at a time with the threaded kernels
+        (``threaded_step``) or while a wall moves.  Both paths call the same kernels in the
+        same order: the same bits."""
         p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
         left = int(n_steps)
         walls_move = w.moving()
