@@ -60,10 +60,7 @@ def sample(r: SiloRun) -> None:
 
 run.chunk_hooks.append(sample)
 run.run()
-ts = run.series.as_arrays()
-sel = ts["phase"] == 2
-t0 = float(run.events["discharge_start_time"])
-rate = bev.steady_rate(ts["time"][sel] - t0, ts["discharged_mass"][sel], lo=0.2, hi=0.95)
+rate = bev.rate_of(*bev.discharge_curve(run))
 out = {"H/B": H_over_B, "rate kg/s": rate.rate, "err": rate.err, "samples": len(samples),
        "floor pressure": float(np.mean([s["floor"] for s in samples]))}
 for name in BOXES:

@@ -113,15 +113,26 @@ def max_time(D_over_d: float) -> float:
     return float(np.clip(6.0 * (6.0 / D_over_d) ** 1.5, 1.5, 6.0))
 
 
+def discharge_curve(run: SiloRun) -> tuple[np.ndarray, np.ndarray]:
+    """Time since the gate opened [s] and discharged mass [kg], over the discharge phase."""
+    ts = run.series.as_arrays()
+    sel = ts["phase"] == 2
+    t0 = float(run.events["discharge_start_time"])
+    return ts["time"][sel] - t0, ts["discharged_mass"][sel]
+
+
+def rate_of(t: np.ndarray, m: np.ndarray):
+    """The steady rate of a discharge curve: the slope from 20 % to 95 % of the mass that left
+    (``measure.discharge.steady_rate``; ``.rate``, ``.err`` in kg/s)."""
+    return steady_rate(t, m, lo=0.2, hi=0.95)
+
+
 def discharge(D_over_d: float, H_over_B: float = FILL, seed: int = 1) -> Discharge:
     cfg = config(D_over_d, H_over_B, max_time(D_over_d), seed)
     run = SiloRun(cfg)
     run.run()
-    ts = run.series.as_arrays()
-    sel = ts["phase"] == 2
-    t0 = float(run.events["discharge_start_time"])
-    t, m = ts["time"][sel] - t0, ts["discharged_mass"][sel]
-    r = steady_rate(t, m, lo=0.2, hi=0.95)
+    t, m = discharge_curve(run)
+    r = rate_of(t, m)
     snap = run.snapshots["settled"].particles
     d = D_GRAIN
     level = float(run.events["fill_level"])
