@@ -16,6 +16,11 @@ It is built to match ``benchmarks/lammps-silo2d.in`` (a copy of the project's re
   then STEPS timed steps.
 
 Throughput is reported as particle-steps per second: N * STEPS / (wall time of the timed steps).
+
+The grains are disks of unit thickness (mass 835 pi r^2).  The deck's ``set density 835``
+gives LAMMPS's grains the mass of spheres in 2D (835 * 4/3 pi r^3, 7.5 times lighter), so its
+grains rebound with e ~ 0.8; the work per step, which is what is compared, is about the same
+(docs/performance.md, "Method").
 """
 
 from __future__ import annotations
