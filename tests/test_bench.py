@@ -73,28 +73,3 @@ def test_side_by_side_copies_do_the_same_work():
         assert np.count_nonzero(in_copy) == n  # no grain crossed into another silo
         assert np.sort(three.particles.view("y")[in_copy]) == pytest.approx(y1, abs=1e-6)
 
-
-def test_reentry_never_lands_a_grain_on_another():
-    """A grain below the periodic boundary moves up by top - Y_BOTTOM unless that place
-    overlaps a grain at the top (LAMMPS's grains would have touched across the boundary): then
-    it stays below.  Three grains below: one under a free place, one under a grain at the
-    top, one under the place the first has just taken."""
-    from silodem.bench import Y_BOTTOM, build, reenter
-
-    sim, _, top = build(4, 8)
-    p = sim.particles
-    shift = top - Y_BOTTOM
-    r = 0.1
-    sim.particles.keep(np.zeros(p.n, dtype=bool))
-    p.add(np.array([1.0, 1.0, 2.0, 2.05]),
-          np.array([top - 0.5, Y_BOTTOM - 0.45, Y_BOTTOM - 0.3, Y_BOTTOM - 0.2]), r, 835.0)
-    y_before = p.view("y").copy()
-    assert reenter(sim, top) == 1
-    y = p.view("y")
-    # grain 1 would land 0.05 m under grain 0 (centres 2 r apart needed): stays
-    assert y[1] == y_before[1]
-    # grain 2 has a free place: moved by exactly the period
-    assert y[2] == pytest.approx(y_before[2] + shift, abs=1e-12)
-    # grain 3 would land 0.112 m from grain 2's new centre (< 2 r): stays
-    assert y[3] == y_before[3]
-    assert y[0] == y_before[0]

@@ -1,11 +1,8 @@
 """The fill-height dependence of the discharge rate in silodem and in LAMMPS, on the same silo
 with the same contact law (docs/validation.md, section 5, seventh session).
 
-    python docs/validation/lammps_fill_height.py [NY ...] [--seeds S ...] [--equal]
+    python docs/validation/lammps_fill_height.py [NY ...] [--seeds S ...]
                                              # default: NY = 40 80 160, seed 12345
-
-``--equal``: every grain of diameter 0.2 m (26.2 kg) in both codes, so that the two ways of
-scaling the damping with the masses (below) give the same dashpots.
 
 The silo is the one of ``silodem bench`` and its LAMMPS deck (``benchmarks/lammps-silo2d.in``):
 paper case 2 (k_n = k_s = 5e6 N/m, grain friction tan 25 deg, wall friction tan 24 deg,
@@ -49,11 +46,11 @@ SAMPLE = 1000  # steps between samples (0.2 s)
 WALL_GAMMA = 2 * 0.2155 * (5.0e6 / 26.2) ** 0.5
 
 
-def lammps_deck(seed: int, equal: bool = False) -> str:
+def lammps_deck(seed: int) -> str:
     """The benchmark deck with the shear dashpot off, disk masses, the wall damping of
     silodem, the diameters drawn with ``seed`` and a running count of the wraps."""
     deck = bench.deck_path().read_text()
-    deck = deck.replace("random(0,1,12345)", "0.5" if equal else f"random(0,1,{seed})")
+    deck = deck.replace("random(0,1,12345)", f"random(0,1,{seed})")
     deck = deck.replace("267.0 NULL 0.466 1", "267.0 0.0 0.466 0")
     deck = deck.replace("267.0 NULL 0.445 1", f"{WALL_GAMMA:.1f} 0.0 0.445 0")
     deck = deck.replace("set             group all density 835",
@@ -64,9 +61,9 @@ def lammps_deck(seed: int, equal: bool = False) -> str:
     return re.sub(r"^thermo\s+\d+", f"thermo          {SAMPLE}", deck, flags=re.MULTILINE)
 
 
-def run_lammps(ny: int, seed: int, equal: bool) -> subprocess.Popen:
+def run_lammps(ny: int, seed: int) -> subprocess.Popen:
     tmp = Path(tempfile.mkdtemp())
-    (tmp / "deck.in").write_text(lammps_deck(seed, equal))
+    (tmp / "deck.in").write_text(lammps_deck(seed))
     steps = round(SECONDS / bench.DT)
     return subprocess.Popen(
         ["lmp", "-in", "deck.in", "-var", "NX", str(NX), "-var", "NY", str(ny), "-var",
@@ -87,14 +84,9 @@ def lammps_counts(proc: subprocess.Popen) -> tuple[np.ndarray, np.ndarray, int]:
     return t, c - c[0], n
 
 
-def silodem_counts(ny: int, seed: int, equal: bool) -> tuple[np.ndarray, np.ndarray, int]:
+def silodem_counts(ny: int, seed: int) -> tuple[np.ndarray, np.ndarray, int]:
     numba.set_num_threads(1)
     sim, _, top = bench.build(NX, ny, seed=seed)
-    if equal:  # as Particles.add sets them, for d = 0.2 m
-        p = sim.particles
-        p.view("radius")[:] = 0.1
-        p.view("mass")[:] = 835.0 * np.pi * 0.1**2
-        p.view("inv_mass")[:] = 1.0 / p.view("mass")
     # LAMMPS's gran/hooke/history keeps the damped normal force when it pulls
     sim.law = dataclasses.replace(sim.law, allow_tension=True)
     passed = [0]
@@ -118,16 +110,13 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("ny", nargs="*", type=int, default=[40, 80, 160])
     ap.add_argument("--seeds", nargs="+", type=int, default=[12345])
-    ap.add_argument("--equal", action="store_true", help="all grains 0.2 m across")
     args = ap.parse_args()
     for ny, seed in itertools.product(args.ny, args.seeds):
-        proc = run_lammps(ny, seed, args.equal)  # on the other core while silodem runs here
-        results = {"silodem": silodem_counts(ny, seed, args.equal),
-                   "lammps": lammps_counts(proc)}
+        proc = run_lammps(ny, seed)  # on the other core while silodem runs here
+        results = {"silodem": silodem_counts(ny, seed), "lammps": lammps_counts(proc)}
         for code, (t, c, n) in results.items():
             r = steady_rate(t, c, lo=0.1, hi=1.0)
-            print(json.dumps({"code": code, "NX": NX, "NY": ny, "seed": seed,
-                              "equal": args.equal, "n": n,
+            print(json.dumps({"code": code, "NX": NX, "NY": ny, "seed": seed, "n": n,
                               "grains_per_s": round(r.rate, 3), "err": round(r.err, 3),
                               "passed": int(c[-1]), "seconds": SECONDS}), flush=True)
 
