@@ -72,4 +72,3 @@ def test_side_by_side_copies_do_the_same_work():
         in_copy = (three.particles.view("x") // width) == c
         assert np.count_nonzero(in_copy) == n  # no grain crossed into another silo
         assert np.sort(three.particles.view("y")[in_copy]) == pytest.approx(y1, abs=1e-6)
-
