@@ -42,19 +42,28 @@ SECONDS = 30.0  # of steady discharge measured
 SAMPLE = 1000  # steps between samples (0.2 s)
 # LAMMPS damps a contact with m_eff gamma_n v_n, silodem with 2 zeta sqrt(k m_eff) v_n: the same
 # for two 26.2 kg disks at gamma_n = 267 1/s (the deck's value), and for a disk on a wall
-# (m_eff = m) at gamma_n = 2 zeta sqrt(k / m) = 188 1/s
+# (m_eff = m) at gamma_n = 2 zeta sqrt(k / m) = 188 1/s (zeta = 0.2155 for e = 0.5,
+# contact.damping_ratio_from_restitution; m = 26.2 kg for d = 0.2 m)
 WALL_GAMMA = 2 * 0.2155 * (5.0e6 / 26.2) ** 0.5
+
+
+def _swap(deck: str, old: str, new: str) -> str:
+    """``deck`` with ``old`` replaced; an error if the deck no longer holds ``old`` (a silent
+    no-op would compare the two codes on different laws)."""
+    if old not in deck:
+        raise ValueError(f"the benchmark deck has no {old!r}")
+    return deck.replace(old, new)
 
 
 def lammps_deck(seed: int) -> str:
     """The benchmark deck with the shear dashpot off, disk masses, the wall damping of
     silodem, the diameters drawn with ``seed`` and a running count of the wraps."""
     deck = bench.deck_path().read_text()
-    deck = deck.replace("random(0,1,12345)", f"random(0,1,{seed})")
-    deck = deck.replace("267.0 NULL 0.466 1", "267.0 0.0 0.466 0")
-    deck = deck.replace("267.0 NULL 0.445 1", f"{WALL_GAMMA:.1f} 0.0 0.445 0")
-    deck = deck.replace("set             group all density 835",
-                        "set             group all density/disc 835")
+    deck = _swap(deck, "random(0,1,12345)", f"random(0,1,{seed})")
+    deck = _swap(deck, "267.0 NULL 0.466 1", "267.0 0.0 0.466 0")
+    deck = _swap(deck, "267.0 NULL 0.445 1", f"{WALL_GAMMA:.1f} 0.0 0.445 0")
+    deck = _swap(deck, "set             group all density 835",
+                 "set             group all density/disc 835")
     deck = re.sub(r"^thermo_style.*$", "compute im all property/atom iy\n"
                   "compute wraps all reduce sum c_im\n"
                   "thermo_style    custom step c_wraps", deck, flags=re.MULTILINE)
