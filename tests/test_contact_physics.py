@@ -106,3 +106,51 @@ def test_damping_ratio_inverts_restitution():
     for e in (0.1, 0.3, 0.7, 0.99):
         zeta = damping_ratio_from_restitution(e)
         assert math.exp(-zeta * math.pi / math.sqrt(1 - zeta**2)) == pytest.approx(e, rel=1e-12)
+
+
+def _block_walls(k: float, thickness: float = 0.2) -> Walls:
+    """The left floor piece of the benchmark's outlet: a block x < 0, -thickness < y < 0 drawn
+    as its top face and its outlet-side face, joined at the convex corner (0, 0)."""
+    w = Walls()
+    w.add("floor", (-5.0, 0.0), (0.0, 0.0), k, k, 0.3, one_sided=True)
+    w.add("slot", (0.0, 0.0), (0.0, -thickness), k, k, 0.3, one_sided=True)
+    return w
+
+
+def _nearest_on_block(px: float, py: float, thickness: float = 0.2) -> tuple[float, float]:
+    """Nearest point of the block's surface to an outside point (clamping to the box)."""
+    return min(max(px, -5.0), 0.0), min(max(py, -thickness), 0.0)
+
+
+@pytest.mark.parametrize("angle", np.linspace(-60.0, 150.0, 15))
+@pytest.mark.parametrize("depth", [0.02, 0.3])
+def test_convex_corner_pushes_as_the_nearest_point_of_the_block(angle, depth):
+    """A grain at rest around the edge of a thick floor (floor face, corner wedge, outlet
+    face) feels one contact, k (r - dist) along the normal from the block's nearest point,
+    whichever of the two segments carries it: no gap at the corner, no double count."""
+    r, k = 0.1, 1e5
+    dist = r * (1.0 - depth)
+    a = math.radians(angle)
+    # centre at distance ``dist`` from the block: around the corner for 0-90 degrees, over the
+    # floor face beyond 90, beside the outlet face below 0
+    cx, cy = _corner_offset(a, dist)
+    qx, qy = _nearest_on_block(cx, cy)
+    d = math.hypot(cx - qx, cy - qy)
+    assert d == pytest.approx(dist, rel=1e-12)
+    p = Particles(1)
+    p.add(cx, cy, r, 1000.0)
+    sim = Simulation(p, _block_walls(k), law(k), dt=1e-6, gravity=0.0, skin=0.01)
+    sim.step()
+    f = k * (r - d)
+    assert p.fx[0] == pytest.approx(f * (cx - qx) / d, abs=1e-9 * f)
+    assert p.fy[0] == pytest.approx(f * (cy - qy) / d, abs=1e-9 * f)
+
+
+def _corner_offset(a: float, dist: float) -> tuple[float, float]:
+    """A point at distance ``dist`` outside the block, parametrised by ``a``: the corner wedge
+    for 0 <= a <= 90 deg, the floor face (x < 0) above 90, the outlet face (y < 0) below 0."""
+    if a > math.pi / 2:
+        return -dist * (a - math.pi / 2), dist
+    if a < 0.0:
+        return dist, dist * a
+    return dist * math.cos(a), dist * math.sin(a)

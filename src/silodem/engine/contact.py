@@ -210,12 +210,14 @@ def closest_point(px, py, ax, ay, bx, by):
 
 @numba.njit(inline="always", cache=True)
 def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu,
-                 active, cap_a, cap_b, one_sided, fs_old, fn_old, zeta, allow_tension, dt):
+                 active, cap_a, cap_b, gax, gay, gbx, gby, one_sided, fs_old, fn_old, zeta,
+                 allow_tension, dt):
     """One grain-wall candidate from scalars: the grain at (px, py) [m] with velocity
     (pvx, pvy) [m/s], spin ``pomega`` [rad/s], radius ``r`` [m] and mass ``m`` [kg]; the wall
     from (ax, ay) to (bx, by) [m] with its velocity, stiffnesses, friction and flags (one
     entry of each ``Walls.arrays()``); the candidate's shear and normal force of the last step
     [N].  Returns (F_n, F_s, force on the grain x, y) [N], all zero when they do not touch.
+    ``gax, gay`` / ``gbx, gby``: the guards of the caps at A / B (``Walls.guard``).
     Scalars only, no arrays: numba then keeps no reference counts in the caller's loop.
 
     n points from the closest point of the wall to the grain's centre.  One-sided walls: a
@@ -237,9 +239,12 @@ def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_k
         if not (d < r and (d > 0.0 or existing)):
             return 0.0, 0.0, 0.0, 0.0
     else:
-        counts = where == 0 or (where == 1 and cap_a) or (where == 2 and cap_b)
         dx = px - cx
         dy = py - cy
+        # an end counts where it is capped, at a convex corner only in the wedge its guard
+        # (g*) leaves (walls.py)
+        counts = (where == 0 or (where == 1 and cap_a and dx * gax + dy * gay <= 0.0)
+                  or (where == 2 and cap_b and dx * gbx + dy * gby <= 0.0))
         d = math.sqrt(dx * dx + dy * dy)
         if not (counts and 0.0 < d < r):
             return 0.0, 0.0, 0.0, 0.0

@@ -46,7 +46,8 @@ def walls_and_leapfrog(n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
     neighbour-list build: (largest squared displacement [m^2] (inf if a position is not
     finite), and the bounding box min dx, max dx, min dy, max dy of the displacement
     vectors [m])."""
-    ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b, w_one_sided = walls
+    (ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b, w_guard,
+     w_one_sided) = walls
     chunk_max = np.zeros(_CHUNKS)
     box = np.zeros((_CHUNKS, 4))
     size = (n + _CHUNKS - 1) // _CHUNKS
@@ -71,7 +72,8 @@ def walls_and_leapfrog(n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                     fn, fs, fwx, fwy = wall_contact(
                         x[p], y[p], vx[p], vy[p], omega[p], r, m, ax[w], ay[w], bx[w], by[w],
                         w_vx[w], w_vy[w], w_kn[w], w_ks[w], w_mu[w], w_active[w], w_cap_a[w],
-                        w_cap_b[w], w_one_sided[w], wc_fs[k], wc_fn[k], zeta, allow_tension, dt)
+                        w_cap_b[w], w_guard[w, 0], w_guard[w, 1], w_guard[w, 2], w_guard[w, 3],
+                        w_one_sided[w], wc_fs[k], wc_fn[k], zeta, allow_tension, dt)
                     wc_fs[k] = fs
                     wc_fn[k] = fn
                     wc_fx[k] = fwx

@@ -1,10 +1,15 @@
 """Walls: straight segments A-B in 2D, each with its own contact stiffness and friction.
 
 A grain touches a wall at the point of the segment closest to its centre.  An end point of a
-segment acts as a contact point (a "cap") only when it is free; where two active segments
-share an end point, the end is not capped, so that a grain sitting on the joint of two
-collinear segments (a flat floor and its gate) is not counted twice.  For the convex
-containers of a silo the faces of the two segments cover every grain near such a joint.
+segment acts as a contact point (a "cap") where it is free.  Where two active segments share
+an end point P, the faces of the two cover every grain near a straight joint (a flat floor and
+its gate) or a concave one (the corners of a convex container), and P is not capped, so that
+no grain is counted twice.  A convex corner (the edge of a thick floor at an outlet, as in the
+benchmark's silo) leaves a wedge that neither face covers: the grains whose closest point is P
+on both segments.  There the segment added first is capped at P with a *guard*, the unit
+direction of the other segment from P, and its cap counts only for grains with
+(centre - P) . guard <= 0, i.e. in that wedge: one contact at P, as the nearest point of a
+polygon gives (LAMMPS's wall/gran/region on a block; docs/validation.md, section 5).
 
 Walls are never deleted, only deactivated (the gate under the outlet is withdrawn that way),
 so a wall's index is permanent and contact history can be keyed on it.  A wall may translate
@@ -37,6 +42,8 @@ class Walls:
         self.active = np.zeros(0, dtype=np.bool_)
         self.cap_a = np.zeros(0, dtype=np.bool_)
         self.cap_b = np.zeros(0, dtype=np.bool_)
+        # per wall: the guards of ends a (columns 0, 1) and b (2, 3); zero for a free end
+        self.guard = np.zeros((0, 4))
         self.one_sided = np.zeros(0, dtype=np.bool_)
 
     def __len__(self) -> int:
@@ -70,6 +77,7 @@ class Walls:
         self.active = np.append(self.active, True)
         self.cap_a = np.append(self.cap_a, True)
         self.cap_b = np.append(self.cap_b, True)
+        self.guard = np.vstack([self.guard, np.zeros((1, 4))])
         self.one_sided = np.append(self.one_sided, bool(one_sided))
         self.update_caps()
         return len(self.names) - 1
@@ -85,24 +93,52 @@ class Walls:
         self.update_caps()
 
     def update_caps(self) -> None:
-        """An end point is a contact point only if no other active wall ends there."""
-        ends = [(self.ax, self.ay), (self.bx, self.by)]
+        """Cap the free ends and, at a convex corner of two segments, the first one's end with
+        a guard (module docstring); leave straight and concave joints uncapped."""
+        self.cap_a[:] = False
+        self.cap_b[:] = False
+        self.guard[:] = 0.0
         for w in range(len(self)):
-            for which, (ex, ey) in enumerate(ends):
-                shared = False
-                for v in range(len(self)):
-                    if v == w or not self.active[v]:
-                        continue
-                    for ox, oy in ends:
-                        if abs(ox[v] - ex[w]) < _JOIN_TOL and abs(oy[v] - ey[w]) < _JOIN_TOL:
-                            shared = True
-                (self.cap_a if which == 0 else self.cap_b)[w] = not shared
+            for which in (0, 1):
+                if not self.active[w]:
+                    continue
+                end = self._end(w, which)
+                joined = [(v, e) for v in range(len(self)) if v != w and self.active[v]
+                          for e in (0, 1) if np.hypot(*(self._end(v, e) - end)) < _JOIN_TOL]
+                cap = not joined
+                if len(joined) == 1 and joined[0][0] > w:
+                    into_w = self._end(w, 1 - which) - end
+                    into_v = self._end(*(joined[0][0], 1 - joined[0][1])) - end
+                    into_w /= np.hypot(*into_w)
+                    into_v /= np.hypot(*into_v)
+                    if self._convex(w, into_w, into_v) and self._convex(
+                            joined[0][0], into_v, into_w):
+                        cap = True
+                        self.guard[w, 2 * which:2 * which + 2] = into_v
+                (self.cap_a if which == 0 else self.cap_b)[w] = cap
+
+    def _end(self, w: int, which: int) -> np.ndarray:
+        """End a (which = 0) or b (1) of wall w [m]."""
+        return (np.array([self.ax[w], self.ay[w]]) if which == 0
+                else np.array([self.bx[w], self.by[w]]))
+
+    def _convex(self, w: int, into_w: np.ndarray, into_v: np.ndarray) -> bool:
+        """Whether the wedge beyond both segments at their joint lies on wall w's grain side:
+        not a straight joint, and for a one-sided wall its centre direction -(into_w + into_v)
+        points to the inside (the left of a -> b)."""
+        mid = -(into_w + into_v)
+        if np.hypot(*mid) < 1e-9:  # straight joint
+            return False
+        if not self.one_sided[w]:
+            return True
+        ux, uy = self.bx[w] - self.ax[w], self.by[w] - self.ay[w]
+        return float(mid[0] * -uy + mid[1] * ux) > 0.0
 
     def arrays(self) -> tuple:
         """The per-wall arrays in the order the contact kernels unpack them
         (``contact.wall_contact``)."""
         return (self.ax, self.ay, self.bx, self.by, self.vx, self.vy, self.kn, self.ks,
-                self.mu, self.active, self.cap_a, self.cap_b, self.one_sided)
+                self.mu, self.active, self.cap_a, self.cap_b, self.guard, self.one_sided)
 
     def moving(self) -> bool:
         """Whether a wall has a velocity."""
