@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
 
@@ -72,6 +73,26 @@ def test_quick_validation_uses_the_stated_tolerances(quick_run):
     # every sliding angle of test 4 from 30 to 85 deg is checked
     angles = {int(c.split("angle ")[1].split(" ")[0]) for c in cases if "angle " in c}
     assert set(range(30, 90, 5)) <= angles
+
+
+@pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
+def test_quick_validation_follows_lammps_grain_by_grain(quick_run):
+    records = [r for r in json.loads(quick_run[0].stdout)
+               if r["case"].startswith("LAMMPS trajectories")]
+    assert len(records) == 2
+    assert {(r["tolerance_kind"], r["tolerance"]) for r in records} == {("abs", 1e-6)}
+    assert all(r["pass"] for r in records)
+
+
+@pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
+def test_lammps_comparison_sees_a_difference_of_law():
+    """The check has teeth: with tension allowed LAMMPS keeps a Coulomb cap of mu |F_n| while
+    the damped normal force pulls, silodem a cap of 0, and the colliding cloud parts by far
+    more than the tolerance within the first collisions (500 steps)."""
+    from silodem.validate.lammps import TOLERANCE, cloud, divergence
+
+    dev = divergence(cloud(60, 0.3), 500, 500, tension=True)
+    assert dev[-1] > 100 * TOLERANCE
 
 
 def test_validate_refuses_an_out_that_is_a_file(tmp_path):

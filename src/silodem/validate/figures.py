@@ -261,3 +261,23 @@ def beverloo(data, path: Path) -> Path:
     ax[2].legend(fontsize=7)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def lammps(data, path: Path) -> Path:
+    """The largest position difference between silodem and LAMMPS against the step."""
+    from silodem.validate.lammps import TOLERANCE
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for k, (name, (steps, dev, checked)) in enumerate(data.items()):
+        ax.semilogy(steps[1:], np.maximum(dev[1:], 1e-17), color=f"C{k}", label=name)
+        ax.axvline(checked, color=f"C{k}", lw=0.8, ls=":")
+    ax.axhline(TOLERANCE, color="k", lw=0.8, ls="--", label="tolerance")
+    if not data:
+        ax.text(0.5, 0.5, "LAMMPS (lmp) not installed: not compared", ha="center",
+                transform=ax.transAxes)
+    ax.set(xlabel="step (dt = 2e-4 s)", ylabel="largest position difference [m]",
+           title="silodem against LAMMPS, grain by grain")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)

@@ -6,10 +6,12 @@ Families (one module each; a family returns its records and the data of its figu
               (Chung & Ooi tests 1-3; Schwager & Poeschel 2007), with the order of convergence;
 * chung_ooi  Chung & Ooi (2011) tests 4-8 adapted to disks, against rigid-body theory;
 * statics    a settled column: floor + walls carry the weight;
+* lammps     grain-by-grain trajectories against LAMMPS on the benchmark's outlet (when ``lmp``
+              is installed);
 * janssen    a tall flat-bottomed slot silo against the 2D Janssen solution   (full mode only);
 * beverloo   steady discharge rates against the 2D Beverloo law                (full mode only).
 
-``--quick`` runs the first three (the particle-impact level and one small packing), the subset
+``--quick`` runs the first four (the particle-impact level, one small packing, LAMMPS), the subset
 CI runs; the full mode adds the silo-scale cases.
 """
 
@@ -35,13 +37,14 @@ class Family:
 
 
 def families() -> list[Family]:
-    from silodem.validate import beverloo, chung_ooi, figures, impacts, janssen, statics
+    from silodem.validate import beverloo, chung_ooi, figures, impacts, janssen, lammps, statics
 
     return [
         Family("impacts", "linear normal impacts", True, impacts.run, figures.impacts),
         Family("chung_ooi", "Chung & Ooi tests 4-8 (disks)", True, chung_ooi.run,
                figures.chung_ooi),
         Family("statics", "settled column", True, statics.run, figures.statics),
+        Family("lammps", "trajectories against LAMMPS", True, lammps.run, figures.lammps),
         Family("janssen", "Janssen slot silo", False, janssen.run, figures.janssen),
         Family("beverloo", "Beverloo discharge", False, beverloo.run, figures.beverloo),
     ]
