@@ -108,12 +108,14 @@ def test_damping_ratio_inverts_restitution():
         assert math.exp(-zeta * math.pi / math.sqrt(1 - zeta**2)) == pytest.approx(e, rel=1e-12)
 
 
-def _block_walls(k: float, thickness: float = 0.2) -> Walls:
+def _block_walls(k: float, slot_first: bool, thickness: float = 0.2) -> Walls:
     """The left floor piece of the benchmark's outlet: a block x < 0, -thickness < y < 0 drawn
-    as its top face and its outlet-side face, joined at the convex corner (0, 0)."""
+    as its top face and its outlet-side face, joined at the convex corner (0, 0), added in
+    either order (the first one carries the corner)."""
+    faces = [("floor", (-5.0, 0.0), (0.0, 0.0)), ("slot", (0.0, 0.0), (0.0, -thickness))]
     w = Walls()
-    w.add("floor", (-5.0, 0.0), (0.0, 0.0), k, k, 0.3, one_sided=True)
-    w.add("slot", (0.0, 0.0), (0.0, -thickness), k, k, 0.3, one_sided=True)
+    for name, a, b in faces[::-1] if slot_first else faces:
+        w.add(name, a, b, k, k, 0.3, one_sided=True)
     return w
 
 
@@ -124,7 +126,8 @@ def _nearest_on_block(px: float, py: float, thickness: float = 0.2) -> tuple[flo
 
 @pytest.mark.parametrize("angle", np.linspace(-60.0, 150.0, 15))
 @pytest.mark.parametrize("depth", [0.02, 0.3])
-def test_convex_corner_pushes_as_the_nearest_point_of_the_block(angle, depth):
+@pytest.mark.parametrize("slot_first", [False, True])
+def test_convex_corner_pushes_as_the_nearest_point_of_the_block(angle, depth, slot_first):
     """A grain at rest around the edge of a thick floor (floor face, corner wedge, outlet
     face) feels one contact, k (r - dist) along the normal from the block's nearest point,
     whichever of the two segments carries it: no gap at the corner, no double count."""
@@ -139,7 +142,7 @@ def test_convex_corner_pushes_as_the_nearest_point_of_the_block(angle, depth):
     assert d == pytest.approx(dist, rel=1e-12)
     p = Particles(1)
     p.add(cx, cy, r, 1000.0)
-    sim = Simulation(p, _block_walls(k), law(k), dt=1e-6, gravity=0.0, skin=0.01)
+    sim = Simulation(p, _block_walls(k, slot_first), law(k), dt=1e-6, gravity=0.0, skin=0.01)
     sim.step()
     f = k * (r - d)
     assert p.fx[0] == pytest.approx(f * (cx - qx) / d, abs=1e-9 * f)

@@ -79,8 +79,12 @@ class Walls:
         self.cap_b = np.append(self.cap_b, True)
         self.guard = np.vstack([self.guard, np.zeros((1, 4))])
         self.one_sided = np.append(self.one_sided, bool(one_sided))
-        self.update_caps()
-        return len(self.names) - 1
+        # the new wall, and the walls that end where it does, are the only ones that change
+        w = len(self.names) - 1
+        ends = self._ends()
+        touched = {w} | {int(v) for e in (0, 1) for v, _ in self._joined(ends[w, e], ends, w)}
+        self.update_caps(sorted(touched))
+        return w
 
     def index(self, name: str) -> int:
         try:
@@ -92,35 +96,47 @@ class Walls:
         self.active[self.index(name)] = active
         self.update_caps()
 
-    def update_caps(self) -> None:
+    def update_caps(self, walls=None) -> None:
         """Cap the free ends and, at a convex corner of two segments, the first one's end with
-        a guard (module docstring); leave straight and concave joints uncapped."""
-        self.cap_a[:] = False
-        self.cap_b[:] = False
-        self.guard[:] = 0.0
-        for w in range(len(self)):
+        a guard (module docstring); leave straight and concave joints uncapped.  ``walls``:
+        the indices to update (default all)."""
+        ends = self._ends()
+        for w in range(len(self)) if walls is None else walls:
             for which in (0, 1):
-                if not self.active[w]:
-                    continue
-                end = self._end(w, which)
-                joined = [(v, e) for v in range(len(self)) if v != w and self.active[v]
-                          for e in (0, 1) if np.hypot(*(self._end(v, e) - end)) < _JOIN_TOL]
-                cap = not joined
-                if len(joined) == 1 and joined[0][0] > w:
-                    into_w = self._end(w, 1 - which) - end
-                    into_v = self._end(*(joined[0][0], 1 - joined[0][1])) - end
-                    into_w /= np.hypot(*into_w)
-                    into_v /= np.hypot(*into_v)
-                    if self._convex(w, into_w, into_v) and self._convex(
-                            joined[0][0], into_v, into_w):
-                        cap = True
-                        self.guard[w, 2 * which:2 * which + 2] = into_v
+                cap, guard = self._cap(w, which, ends)
                 (self.cap_a if which == 0 else self.cap_b)[w] = cap
+                self.guard[w, 2 * which:2 * which + 2] = guard
 
-    def _end(self, w: int, which: int) -> np.ndarray:
-        """End a (which = 0) or b (1) of wall w [m]."""
-        return (np.array([self.ax[w], self.ay[w]]) if which == 0
-                else np.array([self.bx[w], self.by[w]]))
+    def _ends(self) -> np.ndarray:
+        """The end points, shape (wall, end a / b, x / y) [m]."""
+        return np.stack([np.column_stack([self.ax, self.ay]),
+                         np.column_stack([self.bx, self.by])], axis=1)
+
+    def _joined(self, point: np.ndarray, ends: np.ndarray, but: int) -> np.ndarray:
+        """(wall, end) of the active walls other than ``but`` that end at ``point``."""
+        near = np.abs(ends - point).max(axis=2) < _JOIN_TOL
+        near[but] = False
+        near[~self.active] = False
+        return np.argwhere(near)
+
+    def _cap(self, w: int, which: int, ends: np.ndarray) -> tuple[bool, np.ndarray]:
+        """Whether end ``which`` of wall w is a contact point, and its guard."""
+        none = np.zeros(2)
+        if not self.active[w]:
+            return False, none
+        joined = self._joined(ends[w, which], ends, w)
+        if len(joined) == 0:
+            return True, none
+        v, end_v = joined[0]
+        if len(joined) > 1 or v < w:
+            return False, none
+        into_w = ends[w, 1 - which] - ends[w, which]
+        into_v = ends[v, 1 - end_v] - ends[v, end_v]
+        into_w = into_w / np.hypot(*into_w)
+        into_v = into_v / np.hypot(*into_v)
+        if self._convex(w, into_w, into_v) and self._convex(v, into_v, into_w):
+            return True, into_v
+        return False, none
 
     def _convex(self, w: int, into_w: np.ndarray, into_v: np.ndarray) -> bool:
         """Whether the wedge beyond both segments at their joint lies on wall w's grain side:
