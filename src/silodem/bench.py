@@ -7,7 +7,8 @@ It is built to match ``benchmarks/lammps-silo2d.in`` (a copy of the project's re
   0.11 <= x <= W - 0.11, 0.2 <= y <= H - 0.4 with H = 0.22 * 1.6 * NY, diameters uniform in
   [0.18, 0.22] m, density 835 kg/m^3, unit thickness (paper case 2);
 * vertical walls x = 0 and x = W, a floor at y = 0 in two pieces with a centred slot of width
-  1.2 m, the floor pieces 0.2 m thick (their inner ends are walls too);
+  1.2 m, the floor pieces 0.2 m thick (their inner ends are walls too, and the edges where
+  the two faces meet are contact points, as the corners of the deck's block regions are);
 * contact stiffness k_n = k_s = 5e6 N/m (grain stiffness 1e7 N/m in series), friction
   tan 25 deg between grains and tan 24 deg with the walls, restitution 0.5;
 * grains leaving through the slot re-enter at the top (LAMMPS: periodic y over [-2, H]); as in

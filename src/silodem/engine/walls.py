@@ -9,7 +9,10 @@ benchmark's silo) leaves a wedge that neither face covers: the grains whose clos
 on both segments.  There the segment added first is capped at P with a *guard*, the unit
 direction of the other segment from P, and its cap counts only for grains with
 (centre - P) . guard <= 0, i.e. in that wedge: one contact at P, as the nearest point of a
-polygon gives (LAMMPS's wall/gran/region on a block; docs/validation.md, section 5).
+polygon gives (LAMMPS's wall/gran/region on a block; docs/validation.md, sections 5-6).
+Contact history is kept per grain and segment: a grain that rolls round such a corner from
+the cap onto the other segment's face starts a new contact there, with no shear force carried
+over (a LAMMPS region keeps one contact per region).
 
 Walls are never deleted, only deactivated (the gate under the outlet is withdrawn that way),
 so a wall's index is permanent and contact history can be keyed on it.  A wall may translate
