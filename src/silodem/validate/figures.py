@@ -274,7 +274,7 @@ def lammps(data, path: Path) -> Path:
         ax.axvline(checked, color=f"C{k}", lw=0.8, ls=":")
     ax.axhline(TOLERANCE, color="k", lw=0.8, ls="--", label="tolerance")
     if not data:
-        ax.text(0.5, 0.5, "LAMMPS (lmp) not installed: not compared", ha="center",
+        ax.text(0.5, 0.5, "no comparison: lmp absent or failed", ha="center",
                 transform=ax.transAxes)
     ax.set(xlabel="step (dt = 2e-4 s)", ylabel="largest position difference [m]",
            title="silodem against LAMMPS, grain by grain")
