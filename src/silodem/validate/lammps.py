@@ -79,8 +79,8 @@ def cloud(n: int, spacing: float, seed: int = 1, mixed: bool = False) -> dict[st
 def run_silodem(state: dict[str, np.ndarray], steps: int, every: int,
                 tension: bool = False) -> list[np.ndarray]:
     """Positions (n, 2) [m] in the order of ``state``, every ``every`` steps from step 0."""
-    silo, _, _ = bench.build(NX, 4)  # the bench's walls and law; its grains are not used
-    law = dataclasses.replace(silo.law, zeta=ZETA, allow_tension=tension)
+    silo, _, _ = bench.build(NX, 4)  # the bench's walls and law (zeta = ZETA); not its grains
+    law = dataclasses.replace(silo.law, allow_tension=tension)
     p = Particles(len(state["x"]))
     p.add(state["x"], state["y"], state["radius"], DENSITY, vx=state["vx"],
           vy=state["vy"] + 0.5 * bench.DT * 9.81, omega=state["omega"])
@@ -178,8 +178,8 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
         return [Record("LAMMPS trajectories", "lmp found", None, None, None, kind="info",
                        note="LAMMPS (Debian package lammps) absent: not compared")], {}
     records, curves = [], {}
+    every = 50  # steps between the compared frames
     for name, n, spacing, steps in CLOUDS:
-        every = 50
         try:
             dev = divergence(cloud(n, spacing), 2 * steps, every)
         except (OSError, subprocess.CalledProcessError) as err:  # a failed lmp fails the check
