@@ -52,23 +52,34 @@ def test_bench_runs_lammps_on_the_same_silo():
 
 def test_side_by_side_copies_do_the_same_work():
     """``--scaling`` puts copies of one silo side by side: each copy holds the same grains
-    (shifted by the silo width) behind its own six walls, so after the same steps every copy
-    has let about the same grains fall through its outlet."""
-    from silodem.bench import advance, build
+    (shifted by the silo width and a gap) behind its own six walls, so after the same steps
+    every copy has let about the same grains fall through its outlet, and no grain is a
+    contact candidate of another copy's grains or walls (without the gap, the walls of two
+    neighbouring copies lay on one line and the grains pressed against them were candidates
+    of the other silo's wall and grains: the 1e6-grain row did more work per grain)."""
+    from silodem.bench import COPY_GAP, advance, build
 
     one, width, top = build(12, 24)
     three, _, _ = build(12, 24, copies=3)
+    pitch = width + COPY_GAP
     n = one.particles.n
     assert three.particles.n == 3 * n and three.walls.ax.size == 3 * one.walls.ax.size
     x3 = three.particles.view("x").reshape(3, n)
     for c in range(3):
-        assert x3[c] == pytest.approx(one.particles.view("x") + c * width, abs=1e-12)
+        assert x3[c] == pytest.approx(one.particles.view("x") + c * pitch, abs=1e-12)
     advance(one, top, 400)
     advance(three, top, 400)
-    # the copies differ only by the round-off of x + c * width, which 400 steps from a lattice
+    # the copies differ only by the round-off of x + c * pitch, which 400 steps from a lattice
     # do not amplify beyond 1e-6 m
     y1 = np.sort(one.particles.view("y"))
+    copy_of = (three.particles.view("x") // pitch).astype(int)
     for c in range(3):
-        in_copy = (three.particles.view("x") // width) == c
+        in_copy = copy_of == c
         assert np.count_nonzero(in_copy) == n  # no grain crossed into another silo
         assert np.sort(three.particles.view("y")[in_copy]) == pytest.approx(y1, abs=1e-6)
+    nb = three.neighbors
+    assert np.array_equal(copy_of[nb.pair_i], copy_of[nb.pair_j])
+    wall_copy = (np.minimum(three.walls.ax, three.walls.bx) // pitch).astype(int)
+    assert nb.wc_w.size > 0 and np.array_equal(copy_of[nb.wc_i], wall_copy[nb.wc_w])
+    # as many candidates per copy as in the lone silo (same grains, same state up to 1e-6 m)
+    assert nb.wc_w.size == 3 * one.neighbors.wc_w.size

@@ -51,6 +51,7 @@ Y_BOTTOM = -2.0  # lower end of the periodic direction in the deck [m]
 DT = 2.0e-4  # [s]
 K_CONTACT = 5.0e6  # [N/m]
 SLOT = 1.2  # outlet width [m]
+COPY_GAP = 1.0  # between side-by-side copies (build) [m]: > 3 r_max + skin, a wall's reach
 
 
 @dataclass
@@ -101,7 +102,11 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
     x0, y0, width, top = deck_lattice(nx, ny)
     rng = np.random.default_rng(seed)
     r0 = 0.5 * (0.18 + 0.04 * rng.random(x0.size))
-    x = np.concatenate([x0 + c * width for c in range(copies)])
+    # copies COPY_GAP apart: no grain is then a contact candidate of a grain or a wall of
+    # another copy (side by side, a grain pressed against its silo's left wall was within
+    # reach of the next silo's right wall and of the grains behind it)
+    pitch = width + COPY_GAP
+    x = np.concatenate([x0 + c * pitch for c in range(copies)])
     y, radius = np.tile(y0, copies), np.tile(r0, copies)
     p = Particles(x.size)
     p.add(x, y, radius, 835.0)
@@ -111,7 +116,7 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
     w = Walls()
     kw = k_grain * k_wall / (k_grain + k_wall)
     for c in range(copies):
-        a, b = c * width, (c + 1) * width
+        a, b = c * pitch, c * pitch + width
         xl, xr = a + width / 2 - SLOT / 2, a + width / 2 + SLOT / 2
         tag = f"_{c}" if copies > 1 else ""
         # side walls twice as high as the column: a grain thrown above the top stays in its
