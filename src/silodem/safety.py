@@ -137,12 +137,6 @@ def energy_bound(run: SiloRun) -> float:
     return ENERGY_FACTOR * run.sim.particles.total_mass() * (g * height + 0.5 * v0**2)
 
 
-def grain_kinetic_energies(run: SiloRun) -> np.ndarray:
-    p = run.sim.particles
-    v2 = p.view("vx") ** 2 + p.view("vy") ** 2
-    return 0.5 * p.view("mass") * v2 + 0.5 * p.inertia() * p.view("omega") ** 2
-
-
 def grain_record(run: SiloRun, index: int) -> dict[str, Any]:
     """Everything about the live grain ``index``: uid, position, velocity, spin, size, force."""
     p = run.sim.particles
@@ -199,7 +193,7 @@ def find_problem(run: SiloRun) -> Problem | None:
     ke = p.kinetic_energy()
     bound = energy_bound(run)
     if not ke <= bound:
-        i = int(np.argmax(grain_kinetic_energies(run)))
+        i = int(np.argmax(p.kinetic_energies()))
         rec = grain_record(run, i)
         return Problem("energy", f"kinetic energy {ke:.3g} J exceeds {ENERGY_FACTOR:g} x the "
                        f"energy the grains can gain by falling and being poured ({bound:.3g} J) "
