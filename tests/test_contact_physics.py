@@ -157,3 +157,17 @@ def _corner_offset(a: float, dist: float) -> tuple[float, float]:
     if a < 0.0:
         return dist, dist * a
     return dist * math.cos(a), dist * math.sin(a)
+
+
+def test_kinetic_energy_of_translating_and_spinning_disks():
+    """E = m v^2 / 2 + I omega^2 / 2 with I = m r^2 / 2 for a disk, per grain and in total."""
+    from silodem.engine.particles import Particles
+
+    p = Particles(4)
+    r = np.array([0.1, 0.2])
+    p.add(np.zeros(2), np.zeros(2), r, 1000.0, vx=np.array([3.0, 0.0]),
+          vy=np.array([4.0, 0.0]), omega=np.array([0.0, 10.0]))
+    m = 1000.0 * np.pi * r**2  # disks of unit thickness
+    expected = np.array([0.5 * m[0] * 25.0, 0.5 * (0.5 * m[1] * 0.04) * 100.0])
+    assert p.kinetic_energies() == pytest.approx(expected, rel=1e-14)
+    assert p.kinetic_energy() == pytest.approx(expected.sum(), rel=1e-14)

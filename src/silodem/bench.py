@@ -96,9 +96,11 @@ def deck_lattice(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, float, float
 
 def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
           copies: int = 1) -> tuple[Simulation, float, float]:
-    """The deck's silo (``copies = 1``), or ``copies`` identical silos side by side, each with
-    its own walls, outlet and grains (the same radii in each): N grows while every silo does the
-    same work, which isolates what the system size alone costs (``--scaling``)."""
+    """The deck's silo (``copies = 1``), or ``copies`` identical silos side by side,
+    ``COPY_GAP`` apart, each with its own walls, outlet and grains (the same radii in each): N
+    grows while every silo does the same work, which isolates what the system size alone costs
+    (``--scaling``).  Returns the simulation, the width of one silo [m] and the top of the
+    lattice [m]."""
     x0, y0, width, top = deck_lattice(nx, ny)
     rng = np.random.default_rng(seed)
     r0 = 0.5 * (0.18 + 0.04 * rng.random(x0.size))
