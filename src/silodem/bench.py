@@ -51,6 +51,9 @@ Y_BOTTOM = -2.0  # lower end of the periodic direction in the deck [m]
 DT = 2.0e-4  # [s]
 K_CONTACT = 5.0e6  # [N/m]
 SLOT = 1.2  # outlet width [m]
+MU_GRAIN = math.tan(math.radians(25.0))  # grain-grain friction (paper case 2)
+MU_WALL = math.tan(math.radians(24.0))  # grain-wall friction
+RESTITUTION = 0.5
 COPY_GAP = 1.0  # between side-by-side copies (build) [m]: > 3 r_max + skin, a wall's reach
 
 
@@ -114,7 +117,6 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
     p.add(x, y, radius, 835.0)
     k_grain = 2 * K_CONTACT  # two equal grains in series give K_CONTACT
     k_wall = 2 * K_CONTACT  # grain in series with wall gives K_CONTACT
-    mu_g, mu_w = math.tan(math.radians(25.0)), math.tan(math.radians(24.0))
     w = Walls()
     kw = k_grain * k_wall / (k_grain + k_wall)
     for c in range(copies):
@@ -123,13 +125,14 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
         tag = f"_{c}" if copies > 1 else ""
         # side walls twice as high as the column: a grain thrown above the top stays in its
         # silo, as between the deck's infinite xplane walls
-        w.add("left" + tag, (a, 2 * top), (a, Y_BOTTOM), kw, kw, mu_w, one_sided=True)
-        w.add("right" + tag, (b, Y_BOTTOM), (b, 2 * top), kw, kw, mu_w, one_sided=True)
-        w.add("floor_left" + tag, (a, 0.0), (xl, 0.0), kw, kw, mu_w, one_sided=True)
-        w.add("slot_left" + tag, (xl, 0.0), (xl, -0.2), kw, kw, mu_w, one_sided=True)
-        w.add("slot_right" + tag, (xr, -0.2), (xr, 0.0), kw, kw, mu_w, one_sided=True)
-        w.add("floor_right" + tag, (xr, 0.0), (b, 0.0), kw, kw, mu_w, one_sided=True)
-    law = GrainLaw(kn=K_CONTACT, ks=K_CONTACT, mu=mu_g, zeta=damping_ratio_from_restitution(0.5))
+        w.add("left" + tag, (a, 2 * top), (a, Y_BOTTOM), kw, kw, MU_WALL, one_sided=True)
+        w.add("right" + tag, (b, Y_BOTTOM), (b, 2 * top), kw, kw, MU_WALL, one_sided=True)
+        w.add("floor_left" + tag, (a, 0.0), (xl, 0.0), kw, kw, MU_WALL, one_sided=True)
+        w.add("slot_left" + tag, (xl, 0.0), (xl, -0.2), kw, kw, MU_WALL, one_sided=True)
+        w.add("slot_right" + tag, (xr, -0.2), (xr, 0.0), kw, kw, MU_WALL, one_sided=True)
+        w.add("floor_right" + tag, (xr, 0.0), (b, 0.0), kw, kw, MU_WALL, one_sided=True)
+    law = GrainLaw(kn=K_CONTACT, ks=K_CONTACT, mu=MU_GRAIN,
+                   zeta=damping_ratio_from_restitution(RESTITUTION))
     sim = Simulation(p, w, law, dt=DT, gravity=9.81, skin=skin)
     return sim, width, top
 

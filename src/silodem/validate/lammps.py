@@ -52,9 +52,8 @@ NX = 20
 RADIUS = 0.1  # [m]
 DENSITY = 835.0  # [kg/m^3]
 K = bench.K_CONTACT  # [N/m]
-MU_GRAIN = math.tan(math.radians(25.0))
-MU_WALL = math.tan(math.radians(24.0))
-ZETA = damping_ratio_from_restitution(0.5)
+MU_GRAIN, MU_WALL = bench.MU_GRAIN, bench.MU_WALL  # the bench's law
+ZETA = damping_ratio_from_restitution(bench.RESTITUTION)
 TOLERANCE = 1e-6  # [m]
 # (name, grains, lattice spacing [m], steps)
 CLOUDS = (("walls only, 20 grains apart", 20, 0.42, 1500),
