@@ -83,3 +83,29 @@ def test_side_by_side_copies_do_the_same_work():
     assert nb.wc_w.size > 0 and np.array_equal(copy_of[nb.wc_i], wall_copy[nb.wc_w])
     # as many candidates per copy as in the lone silo (same grains, same state up to 1e-6 m)
     assert nb.wc_w.size == 3 * one.neighbors.wc_w.size
+
+
+def test_lattice_deck_runs_the_cache_probe_law():
+    """``benchmarks/lammps-lattice2d.in`` runs the law of ``cache_probe.lattice``: kn = kt =
+    1e5 N/m, friction 0.5, dt = 1e-5 s, and LAMMPS's gamma_n = c_n / m_eff = 2 zeta
+    sqrt(kn / m_eff) for zeta = 0.1 and two disks of the mean radius 0.0975 m at 1000 kg/m^2."""
+    from pathlib import Path
+
+    deck = (Path(__file__).parents[1] / "benchmarks" / "lammps-lattice2d.in").read_text()
+    words = next(line for line in deck.splitlines() if line.startswith("pair_style")).split()
+    kn, kt, gamma_n, mu = float(words[2]), float(words[3]), float(words[4]), float(words[6])
+    m_eff = 1000.0 * np.pi * 0.0975**2 / 2
+    assert (kn, kt, mu) == (1e5, 1e5, 0.5) and "timestep        1.0e-5" in deck
+    assert gamma_n == pytest.approx(2 * 0.1 * np.sqrt(kn / m_eff), rel=0.01)
+
+
+@pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
+def test_lattice_vs_lammps_runs_both_codes_on_the_same_grains():
+    from pathlib import Path
+
+    script = Path(__file__).parents[1] / "benchmarks" / "lattice_vs_lammps.py"
+    proc = subprocess.run([sys.executable, str(script), "--sizes", "20", "--work", "8000",
+                           "--repeat", "1"], capture_output=True, text=True, timeout=600,
+                          check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "N =      400 (     400 in LAMMPS)" in proc.stdout  # 20 x 20 in both codes
