@@ -14,8 +14,6 @@ pays once its state no longer fits in the cache.
 from __future__ import annotations
 
 import argparse
-import re
-import shutil
 import subprocess
 import tempfile
 import time
@@ -24,8 +22,9 @@ from pathlib import Path
 import numba
 from cache_probe import lattice
 
+from silodem.bench import lammps_executable, last_loop
+
 DECK = Path(__file__).with_name("lammps-lattice2d.in")
-LOOP = re.compile(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps with (\d+) atoms")
 
 
 def silodem_ns(nx: int, steps: int) -> tuple[float, int]:
@@ -43,8 +42,8 @@ def lammps_ns(lmp: str, nx: int, steps: int) -> tuple[float, int]:
         out = subprocess.run([lmp, "-in", str(DECK), "-var", "NX", str(nx), "-var", "STEPS",
                               str(steps), "-log", "none"], cwd=tmp, capture_output=True,
                              text=True, check=True).stdout
-    seconds, done, atoms = LOOP.findall(out)[-1]
-    return float(seconds) / (int(atoms) * int(done)) * 1e9, int(atoms)
+    seconds, _, done, atoms = last_loop(out)
+    return seconds / (atoms * done) * 1e9, atoms
 
 
 def main() -> None:
@@ -54,7 +53,7 @@ def main() -> None:
     ap.add_argument("--work", type=float, default=5e7, help="particle-steps per run")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each code per size (best)")
     args = ap.parse_args()
-    lmp = shutil.which("lmp")
+    lmp = lammps_executable()
     if lmp is None:
         raise SystemExit("LAMMPS not found: install Debian's package (apt-get install lammps)")
     numba.set_num_threads(1)

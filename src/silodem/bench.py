@@ -205,9 +205,21 @@ _BUILDS = re.compile(r"Neighbor list builds = (\d+)")
 _NEIGH = re.compile(r"^Neigh\s*\|\s*([0-9.eE+-]+)", re.MULTILINE)
 
 
+def lammps_executable() -> str | None:
+    """The LAMMPS command (Debian's ``lmp``, or the serial / MPI names of other builds), or
+    None when it is not installed."""
+    return shutil.which("lmp") or shutil.which("lmp_serial") or shutil.which("lmp_mpi")
+
+
+def last_loop(stdout: str) -> tuple[float, int, int, int]:
+    """The last "Loop time" line of a LAMMPS log: (seconds, ranks, steps, atoms)."""
+    seconds, procs, steps, atoms = _LOOP.findall(stdout)[-1]
+    return float(seconds), int(procs), int(steps), int(atoms)
+
+
 def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchResult:
     """Run the reference deck with Debian's `lmp` (and `mpirun -np ranks` for ranks > 1)."""
-    lmp = shutil.which("lmp") or shutil.which("lmp_serial") or shutil.which("lmp_mpi")
+    lmp = lammps_executable()
     if lmp is None:
         raise FileNotFoundError("LAMMPS not found: install Debian's package (apt-get install lammps)")
     cmd = [lmp, "-in", str(deck_path()), "-var", "NX", str(nx), "-var", "NY", str(ny),
@@ -220,12 +232,10 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
     with tempfile.TemporaryDirectory() as tmp:
         proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, check=False,
                               env={**os.environ, "OMP_NUM_THREADS": "1"})
-    loops = _LOOP.findall(proc.stdout)
-    if proc.returncode != 0 or len(loops) < 2:
+    if proc.returncode != 0 or len(_LOOP.findall(proc.stdout)) < 2:
         tail = (proc.stdout + proc.stderr)[-800:]
         raise RuntimeError(f"LAMMPS failed (exit {proc.returncode}): {tail}")
-    seconds, procs, nsteps, atoms = loops[-1]
-    seconds, nsteps, atoms = float(seconds), int(nsteps), int(atoms)
+    seconds, procs, nsteps, atoms = last_loop(proc.stdout)
     builds = _BUILDS.findall(proc.stdout)
     neigh = _NEIGH.findall(proc.stdout)
     return BenchResult("lammps", atoms, int(procs), nsteps, seconds, atoms * nsteps / seconds,

@@ -86,7 +86,7 @@ class Walls:
         w = len(self.names) - 1
         ends = self._ends()
         touched = {w} | {int(v) for e in (0, 1) for v, _ in self._joined(ends[w, e], ends, w)}
-        self.update_caps(sorted(touched))
+        self.update_caps(sorted(touched), ends)
         return w
 
     def index(self, name: str) -> int:
@@ -99,11 +99,11 @@ class Walls:
         self.active[self.index(name)] = active
         self.update_caps()
 
-    def update_caps(self, walls=None) -> None:
+    def update_caps(self, walls=None, ends=None) -> None:
         """Cap the free ends and, at a convex corner of two segments, the first one's end with
         a guard (module docstring); leave straight and concave joints uncapped.  ``walls``:
-        the indices to update (default all)."""
-        ends = self._ends()
+        the indices to update (default all); ``ends``: ``_ends()`` if the caller has it."""
+        ends = self._ends() if ends is None else ends
         for w in range(len(self)) if walls is None else walls:
             for which in (0, 1):
                 cap, guard = self._cap(w, which, ends)

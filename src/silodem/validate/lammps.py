@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import shutil
 import subprocess
 import tempfile
 from pathlib import Path
@@ -153,7 +152,7 @@ def run_lammps(state: dict[str, np.ndarray], steps: int, every: int,
         data, deck = lammps_input(state, steps, every, tension)
         (Path(tmp) / "data.txt").write_text(data)
         (Path(tmp) / "deck.in").write_text(deck)
-        subprocess.run(["lmp", "-in", "deck.in", "-log", "none", "-echo", "none"], cwd=tmp,
+        subprocess.run([bench.lammps_executable() or "lmp", "-in", "deck.in", "-log", "none", "-echo", "none"], cwd=tmp,
                        check=True, capture_output=True, text=True)
         lines = (Path(tmp) / "traj.txt").read_text().splitlines()
     frames = []
@@ -173,7 +172,7 @@ def divergence(state: dict[str, np.ndarray], steps: int, every: int,
 
 def run(quick: bool = False) -> tuple[list[Record], dict]:
     """The family's records and figure data (the divergence against the step per cloud)."""
-    if shutil.which("lmp") is None:
+    if bench.lammps_executable() is None:
         return [Record("LAMMPS trajectories", "lmp found", None, None, None, kind="info",
                        note="LAMMPS (Debian package lammps) absent: not compared")], {}
     records, curves = [], {}
