@@ -211,3 +211,14 @@ def test_beverloo_fits_recover_known_laws():
         if b == 1.5:
             lin = fit_three_halves(D, W, d, rho, g, t)
             assert (lin.C, lin.k) == pytest.approx((C, k), rel=1e-9)
+
+
+def test_a_failed_check_is_named_with_its_miss_and_note():
+    from silodem.validate.runner import failure_line
+
+    line = failure_line(Record("Beverloo", "rate at 2 x H", 1.445, 1.548, 0.05, "rel", "kg/s",
+                               "see section 5"))
+    # (1.548 - 1.445) / 1.445 = +7.13 %, against the 5 % allowed
+    assert "expected 1.445 kg/s, got 1.548 kg/s (+7.1 % against 5 %); see section 5" in line
+    line = failure_line(Record("c", "offset", 0.0, -0.25, 0.1, "abs", "m"))
+    assert "(-0.25 m against +- 0.1)" in line and line.startswith("FAILED c: offset:")

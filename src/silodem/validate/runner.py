@@ -134,5 +134,21 @@ def print_table(result: Validation, console) -> None:
     console.print(f"{checked} checks ({n - checked} reported values): "
                   f"{checked - bad} passed, {bad} failed  [{times}]", markup=False,
                   highlight=False)
+    for r in result.failures:
+        console.print(failure_line(r), markup=False, highlight=False, soft_wrap=True,
+                      style="bold red")
     for path in result.figures:
         console.print(f"figure: {path}", markup=False, highlight=False, soft_wrap=True)
+
+
+def failure_line(r: Record) -> str:
+    """One line for a failed check: what, expected, got, the relative or absolute miss
+    against the tolerance, and the record's note (where the case says why)."""
+    unit = f" {r.unit}" if r.unit not in ("-", "") else ""
+    if r.kind == "rel" and r.expected:
+        miss = f"{100 * (r.got - r.expected) / abs(r.expected):+.1f} % against {_tol(r)}"
+    else:
+        miss = f"{r.got - r.expected:+.3g}{unit} against {_tol(r)}"
+    note = f"; {r.note}" if r.note else ""
+    return (f"FAILED {r.case}: {r.quantity}: expected {_fmt(r.expected)}{unit}, "
+            f"got {_fmt(r.got)}{unit} ({miss}){note}")
