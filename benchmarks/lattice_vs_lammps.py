@@ -1,4 +1,5 @@
-"""The whole step of silodem and of LAMMPS on the same dense lattice, against N (docs/performance.md).
+"""The whole step of silodem and of LAMMPS on the same dense lattice, against N
+(docs/performance.md).
 
     python benchmarks/lattice_vs_lammps.py [--sizes 100 173 316 548 1000]
 

@@ -221,7 +221,8 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
     """Run the reference deck with Debian's `lmp` (and `mpirun -np ranks` for ranks > 1)."""
     lmp = lammps_executable()
     if lmp is None:
-        raise FileNotFoundError("LAMMPS not found: install Debian's package (apt-get install lammps)")
+        raise FileNotFoundError(
+            "LAMMPS not found: install Debian's package (apt-get install lammps)")
     cmd = [lmp, "-in", str(deck_path()), "-var", "NX", str(nx), "-var", "NY", str(ny),
            "-var", "STEPS", str(steps), "-var", "SETTLE", str(settle), "-log", "none"]
     if ranks > 1:

@@ -152,7 +152,8 @@ def run_lammps(state: dict[str, np.ndarray], steps: int, every: int,
         data, deck = lammps_input(state, steps, every, tension)
         (Path(tmp) / "data.txt").write_text(data)
         (Path(tmp) / "deck.in").write_text(deck)
-        subprocess.run([bench.lammps_executable() or "lmp", "-in", "deck.in", "-log", "none", "-echo", "none"], cwd=tmp,
+        lmp = bench.lammps_executable() or "lmp"
+        subprocess.run([lmp, "-in", "deck.in", "-log", "none", "-echo", "none"], cwd=tmp,
                        check=True, capture_output=True, text=True)
         lines = (Path(tmp) / "traj.txt").read_text().splitlines()
     frames = []
