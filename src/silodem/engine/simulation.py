@@ -103,11 +103,11 @@ class Simulation:
             threaded = pair_forces.pick(n) is pair_forces.parallel
             done, time, max_d2, *self._spread = compiled_steps(
                 1 if walls_move else left, threaded, nb.strip_start, nb.strip_seq, nb.i_start,
-                nb.pair_j, nb.pair_fs, nb.pair_fn, n, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn,
-                nb.wc_fx, nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius,
-                p.mass, p.inv_mass, p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks,
-                law.mu, law.zeta, law.allow_tension, law.local_damping, self.gravity, dt,
-                nb.skin, self._wall_drift, self.time)
+                nb.pair_j, nb.pair_fs, nb.pair_fn, n, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
+                w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
+                p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks, law.mu, law.zeta,
+                law.allow_tension, law.local_damping, self.gravity, dt, nb.skin,
+                self._wall_drift, self.time)
             self.steps += done
             self.time = time
             left -= done
