@@ -108,10 +108,12 @@ def test_touching_contacts_equal_brute_force_over_many_steps():
     assert sim.neighbors.rebuilds > 10 and checked == 120
 
 
-def test_many_steps_in_one_call_equal_the_steps_one_by_one():
+@pytest.mark.parametrize("threaded", [False, True])
+def test_many_steps_in_one_call_equal_the_steps_one_by_one(threaded, monkeypatch):
     """``run(n)`` repeats the force and integration kernels in a compiled loop until the list
     expires; ``step()`` returns to Python after each step, which decides on the rebuild.  Both
-    must rebuild at the same steps and end with the same bits."""
+    must rebuild at the same steps and end with the same bits, also when ``run(n)`` uses the
+    threaded kernels (forced here at 144 grains) and the steps one by one the serial ones."""
     def make():
         rng = np.random.default_rng(11)
         xs, ys = np.meshgrid(np.linspace(0.2, 2.8, 12), np.linspace(0.2, 2.8, 12))
@@ -121,7 +123,15 @@ def test_many_steps_in_one_call_equal_the_steps_one_by_one():
         return Simulation(p, _box(3.0), law(1e5, mu=0.5, zeta=0.2), dt=2e-4, skin=0.02)
 
     a, b = make(), make()
+    if threaded:
+        import numba
+
+        import silodem.jit
+
+        monkeypatch.setattr(silodem.jit, "PARALLEL_MIN_GRAINS", 1)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
     a.run(2000)
+    monkeypatch.undo()
     for _ in range(2000):
         b.step()
     assert a.steps == b.steps == 2000 and a.time == b.time
