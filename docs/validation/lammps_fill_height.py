@@ -81,8 +81,11 @@ def run_lammps(ny: int, seed: int, tension: bool) -> subprocess.Popen:
     tmp = Path(tempfile.mkdtemp())
     (tmp / "deck.in").write_text(lammps_deck(seed, tension))
     steps = round(SECONDS / bench.DT)
+    lmp = bench.lammps_executable()
+    if lmp is None:
+        raise SystemExit("LAMMPS not found: install Debian's package (apt-get install lammps)")
     return subprocess.Popen(
-        ["lmp", "-in", "deck.in", "-var", "NX", str(NX), "-var", "NY", str(ny), "-var",
+        [lmp, "-in", "deck.in", "-var", "NX", str(NX), "-var", "NY", str(ny), "-var",
          "SETTLE", str(SETTLE), "-var", "STEPS", str(steps), "-log", "none", "-echo", "none"],
         cwd=tmp, stdout=subprocess.PIPE, text=True)
 
