@@ -80,6 +80,74 @@ def test_strips_make_the_pair_loop_race_free(seed):
     assert np.all(row[starts[1:-1] - 1] < row[starts[1:-1]])
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3, 7])
+def test_thread_blocks_cut_the_strips_nearest_to_equal_work(threads):
+    """Each thread gets a run of consecutive strips; the cut between runs k - 1 and k must be
+    a strip boundary whose work so far (grains + PAIR_WORK x candidates) is nearest to
+    k / threads of the total, found here by trying every boundary."""
+    from silodem.engine.neighbors import PAIR_WORK, thread_blocks
+
+    rng = np.random.default_rng(threads)
+    n_strips = 40
+    grains = rng.integers(0, 30, n_strips)
+    grains[5:9] = 0  # empty strips: cuts may coincide, runs may be empty
+    strip_start = np.concatenate(([0], np.cumsum(grains))).astype(np.int32)
+    candidates = rng.integers(0, 4, strip_start[-1])
+    candidates[: strip_start[20]] *= 3  # a packed lower half
+    i_start = np.concatenate(([0], np.cumsum(candidates))).astype(np.int32)
+    blocks = thread_blocks(strip_start, i_start, threads)
+    work = strip_start + PAIR_WORK * i_start[strip_start]
+    assert blocks[0] == 0 and blocks[-1] == n_strips and blocks.size == threads + 1
+    assert np.all(np.diff(blocks) >= 0)
+    for k in range(1, threads):
+        target = work[-1] * k / threads
+        best = min(abs(work[b] - target) for b in range(1, n_strips + 1))
+        assert abs(work[blocks[k]] - target) == best
+
+
+def test_pair_loop_and_leapfrog_give_the_same_bits_for_any_runs_of_strips():
+    """The strips may be cut into runs (one per thread) anywhere, runs starting at odd strips
+    included: every grain must still get its force terms in the same order, so the forces,
+    the history and the moved grains are the same bits as with one run."""
+    from silodem.engine.contact import pair_forces
+    from silodem.engine.integrate import walls_and_leapfrog
+
+    rng = np.random.default_rng(5)
+    p = _random_grains(rng, 3000, 12.0, rmin=0.08, rmax=0.14)
+    sim = Simulation(p, _box(12.0), law(1e5, mu=0.4, zeta=0.2), dt=1e-4, skin=0.03)
+    sim.run(20)  # contacts with shear history
+    nb, w = sim.neighbors, sim.walls
+    n_strips = nb.strip_start.size - 1
+    assert n_strips > 30 and np.count_nonzero(nb.pair_fs) > 500
+    names = ("x", "y", "vx", "vy", "omega", "fx", "fy", "torque")
+    start = {name: p.view(name).copy() for name in names}
+    start_fs = nb.pair_fs.copy()
+
+    def one_step(blocks):
+        for name in names:
+            p.view(name)[:] = start[name]
+        nb.pair_fs[:] = start_fs
+        pair_forces.serial(nb.strip_start, blocks, nb.i_start, nb.pair_j, nb.pair_fs,
+                           nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
+                           p.fx, p.fy, p.torque, sim.law.kn, sim.law.ks, sim.law.mu,
+                           sim.law.zeta, sim.law.allow_tension, sim.dt)
+        moved = walls_and_leapfrog.serial(
+            nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs.copy(), nb.wc_fn.copy(),
+            nb.wc_fx, nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy,
+            p.torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, sim.law.zeta,
+            sim.law.allow_tension, sim.law.local_damping, sim.dt)
+        return [p.view(name).copy() for name in names] + [nb.pair_fs.copy(), moved]
+
+    one = one_step(np.array([0, n_strips], dtype=np.int32))
+    for cuts in ([1, 2, 3], [5, 6, 17, 28], [2, 9, 9, 21]):
+        assert any(c % 2 for c in cuts) and any(c % 2 == 0 for c in cuts)
+        blocks = np.array([0, *cuts, n_strips], dtype=np.int32)
+        got = one_step(blocks)
+        for a, b in zip(one[:-1], got[:-1]):
+            assert np.array_equal(a, b)
+        assert one[-1] == got[-1]
+
+
 def test_touching_contacts_equal_brute_force_over_many_steps():
     """Grains falling and colliding in a closed box: at every check, the contacts the kernels
     found (non-zero force; tension on, so every overlap has one) are exactly the overlapping

@@ -17,7 +17,7 @@ import types
 import numba
 
 FLAGS = {"cache": True, "fastmath": False, "error_model": "numpy"}
-PARALLEL_MIN_GRAINS = 5000  # below this, thread start-up costs more than it saves
+PARALLEL_MIN_GRAINS = 800  # below this, thread start-up costs more than it saves
 
 njit = numba.njit(**FLAGS)
 """Decorator for serial helpers."""

@@ -160,7 +160,7 @@ def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn,
 
 
 @kernel
-def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
+def pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                 kn, ks, mu, zeta, allow_tension, dt):
     """Grain-grain contacts of the candidate list, and each grain's sums of their forces.
@@ -175,24 +175,28 @@ def pair_forces(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
     of one parity never write the same grain, so they run in parallel with no race, and every
     grain receives its terms in the same order with or without threads (its own strip's pairs
     in index order, then the lower strip's): the same bits for any thread count.  Each even
-    strip first zeroes the sums of its grains and of the next strip's.  ``strip_seq`` lists the
-    even strips, then the odd ones, in the order the threads share them out (balance only: the
-    order within a parity changes no result)."""
+    strip first zeroes the sums of its grains and of the next strip's.
+
+    ``blocks`` cuts the strips into runs of consecutive strips, one per thread (strips
+    blocks[b]:blocks[b+1]; ``NeighborList.blocks``): each thread works the even, then the odd
+    strips of its own run, so a grain's state stays in one core's cache from step to step and
+    only the rows at the ends of a run are written by two threads.  The cut changes no
+    result."""
     n_strips = strip_start.shape[0] - 1
-    n_even = (n_strips + 1) // 2
-    for h in prange(n_even):
-        s = strip_seq[h]
-        for g in range(strip_start[s], strip_start[min(s + 2, n_strips)]):
-            fx[g] = 0.0
-            fy[g] = 0.0
-            fs_sum[g] = 0.0
-        strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, x, y,
-                    vx, vy, omega, radius, inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta,
-                    allow_tension, dt)
-    for h in prange(n_strips - n_even):
-        strip_pairs(strip_seq[n_even + h], strip_start, i_start, pair_j, pair_fs, pair_fn,
-                    x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
-                    kn, ks, mu, zeta, allow_tension, dt)
+    for b in prange(blocks.shape[0] - 1):
+        for s in range(blocks[b] + (blocks[b] & 1), blocks[b + 1], 2):  # even strips
+            for g in range(strip_start[s], strip_start[min(s + 2, n_strips)]):
+                fx[g] = 0.0
+                fy[g] = 0.0
+                fs_sum[g] = 0.0
+            strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, x, y,
+                        vx, vy, omega, radius, inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta,
+                        allow_tension, dt)
+    for b in prange(blocks.shape[0] - 1):
+        for s in range(blocks[b] + 1 - (blocks[b] & 1), blocks[b + 1], 2):  # odd strips
+            strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn,
+                        x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
+                        kn, ks, mu, zeta, allow_tension, dt)
 
 
 @numba.njit(inline="always", cache=True)

@@ -18,7 +18,6 @@ by looking through the few old candidates of grain min(old a, old b), O(P) in al
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numba
@@ -269,21 +268,26 @@ def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
     return first_grains(cell_start, ncx, strip_rows(cell_start, ncx, ncy, n_strips))
 
 
-@functools.lru_cache(maxsize=64)
-def strip_sequence(n_strips: int) -> tuple[int, ...]:
-    """The order in which ``contact.pair_forces`` hands out the strips: the even strips, then
-    the odd ones, each set in van der Corput order (0, 4, 2, 6, 1, ... of their rank), so that
-    each thread's contiguous share of a parity spans the whole height of the silo (the contact
-    work sits in the packed lower part; in height order one thread would get all of it).
-    Cached: a rebuild then runs no Python loop over the strips."""
-    seq = []
-    for parity in (0, 1):
-        strips = np.arange(parity, n_strips, 2)
-        m = strips.size
-        bits = max(1, int(m - 1).bit_length())
-        rank = [int(format(h, f"0{bits}b")[::-1], 2) for h in range(m)]
-        seq.append(strips[np.argsort(rank, kind="stable")])
-    return tuple(int(s) for s in np.concatenate(seq))
+# cost of one candidate pair in the pair loop against one grain in the leap-frog (a touching
+# pair ~20 ns, one that does not a few ns; ~6 ns per grain: docs/performance.md)
+PAIR_WORK = 2.5
+
+
+def thread_blocks(strip_start, i_start, n_blocks):
+    """Cut the strips into ``n_blocks`` runs of consecutive strips, one per thread, of about
+    equal work (grains + ``PAIR_WORK`` x candidate pairs): returns the first strip of each run
+    and the number of strips at the end.  Runs of consecutive strips keep each grain on one
+    thread in the pair loop and the leap-frog alike, so its state stays in that core's cache
+    (handing out single strips in turn, as before, moved most grains between the cores twice
+    a step); the cut is by work because the contacts sit in the packed lower part of a silo.
+    The cut decides only which thread computes what, never a result."""
+    n_strips = strip_start.size - 1
+    work = strip_start.astype(np.float64) + PAIR_WORK * i_start[strip_start]
+    targets = work[-1] * np.arange(1, n_blocks) / n_blocks
+    upper = np.clip(np.searchsorted(work, targets), 1, n_strips)
+    nearer = work[upper] - targets > targets - work[upper - 1]
+    cuts = np.where(nearer, upper - 1, upper)
+    return np.concatenate(([0], cuts, [n_strips])).astype(INDEX)
 
 
 def _owners(start: np.ndarray) -> np.ndarray:
@@ -296,8 +300,8 @@ class NeighborList:
 
     Per grain pair k (grouped by i): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N]
     (history) and normal force ``pair_fn`` [N] of the last step; ``strip_start`` cuts the
-    grains into strips of whole cell rows (``strips_of``), handed out to the pair loop in the
-    order ``strip_seq`` (``strip_sequence``).  Per grain-wall candidate k (grouped by grain):
+    grains into strips of whole cell rows (``strips_of``), shared out among the threads by
+    ``blocks``.  Per grain-wall candidate k (grouped by grain):
     ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force on the grain).
     """
 
@@ -311,7 +315,8 @@ class NeighborList:
         self.pair_fs = self.pair_fn = np.zeros(0)
         self.i_start = np.zeros(1, dtype=INDEX)
         self.strip_start = np.zeros(2, dtype=INDEX)
-        self.strip_seq = np.zeros(1, dtype=INDEX)
+        self._blocks = np.zeros(2, dtype=INDEX)  # the runs of strips of ``blocks``,
+        self._blocks_threads = 0  # worked out for this many threads (0: none yet)
         self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
         self.w_start = np.zeros(1, dtype=INDEX)
@@ -344,6 +349,14 @@ class NeighborList:
     @wc_i.setter
     def wc_i(self, value: np.ndarray) -> None:
         self._wc_i = value
+
+    def blocks(self, threads: int) -> np.ndarray:
+        """The strips cut into one run per thread (``thread_blocks``), worked out once per
+        list build (and again if the thread count changes)."""
+        if threads != self._blocks_threads:
+            self._blocks = thread_blocks(self.strip_start, self.i_start, threads)
+            self._blocks_threads = threads
+        return self._blocks
 
     def _strided(self, search, n, args, name):
         """Run a search kernel that writes up to ``stride`` entries per grain into a strided
@@ -424,7 +437,7 @@ class NeighborList:
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
         self.strip_start = first_grains(cell_start, ncx, rows)
-        self.strip_seq = np.array(strip_sequence(self.strip_start.size - 1), dtype=INDEX)
+        self._blocks_threads = 0  # to be cut again
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)

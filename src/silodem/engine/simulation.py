@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from silodem.engine.contact import GrainLaw, pair_forces
@@ -84,12 +85,11 @@ class Simulation:
     def run(self, n_steps: int) -> None:
         """Advance ``n_steps`` timesteps (the order is in the module docstring).
 
-        Steps 1 (the list) and 4 (walls) run here; steps 2-3 run in ``serial_steps`` for as
-        many steps as the list stays valid when the serial kernels are the ones to use (small
-        systems, one thread: a compiled loop saves the Python dispatch of each step, a tenth
-        of a step below about 1e4 grains), and one step at a time with the threaded kernels
-        (``threaded_step``) or while a wall moves.  Both paths call the same kernels in the
-        same order: the same bits."""
+        Steps 1 (the list) and 4 (walls) run here; steps 2-3 run in ``compiled_steps`` for as
+        many steps as the list stays valid (a compiled loop saves Python's dispatch of each
+        step, a tenth of a step below about 1e4 grains, and more with threads), or one step
+        per call while a wall moves.  The threaded kernels are used from
+        ``jit.PARALLEL_MIN_GRAINS`` grains on; they give the same bits as the serial ones."""
         p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
         left = int(n_steps)
         walls_move = w.moving()
@@ -100,12 +100,12 @@ class Simulation:
                 nb.rebuild(p, w)
                 self._stale = False
                 self._wall_drift = 0.0
-            n = p.n
-            serial = pair_forces.pick(n) is pair_forces.serial
-            max_steps = 1 if walls_move or not serial else left
-            done, time, max_d2, *self._spread = (serial_steps if serial else threaded_step)(
-                max_steps, nb.strip_start, nb.strip_seq, nb.i_start, nb.pair_j, nb.pair_fs,
-                nb.pair_fn, n, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
+            threaded = pair_forces.pick(p.n) is pair_forces.parallel
+            done, time, max_d2, *self._spread = compiled_steps(
+                1 if walls_move else left, threaded,
+                nb.strip_start, nb.blocks(numba.get_num_threads() if threaded else 1),
+                nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn,
+                nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                 w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
                 p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks, law.mu, law.zeta,
                 law.allow_tension, law.local_damping, self.gravity, dt, nb.skin,
@@ -145,30 +145,42 @@ def list_expired(drift, lox, hix, loy, hiy, wall_drift, skin):
 
 
 _pair_forces_serial = pair_forces.serial
+_pair_forces_threaded = pair_forces.parallel
 _walls_and_leapfrog_serial = walls_and_leapfrog.serial
+_walls_and_leapfrog_threaded = walls_and_leapfrog.parallel
 
 
 @njit
-def serial_steps(max_steps, strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
-                 n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
-                 x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
-                 kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
-                 wall_drift, time):
-    """Steps 2 and 3 with the serial kernels, repeated up to ``max_steps`` times and until the
-    neighbour list expires (``list_expired``) or a position is not finite.  Returns the steps
-    done, the clock [s] after them, the largest squared displacement since the build [m^2]
-    (not finite: the last step attempted was unstable and is not counted) and the bounding
-    box of the displacements [m]."""
+def compiled_steps(max_steps, threaded, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+                   w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+                   x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
+                   kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
+                   wall_drift, time):
+    """Steps 2 and 3, repeated up to ``max_steps`` times and until the neighbour list expires
+    (``list_expired``) or a position is not finite, with the threaded kernels (one thread per
+    run of strips in ``blocks``) or the serial ones.  Returns the steps done, the clock [s]
+    after them, the largest squared displacement since the build [m^2] (not finite: the last
+    step attempted was unstable and is not counted) and the bounding box of the
+    displacements [m]."""
     done = 0
     max_d2 = lox = hix = loy = hiy = 0.0
     while done < max_steps:
-        _pair_forces_serial(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
-                            x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
-                            kn, ks, mu, zeta, allow_tension, dt)
-        max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_serial(
-            n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega,
-            fx, fy, torque, radius, mass, x_ref, y_ref, gravity, zeta, allow_tension,
-            local_damping, dt)
+        if threaded:
+            _pair_forces_threaded(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+                                  x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
+                                  kn, ks, mu, zeta, allow_tension, dt)
+            max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_threaded(
+                strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+                x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
+                zeta, allow_tension, local_damping, dt)
+        else:
+            _pair_forces_serial(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+                                x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
+                                kn, ks, mu, zeta, allow_tension, dt)
+            max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_serial(
+                strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+                x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
+                zeta, allow_tension, local_damping, dt)
         if not np.isfinite(max_d2):
             break
         done += 1
@@ -176,22 +188,3 @@ def serial_steps(max_steps, strip_start, strip_seq, i_start, pair_j, pair_fs, pa
         if list_expired(math.sqrt(max_d2), lox, hix, loy, hiy, wall_drift, skin):
             break
     return done, time, max_d2, lox, hix, loy, hiy
-
-
-def threaded_step(max_steps, strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
-                  n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
-                  x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
-                  kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
-                  wall_drift, time):
-    """Steps 2 and 3 once, with the threaded kernels; the arguments and results of
-    ``serial_steps`` (``max_steps`` is 1)."""
-    pair_forces.parallel(strip_start, strip_seq, i_start, pair_j, pair_fs, pair_fn,
-                         x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
-                         kn, ks, mu, zeta, allow_tension, dt)
-    max_d2, lox, hix, loy, hiy = walls_and_leapfrog.parallel(
-        n, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega,
-        fx, fy, torque, radius, mass, x_ref, y_ref, gravity, zeta, allow_tension,
-        local_damping, dt)
-    if not np.isfinite(max_d2):
-        return 0, time, max_d2, lox, hix, loy, hiy
-    return 1, time + dt, max_d2, lox, hix, loy, hiy
