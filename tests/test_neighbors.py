@@ -135,7 +135,7 @@ def test_pair_loop_and_leapfrog_give_the_same_bits_for_any_runs_of_strips():
             nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs.copy(), nb.wc_fn.copy(),
             nb.wc_fx, nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy,
             p.torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, sim.law.zeta,
-            sim.law.allow_tension, sim.law.local_damping, sim.dt)
+            sim.law.allow_tension, sim.law.local_damping, sim.dt, np.empty((blocks.size, 5)))
         return [p.view(name).copy() for name in names] + [nb.pair_fs.copy(), moved]
 
     one = one_step(np.array([0, n_strips], dtype=np.int32))

@@ -35,7 +35,7 @@ from silodem.jit import kernel, njit, prange
 @kernel
 def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                        x, y, vx, vy, omega, fx, fy, torque, radius, mass,
-                       x_ref, y_ref, gravity, zeta, allow_tension, alpha, dt):
+                       x_ref, y_ref, gravity, zeta, allow_tension, alpha, dt, runs):
     """Compute each grain's wall contacts (candidates ``w_start[i]:w_start[i+1]`` of the
     neighbour list, walls ``Walls.arrays()``, ``contact.wall_contact``) and add them to the
     sums of its grain-grain contacts (``fx, fy``, and in ``torque`` the sum of their shear
@@ -44,11 +44,12 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
     displacements since the last neighbour-list build: (largest squared displacement [m^2]
     (inf if a position is not finite), and the bounding box min dx, max dx, min dy, max dy of
     the displacement vectors [m]).  Each thread takes one run of strips (``blocks``), the
-    same grains as in ``pair_forces``, so that they are still in its core's cache."""
+    same grains as in ``pair_forces``, so that they are still in its core's cache, and
+    writes its run's largest squared displacement and box to its row of ``runs`` (at least
+    one row per run, 5 columns; given, not allocated here)."""
     (ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b, w_guard,
      w_one_sided) = walls
     n_blocks = blocks.shape[0] - 1
-    chunk_max, box = _scratch(n_blocks)
     for c in prange(n_blocks):
         m2 = 0.0
         lox = np.inf
@@ -105,23 +106,25 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
             hix = max(hix, ddx)
             loy = min(loy, ddy)
             hiy = max(hiy, ddy)
-        chunk_max[c] = m2
-        box[c, 0] = lox
-        box[c, 1] = hix
-        box[c, 2] = loy
-        box[c, 3] = hiy
-    return _reduce(chunk_max, box)
+        runs[c, 0] = m2
+        runs[c, 1] = lox
+        runs[c, 2] = hix
+        runs[c, 3] = loy
+        runs[c, 4] = hiy
+    return _reduce(runs, n_blocks)
 
 
-# allocation and reductions in serial helpers: in a parallel kernel numba turns each numpy
-# call into a parallel loop of its own (seven of them here cost ~7 us a step at 1e3 grains)
+# the reductions in a serial helper: in a parallel kernel numba turns each numpy call into a
+# parallel loop of its own (the five here and two np.zeros cost ~7 us a step at 1e3 grains)
 @njit
-def _scratch(n):
-    return np.empty(n), np.empty((n, 4))
-
-
-@njit
-def _reduce(chunk_max, box):
-    """The largest squared displacement and the bounding box over the runs of strips."""
-    return (chunk_max.max(), box[:, 0].min(), box[:, 1].max(), box[:, 2].min(),
-            box[:, 3].max())
+def _reduce(runs, n):
+    """The largest squared displacement and the bounding box over the first ``n`` runs."""
+    m2, lox, hix, loy, hiy = 0.0, np.inf, -np.inf, np.inf, -np.inf
+    for c in range(n):
+        if not runs[c, 0] <= m2:  # also keeps an inf
+            m2 = runs[c, 0]
+        lox = min(lox, runs[c, 1])
+        hix = max(hix, runs[c, 2])
+        loy = min(loy, runs[c, 3])
+        hiy = max(hiy, runs[c, 4])
+    return m2, lox, hix, loy, hiy

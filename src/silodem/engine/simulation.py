@@ -164,6 +164,7 @@ def compiled_steps(max_steps, threaded, strip_start, blocks, i_start, pair_j, pa
     displacements [m]."""
     done = 0
     max_d2 = lox = hix = loy = hiy = 0.0
+    runs = np.empty((blocks.shape[0] - 1, 5))  # each run's displacements: no allocation below
     while done < max_steps:
         if threaded:
             _pair_forces_threaded(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
@@ -172,7 +173,7 @@ def compiled_steps(max_steps, threaded, strip_start, blocks, i_start, pair_j, pa
             max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_threaded(
                 strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                 x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-                zeta, allow_tension, local_damping, dt)
+                zeta, allow_tension, local_damping, dt, runs)
         else:
             _pair_forces_serial(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
                                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
@@ -180,7 +181,7 @@ def compiled_steps(max_steps, threaded, strip_start, blocks, i_start, pair_j, pa
             max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_serial(
                 strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                 x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-                zeta, allow_tension, local_damping, dt)
+                zeta, allow_tension, local_damping, dt, runs)
         if not np.isfinite(max_d2):
             break
         done += 1
