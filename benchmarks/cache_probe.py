@@ -49,11 +49,11 @@ def ns_per_grain(sim: Simulation, most: int | None, calls: int) -> tuple[float, 
     if most is not None:
         k = max(1, int(np.searchsorted(nb.strip_start, most, side="right")) - 1)
     start = nb.strip_start[: k + 1].copy()
-    seq = np.concatenate([np.arange(0, k, 2), np.arange(1, k, 2)]).astype(nb.strip_seq.dtype)
+    blocks = np.array([0, k], dtype=start.dtype)  # one run of strips: one thread
     grains = int(start[-1])
 
     def once():
-        pair_forces.serial(start, seq, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn, p.x, p.y,
+        pair_forces.serial(start, blocks, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn, p.x, p.y,
                            p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy, p.torque,
                            law.kn, law.ks, law.mu, law.zeta, law.allow_tension, sim.dt)
 
