@@ -315,8 +315,8 @@ class NeighborList:
         self.pair_fs = self.pair_fn = np.zeros(0)
         self.i_start = np.zeros(1, dtype=INDEX)
         self.strip_start = np.zeros(2, dtype=INDEX)
-        self._blocks = np.zeros(2, dtype=INDEX)  # the runs of strips of ``blocks``,
-        self._blocks_threads = 0  # worked out for this many threads (0: none yet)
+        self._blocks = np.zeros(2, dtype=INDEX)  # what ``blocks`` returns, cut for
+        self._blocks_threads = 0  # this many threads (0: not cut since the last build)
         self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
         self.w_start = np.zeros(1, dtype=INDEX)
