@@ -44,9 +44,12 @@ class Kernel:
         self.serial = numba.njit(**FLAGS)(_renamed(fn, "_serial"))
         self.parallel = numba.njit(parallel=True, **FLAGS)(_renamed(fn, "_parallel"))
 
-    def pick(self, n: int):
-        """The variant for ``n`` grains with the current numba thread count."""
-        if n >= PARALLEL_MIN_GRAINS and numba.get_num_threads() > 1:
+    def pick(self, n: int, threads: int | None = None):
+        """The variant for ``n`` grains with ``threads`` threads (default: numba's current
+        count; asking numba costs ~2 us, so a caller that picks many kernels at once, like
+        the list build, asks once and passes it)."""
+        if n >= PARALLEL_MIN_GRAINS and (numba.get_num_threads() if threads is None
+                                         else threads) > 1:
             return self.parallel
         return self.serial
 

@@ -244,17 +244,30 @@ def _carry_walls(n, old_of, w_start, wc_w, wc_fs, wc_fn,
             wc_fn[k] = fn
 
 
+@njit
 def strip_rows(cell_start, ncx, ncy, n_strips=STRIPS):
     """Cut the cell rows into at most ``n_strips`` runs of whole rows holding about equal
     numbers of grains (grains sorted by cell, row-major): returns the first cell row of each
-    strip and ncy at the end.  Depends on the positions only, never on the thread count."""
-    row_start = cell_start[::ncx][: ncy + 1]
-    n = int(row_start[-1])
-    targets = n * np.arange(1, n_strips) / n_strips
-    cuts = np.zeros(0, dtype=np.int64)
+    strip and ncy at the end.  Row k + 1 starts strip m when it is the first row whose first
+    grain is at or past m n / n_strips (clamped to rows 1 .. ncy - 1; repeated cuts merged).
+    Depends on the positions only, never on the thread count.  Compiled: in numpy it took
+    ~30 us of Python per list build, a third of the build at 1e3 grains."""
+    rows = np.empty(n_strips + 1, dtype=INDEX)
+    rows[0] = 0
+    count = 1
+    n = cell_start[ncy * ncx]
     if ncy > 1:
-        cuts = np.unique(np.clip(np.searchsorted(row_start, targets), 1, ncy - 1))
-    return np.concatenate(([0], cuts, [ncy])).astype(INDEX)
+        row = 0  # the first row whose first grain is at or past the target
+        for m in range(1, n_strips):
+            target = n * m / n_strips
+            while row <= ncy and cell_start[row * ncx] < target:
+                row += 1
+            cut = min(max(row, 1), ncy - 1)
+            if cut != rows[count - 1]:
+                rows[count] = cut
+                count += 1
+    rows[count] = ncy
+    return rows[: count + 1].copy()
 
 
 def first_grains(cell_start, ncx, rows):
@@ -358,7 +371,7 @@ class NeighborList:
             self._blocks_threads = threads
         return self._blocks
 
-    def _strided(self, search, n, args, name):
+    def _strided(self, search, n, args, name, threads):
         """Run a search kernel that writes up to ``stride`` entries per grain into a strided
         buffer (widening it and searching again if a grain had more), then compact the entries
         to CSR form: returns (start, entries)."""
@@ -367,7 +380,7 @@ class NeighborList:
             if self._buf.size < n * stride:
                 self._buf = np.empty(n * stride, dtype=INDEX)
             counts = np.empty(n, dtype=np.int64)
-            search.pick(n)(*args, counts, self._buf, stride)
+            search.pick(n, threads)(*args, counts, self._buf, stride)
             most = int(counts.max()) if n else 0
             if most <= stride:
                 break
@@ -379,13 +392,14 @@ class NeighborList:
         start = np.zeros(n + 1, dtype=INDEX)
         start[1:] = total
         out = np.empty(int(start[-1]), dtype=INDEX)
-        _compact.pick(n)(n, self._buf, stride, start, out)
+        _compact.pick(n, threads)(n, self._buf, stride, start, out)
         return start, out
 
     def rebuild(self, particles, walls) -> None:
         """Sort the grains by cell, list the candidates, carry the contact history over."""
         p = particles
         n = p.n
+        threads = numba.get_num_threads()  # once: each kernel below picks its variant by it
         x, y, radius = p.view("x"), p.view("y"), p.view("radius")
         r_max = float(radius.max()) if n else 0.0
         cell_size = 2.0 * (r_max if n else 1.0) + self.skin
@@ -405,18 +419,18 @@ class NeighborList:
             )
         cell_start, members = cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy)
         # sort the grains by cell; forces are recomputed by the step and the references reset
-        p.permute(members, skip=("fx", "fy", "torque", "x_ref", "y_ref"))
+        p.permute(members, skip=("fx", "fy", "torque", "x_ref", "y_ref"), threads=threads)
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
         rows = strip_rows(cell_start, ncx, ncy)
         i_start, pair_j = self._strided(
             _pairs_of, n,
             (n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows, self.skin),
-            "_pair_stride")
+            "_pair_stride", threads)
         old_of = np.empty(n, dtype=INDEX)
-        _old_index.pick(n)(n, uid, self.slot_of_uid, old_of)
+        _old_index.pick(n, threads)(n, uid, self.slot_of_uid, old_of)
         pair_fs = np.empty(pair_j.size)
-        _carry_pairs.pick(n)(n, old_of, i_start, pair_j, pair_fs,
+        _carry_pairs.pick(n, threads)(n, old_of, i_start, pair_j, pair_fs,
                              self.i_start, self.pair_j, self.pair_fs)
 
         wb = walls
@@ -428,10 +442,10 @@ class NeighborList:
             _wall_candidates_of, n,
             (n, x, y, radius, *w_box, wb.ax, wb.ay, wb.bx, wb.by, wb.one_sided,
              self.skin, xmin, ymin, cell_size, ncx, ncy, cell_wstart, cell_walls),
-            "_wall_stride")
+            "_wall_stride", threads)
         wc_fs = np.empty(wc_w.size)
         wc_fn = np.empty(wc_w.size)
-        _carry_walls.pick(n)(n, old_of, w_start, wc_w, wc_fs, wc_fn,
+        _carry_walls.pick(n, threads)(n, old_of, w_start, wc_w, wc_fs, wc_fn,
                              self.w_start, self.wc_w, self.wc_fs, self.wc_fn)
 
         self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs

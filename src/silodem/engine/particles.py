@@ -93,16 +93,18 @@ class Particles:
             arr[:m] = arr[idx]
         self.n = m
 
-    def permute(self, order: np.ndarray, skip: tuple[str, ...] = ()) -> None:
+    def permute(self, order: np.ndarray, skip: tuple[str, ...] = (),
+                threads: int | None = None) -> None:
         """Reorder the live particles: new index k holds old index ``order[k]``.  Fields in
-        ``skip`` are left as they are (the caller overwrites them)."""
+        ``skip`` are left as they are (the caller overwrites them); ``threads`` as in
+        ``jit.Kernel.pick``."""
         n = self.n
         tmp = np.empty(n)
+        reorder = _reorder.pick(n, threads)
         for name in _FLOAT_FIELDS:
             if name in skip:
                 continue
-            arr = getattr(self, name)
-            _reorder.pick(n)(arr, order, tmp)
+            reorder(getattr(self, name), order, tmp)
         self.uid[:n] = self.uid[:n][order]
 
     # --- read-only views and derived quantities (never change state) -------------------
