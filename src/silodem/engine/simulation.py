@@ -26,7 +26,7 @@ from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
 from silodem.errors import UnstableRunError
-from silodem.jit import njit
+from silodem.jit import njit, specialised
 
 
 class Simulation:
@@ -85,10 +85,10 @@ class Simulation:
     def run(self, n_steps: int) -> None:
         """Advance ``n_steps`` timesteps (the order is in the module docstring).
 
-        Steps 1 (the list) and 4 (walls) run here; steps 2-3 run in ``compiled_steps`` for as
-        many steps as the list stays valid (a compiled loop saves Python's dispatch of each
-        step, a tenth of a step below about 1e4 grains, and more with threads), or one step
-        per call while a wall moves.  The threaded kernels are used from
+        Steps 1 (the list) and 4 (walls) run here; steps 2-3 run in a compiled loop
+        (``serial_steps`` or ``threaded_steps``) for as many steps as the list stays valid (it
+        saves Python's dispatch of each step, a tenth of a step below about 1e4 grains, and
+        more with threads), or one step per call while a wall moves.  The threaded kernels are used from
         ``jit.PARALLEL_MIN_GRAINS`` grains on; they give the same bits as the serial ones."""
         p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
         left = int(n_steps)
@@ -101,9 +101,8 @@ class Simulation:
                 self._stale = False
                 self._wall_drift = 0.0
             threaded = pair_forces.pick(p.n) is pair_forces.parallel
-            done, time, max_d2, *self._spread = compiled_steps(
-                1 if walls_move else left, threaded,
-                nb.strip_start, nb.blocks(numba.get_num_threads() if threaded else 1),
+            done, time, max_d2, *self._spread = (threaded_steps if threaded else serial_steps)(
+                1 if walls_move else left, nb.strip_start, nb.blocks(numba.get_num_threads() if threaded else 1),
                 nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn,
                 nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                 w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
@@ -144,44 +143,34 @@ def list_expired(drift, lox, hix, loy, hiy, wall_drift, skin):
     return min(2.0 * drift, diagonal) >= skin or drift + wall_drift >= skin
 
 
-_pair_forces_serial = pair_forces.serial
-_pair_forces_threaded = pair_forces.parallel
-_walls_and_leapfrog_serial = walls_and_leapfrog.serial
-_walls_and_leapfrog_threaded = walls_and_leapfrog.parallel
+# the kernels ``_steps`` calls; each compiled copy below binds them to one variant
+_pair_forces = pair_forces.serial
+_walls_and_leapfrog = walls_and_leapfrog.serial
 
 
-@njit
-def compiled_steps(max_steps, threaded, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
-                   w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
-                   x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
-                   kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
-                   wall_drift, time):
+def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+           w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+           x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
+           kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
+           wall_drift, time):
     """Steps 2 and 3, repeated up to ``max_steps`` times and until the neighbour list expires
-    (``list_expired``) or a position is not finite, with the threaded kernels (one thread per
-    run of strips in ``blocks``) or the serial ones.  Returns the steps done, the clock [s]
-    after them, the largest squared displacement since the build [m^2] (not finite: the last
-    step attempted was unstable and is not counted) and the bounding box of the
-    displacements [m]."""
+    (``list_expired``) or a position is not finite.  Compiled twice (``jit.specialised``):
+    ``serial_steps`` calls the serial kernels, ``threaded_steps`` the parallel ones (one
+    thread per run of strips in ``blocks``).  Returns the steps done, the clock [s] after
+    them, the largest squared displacement since the build [m^2] (not finite: the last step
+    attempted was unstable and is not counted) and the bounding box of the displacements
+    [m]."""
     done = 0
     max_d2 = lox = hix = loy = hiy = 0.0
     runs = np.empty((blocks.shape[0] - 1, 5))  # each run's displacements: no allocation below
     while done < max_steps:
-        if threaded:
-            _pair_forces_threaded(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
-                                  x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
-                                  kn, ks, mu, zeta, allow_tension, dt)
-            max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_threaded(
-                strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
-                x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-                zeta, allow_tension, local_damping, dt, runs)
-        else:
-            _pair_forces_serial(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
-                                x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
-                                kn, ks, mu, zeta, allow_tension, dt)
-            max_d2, lox, hix, loy, hiy = _walls_and_leapfrog_serial(
-                strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
-                x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-                zeta, allow_tension, local_damping, dt, runs)
+        _pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+                     x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
+                     kn, ks, mu, zeta, allow_tension, dt)
+        max_d2, lox, hix, loy, hiy = _walls_and_leapfrog(
+            strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+            x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
+            zeta, allow_tension, local_damping, dt, runs)
         if not np.isfinite(max_d2):
             break
         done += 1
@@ -189,3 +178,9 @@ def compiled_steps(max_steps, threaded, strip_start, blocks, i_start, pair_j, pa
         if list_expired(math.sqrt(max_d2), lox, hix, loy, hiy, wall_drift, skin):
             break
     return done, time, max_d2, lox, hix, loy, hiy
+
+
+serial_steps = specialised(_steps, "_serial", _pair_forces=pair_forces.serial,
+                           _walls_and_leapfrog=walls_and_leapfrog.serial)
+threaded_steps = specialised(_steps, "_threaded", _pair_forces=pair_forces.parallel,
+                             _walls_and_leapfrog=walls_and_leapfrog.parallel)
