@@ -276,11 +276,6 @@ def first_grains(cell_start, ncx, rows):
     return cell_start[rows.astype(np.int64) * ncx].astype(INDEX)
 
 
-def strips_of(cell_start, ncx, ncy, n_strips=STRIPS):
-    """The strips of ``strip_rows`` as grain ranges (``first_grains``)."""
-    return first_grains(cell_start, ncx, strip_rows(cell_start, ncx, ncy, n_strips))
-
-
 # cost of one candidate pair in the pair loop against one grain in the leap-frog (a touching
 # pair ~20 ns, one that does not a few ns; ~6 ns per grain: docs/performance.md)
 PAIR_WORK = 2.5
@@ -313,8 +308,8 @@ class NeighborList:
 
     Per grain pair k (grouped by i): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N]
     (history) and normal force ``pair_fn`` [N] of the last step; ``strip_start`` cuts the
-    grains into strips of whole cell rows (``strips_of``), shared out among the threads by
-    ``blocks``.  Per grain-wall candidate k (grouped by grain):
+    grains into strips of whole cell rows (``strip_rows``, ``first_grains``), shared out
+    among the threads by ``blocks``.  Per grain-wall candidate k (grouped by grain):
     ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force on the grain).
     """
 

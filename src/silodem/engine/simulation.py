@@ -88,8 +88,9 @@ class Simulation:
         Steps 1 (the list) and 4 (walls) run here; steps 2-3 run in a compiled loop
         (``serial_steps`` or ``threaded_steps``) for as many steps as the list stays valid (it
         saves Python's dispatch of each step, a tenth of a step below about 1e4 grains, and
-        more with threads), or one step per call while a wall moves.  The threaded kernels are used from
-        ``jit.PARALLEL_MIN_GRAINS`` grains on; they give the same bits as the serial ones."""
+        more with threads), or one step per call while a wall moves.  The threaded kernels
+        are used from ``jit.PARALLEL_MIN_GRAINS`` grains on; they give the same bits as the
+        serial ones."""
         p, nb, w, law, dt = self.particles, self.neighbors, self.walls, self.law, self.dt
         left = int(n_steps)
         walls_move = w.moving()
@@ -100,9 +101,10 @@ class Simulation:
                 nb.rebuild(p, w)
                 self._stale = False
                 self._wall_drift = 0.0
-            threaded = pair_forces.pick(p.n) is pair_forces.parallel
+            threads = numba.get_num_threads()  # asked once: it takes a lock
+            threaded = pair_forces.pick(p.n, threads) is pair_forces.parallel
             done, time, max_d2, *self._spread = (threaded_steps if threaded else serial_steps)(
-                1 if walls_move else left, nb.strip_start, nb.blocks(numba.get_num_threads() if threaded else 1),
+                1 if walls_move else left, nb.strip_start, nb.blocks(threads if threaded else 1),
                 nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn,
                 nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                 w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
