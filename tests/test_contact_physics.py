@@ -171,3 +171,22 @@ def test_kinetic_energy_of_translating_and_spinning_disks():
     expected = np.array([0.5 * m[0] * 25.0, 0.5 * (0.5 * m[1] * 0.04) * 100.0])
     assert p.kinetic_energies() == pytest.approx(expected, rel=1e-14)
     assert p.kinetic_energy() == pytest.approx(expected.sum(), rel=1e-14)
+
+
+@pytest.mark.parametrize("tension", [False, True])
+def test_branch_free_law_equals_the_reference_law_exactly(tension):
+    """``linear_law`` (min/max, no data-dependent branch) gives the bits of the reference DEM's
+    if/else form on contacts that stick, slide either way, pull apart or are pushed apart by
+    their dashpot."""
+    from reference_dem import _law
+
+    from silodem.engine.contact import linear_law
+
+    rng = np.random.default_rng(7)
+    kn, ks, cn, mu, dt = 1e5, 8e4, 40.0, 0.4, 1e-4
+    for _ in range(2000):
+        overlap = rng.uniform(-1e-3, 2e-3)
+        vn, vt = rng.normal(0.0, 2.0, 2)
+        fs_old = rng.normal(0.0, 50.0)
+        got = linear_law(overlap, vn, vt, fs_old, kn, ks, cn, mu, tension, dt)
+        assert got == _law(overlap, vn, vt, fs_old, kn, ks, cn, mu, tension, dt)
