@@ -135,7 +135,8 @@ def test_pair_loop_and_leapfrog_give_the_same_bits_for_any_runs_of_strips():
             nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs.copy(), nb.wc_fn.copy(),
             nb.wc_fx, nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy,
             p.torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, sim.law.zeta,
-            sim.law.allow_tension, sim.law.local_damping, sim.dt, np.empty((blocks.size, 5)))
+            sim.law.allow_tension, sim.law.local_damping, sim.dt, np.empty((blocks.size, 7)),
+            nb.wall_gap, 0.0, 0.25 * nb.skin**2, nb.fast)
         return [p.view(name).copy() for name in names] + [nb.pair_fs.copy(), moved]
 
     one = one_step(np.array([0, n_strips], dtype=np.int32))
@@ -274,3 +275,81 @@ def test_wall_candidates_equal_brute_force_with_many_walls(seed):
     found = sorted((int(uid[g]), int(k)) for g, k in zip(nb.wc_i, nb.wc_w))
     assert found == sorted(expected) and len(expected) > 100
     assert np.all(np.diff(nb.wc_w)[np.diff(nb.wc_i) == 0] > 0)  # ascending per grain
+
+
+def _missed_contacts(sim):
+    """Overlapping grain pairs and grain-wall overlaps at the current positions that the list
+    does not hold (brute force with a k-d tree, and every wall for every grain)."""
+    from scipy.spatial import cKDTree
+
+    p, nb, w = sim.particles, sim.neighbors, sim.walls
+    x, y, r = p.view("x"), p.view("y"), p.view("radius")
+    listed = set(zip(nb.pair_i.tolist(), nb.pair_j.tolist()))
+    missed = 0
+    for i, j in cKDTree(np.c_[x, y]).query_pairs(2 * r.max()):
+        if np.hypot(x[i] - x[j], y[i] - y[j]) < r[i] + r[j]:
+            missed += (min(i, j), max(i, j)) not in listed
+    wall_listed = set(zip(nb.wc_i.tolist(), nb.wc_w.tolist()))
+    for k in np.flatnonzero(w.active):
+        ux, uy = w.bx[k] - w.ax[k], w.by[k] - w.ay[k]
+        s = np.clip(((x - w.ax[k]) * ux + (y - w.ay[k]) * uy) / (ux * ux + uy * uy), 0, 1)
+        near = np.hypot(x - w.ax[k] - s * ux, y - w.ay[k] - s * uy) < r
+        missed += sum((g, k) not in wall_listed for g in np.flatnonzero(near).tolist())
+    return missed
+
+
+def test_cell_test_keeps_every_contact_and_saves_list_builds():
+    """The benchmark silo (grains re-entering at the top fall freely onto the packing): after
+    every step at which the global test says rebuild and the test by cells keeps the list,
+    every overlapping pair and grain-wall overlap is in it (brute force); and the list is
+    rebuilt less often than by the global test alone."""
+    from silodem.bench import advance, build
+    from silodem.engine.list_validity import list_expired
+
+    builds = {}
+    for cell_test in (False, True):
+        sim, _, top = build(16, 60)
+        sim.cell_test = cell_test
+        advance(sim, top, 6000)  # packed at the bottom, re-entered grains falling
+        start, kept = sim.neighbors.rebuilds, 0
+        for _ in range(600):
+            advance(sim, top, 1)
+            past_global = list_expired(sim._drift, *sim._spread, sim._wall_drift,
+                                       sim.neighbors.skin)
+            if cell_test and past_global and not sim._list_expired():
+                assert _missed_contacts(sim) == 0  # this list makes the next forces
+                kept += 1
+        builds[cell_test] = sim.neighbors.rebuilds - start
+    assert kept > 150
+    assert builds[True] < builds[False]
+
+
+@pytest.mark.parametrize("x0", [-1.6, -1.575, -1.55, -1.525, -1.5, -1.475])
+@pytest.mark.parametrize("y0", [2.5, 2.42, 2.375])
+def test_cell_test_misses_no_contact_of_a_grain_shot_into_a_resting_block(x0, y0):
+    """One fast grain (50 m/s) shot at 401 grains at rest (no gravity, no walls), head-on at
+    a grain, off-centre, or between two, from six starts (so the list is built at six phases
+    of the approach): the global test expires every few steps, the test
+    by cells keeps the list while the fast grain is away from the others; after every step,
+    every overlapping pair is in the list (brute force), through the approach and the
+    impact.  A test by cells that allowed twice the skin, or looked at the cells 1 away
+    only, fails here."""
+    from silodem.engine.list_validity import list_expired
+
+    xs, ys = np.meshgrid(np.arange(20) * 0.25, np.arange(20) * 0.25)
+    p = Particles(8)
+    p.add(xs.ravel(), ys.ravel(), 0.1, 1000.0)
+    p.add([-3.0], [0.0], 0.1, 1000.0)  # far away: the cell grid does not start at the shot
+    p.add([x0], [y0], 0.1, 1000.0, vx=50.0)
+    sim = Simulation(p, Walls(), law(1e6, zeta=0.1), dt=1e-4, gravity=0.0, skin=0.05)
+    kept = touched = 0
+    for _ in range(400):
+        sim.step()
+        past_global = list_expired(sim._drift, *sim._spread, sim._wall_drift,
+                                   sim.neighbors.skin)
+        if not sim._list_expired():  # this list makes the next forces
+            kept += past_global
+            assert _missed_contacts(sim) == 0
+        touched += np.count_nonzero(sim.neighbors.pair_fn) > 0
+    assert kept > 50
+    assert touched > 10  # the shot grain hit the block

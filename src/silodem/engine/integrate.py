@@ -35,7 +35,8 @@ from silodem.jit import kernel, njit, prange
 @kernel
 def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                        x, y, vx, vy, omega, fx, fy, torque, radius, mass,
-                       x_ref, y_ref, gravity, zeta, allow_tension, alpha, dt, runs):
+                       x_ref, y_ref, gravity, zeta, allow_tension, alpha, dt, runs,
+                       wall_gap, wall_drift, fast_d2, fast):
     """Compute each grain's wall contacts (candidates ``w_start[i]:w_start[i+1]`` of the
     neighbour list, walls ``Walls.arrays()``, ``contact.wall_contact``) and add them to the
     sums of its grain-grain contacts (``fx, fy``, and in ``torque`` the sum of their shear
@@ -46,11 +47,22 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
     the displacement vectors [m]).  Each thread takes one run of strips (``blocks``), the
     same grains as in ``pair_forces``, so that they are still in its core's cache, and
     writes its run's largest squared displacement and box to its row of ``runs`` (at least
-    one row per run, 5 columns; given, not allocated here)."""
+    one row per run, 7 columns; given, not allocated here).
+
+    For the list test by cells (``list_validity.cells_keep_list``) it also lists the grains
+    of each run whose squared displacement reaches ``fast_d2`` [m^2] (in ``fast``, from the
+    run's first grain on; their number in column 5) and sets column 6 to 1 if a grain's
+    displacement plus the walls' drift ``wall_drift`` [m] reaches its ``wall_gap`` [m] (an
+    empty ``wall_gap``: the test is off, nothing is listed and column 6 is 1)."""
     (ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b, w_guard,
      w_one_sided) = walls
     n_blocks = blocks.shape[0] - 1
+    n_all = strip_start[strip_start.shape[0] - 1]
+    cells = wall_gap.shape[0] >= n_all and fast.shape[0] >= n_all > 0
     for c in prange(n_blocks):
+        first = strip_start[blocks[c]]
+        n_fast = 0
+        near_wall = 0.0 if cells else 1.0  # not listed: the test by cells must not pass
         m2 = 0.0
         lox = np.inf
         hix = -np.inf
@@ -102,6 +114,13 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
             d2 = ddx * ddx + ddy * ddy
             if not d2 <= m2:  # also catches NaN
                 m2 = d2 if not math.isnan(d2) else np.inf
+            if cells:
+                if d2 >= fast_d2:
+                    fast[first + n_fast] = p_
+                    n_fast += 1
+                room = wall_gap[p] - wall_drift
+                if not (room > 0.0 and d2 < room * room):
+                    near_wall = 1.0
             lox = min(lox, ddx)
             hix = max(hix, ddx)
             loy = min(loy, ddy)
@@ -111,6 +130,8 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
         runs[c, 2] = hix
         runs[c, 3] = loy
         runs[c, 4] = hiy
+        runs[c, 5] = n_fast
+        runs[c, 6] = near_wall
     return _reduce(runs, n_blocks)
 
 

@@ -3,9 +3,11 @@
 At each rebuild every pair closer than r_i + r_j + skin is listed once (i < j), grouped by i
 (CSR: the candidates of grain i are ``pair_j[i_start[i]:i_start[i+1]]``), and every grain closer
 than r + skin to an active wall (3r + skin for one-sided walls; only the walls binned to its
-cell are tested) gets a grain-wall candidate, grouped by grain the same way (``w_start``).  The list stays valid while no grain has moved more
-than skin/2 since the rebuild (two grains then close by at most ``skin``); the integrator reports
-the largest displacement and the simulation rebuilds when it passes skin/2.
+cell are tested) gets a grain-wall candidate, grouped by grain the same way (``w_start``).
+The list stays valid while no two grains can have closed in by the skin since the build
+(``list_validity``: a global test on the largest displacement, then a test by cells on the
+grains that moved skin/2 or more); the build leaves what the test by cells needs: each
+grain's gap to the walls it is not a candidate of, the cell grid and each cell's grains.
 
 At each rebuild the grains are first reordered by cell (spatial sorting: neighbours sit close
 in memory, and each cell is a contiguous index range, which the half-stencil search needs).
@@ -28,6 +30,9 @@ from silodem.errors import UnstableRunError
 from silodem.jit import kernel, njit, prange
 
 _MAX_CELLS_PER_GRAIN = 64
+# the test by cells keeps a box per cell of the build's grid; with more cells than this per
+# grain (a few grains spread over a large domain) the list falls back to the global test
+CELL_TEST_MAX_CELLS_PER_GRAIN = 4
 STRIPS = 64  # strips of cell rows for the pair loop (contact.pair_forces): 32 per parity
 # candidate lists and their starts hold 32-bit indices: the pair loop streams them every step,
 # and half the bytes make it 8 % faster at 3e5 grains (none at 3e4; docs/performance.md)
@@ -175,15 +180,22 @@ def walls_by_cell(w_lox, w_hix, w_loy, w_hiy, w_active, reach, xmin, ymin, cell_
 @kernel
 def _wall_candidates_of(n, x, y, radius, w_lox, w_hix, w_loy, w_hiy, w_ax, w_ay, w_bx, w_by,
                         w_one_sided, skin, xmin, ymin, cell_size, ncx, ncy,
-                        cell_wstart, cell_walls, counts, buf, stride):
+                        cell_wstart, cell_walls, bin_reach, gap, counts, buf, stride):
     """The walls near each grain (r + skin; 3r + skin for one-sided walls) among the active
-    walls of its cell (``walls_by_cell``), written to ``buf[p*stride : p*stride+stride]`` like
-    ``_pairs_of``; ``w_lo*, w_hi*`` are each wall's bounding box (a quick first test)."""
+    walls of its cell (``walls_by_cell``, which binned them with ``bin_reach``), written to
+    ``buf[p*stride : p*stride+stride]`` like ``_pairs_of``; ``w_lo*, w_hi*`` are each wall's
+    bounding box (a quick first test).
+
+    ``gap[p]`` [m]: a lower bound on how far grain p is from touching any active wall that is
+    not its candidate (at least ``skin``): the exact gap to the walls of its cell that are not
+    candidates, 2r + skin for those the quick test rejects, and bin_reach - r for the walls
+    not binned to its cell (their bounding box is farther than bin_reach)."""
     for p in prange(n):
         k = 0
         base = p * stride
         last = stride - 1
         reach = 3.0 * radius[p] + skin
+        g = bin_reach - radius[p]
         c = cell_of(x[p], y[p], xmin, ymin, cell_size, ncx, ncy)
         for q in range(cell_wstart[c], cell_wstart[c + 1]):
             w = cell_walls[q]
@@ -191,10 +203,16 @@ def _wall_candidates_of(n, x, y, radius, w_lox, w_hix, w_loy, w_hiy, w_ax, w_ay,
                     and y[p] > w_loy[w] - reach and y[p] < w_hiy[w] + reach):
                 cx, cy, _ = closest_point(x[p], y[p], w_ax[w], w_ay[w], w_bx[w], w_by[w])
                 cut = radius[p] * (3.0 if w_one_sided[w] else 1.0) + skin
-                if (x[p] - cx) ** 2 + (y[p] - cy) ** 2 < cut * cut:
+                d2 = (x[p] - cx) ** 2 + (y[p] - cy) ** 2
+                if d2 < cut * cut:
                     buf[base + min(k, last)] = w
                     k += 1
+                else:
+                    g = min(g, math.sqrt(d2) - radius[p])
+            else:
+                g = min(g, reach - radius[p])
         counts[p] = k
+        gap[p] = g
 
 
 @kernel
@@ -328,6 +346,15 @@ class NeighborList:
         self.wc_w = empty_i
         self.wc_fs = self.wc_fn = self.wc_fx = self.wc_fy = np.zeros(0)
         self.w_start = np.zeros(1, dtype=INDEX)
+        # for the test by cells (``list_validity``): each grain's gap to the walls it is not a
+        # candidate of [m], the build's cell grid (xmin, ymin, cell size, ncx, ncy) and the
+        # first grain of each cell (the grains are sorted by cell), scratch
+        self.wall_gap = np.zeros(0)
+        self.cell_grid = np.zeros(5)
+        self.cell_start = np.zeros(0, dtype=INDEX)
+        self.fast = np.zeros(0, dtype=INDEX)  # grains that moved skin/2 or more, per run
+        self.report = np.zeros((0, 7))  # the leap-frog's report of the last step, per run
+        self.report_blocks = np.zeros(2, dtype=INDEX)
         self.slot_of_uid = np.zeros(0, dtype=np.int64)
         self._pair_i: np.ndarray | None = empty_i
         self._wc_i: np.ndarray | None = empty_i
@@ -357,6 +384,16 @@ class NeighborList:
     @wc_i.setter
     def wc_i(self, value: np.ndarray) -> None:
         self._wc_i = value
+
+    def step_report(self, threads: int) -> np.ndarray:
+        """Rows for the leap-frog's report of each step, one per run of strips of
+        ``blocks(threads)`` (``integrate.walls_and_leapfrog``); the last step's report stays
+        here (and in checkpoints) for the list test that follows it."""
+        self.report_blocks = self.blocks(threads)
+        rows = self.report_blocks.shape[0] - 1
+        if self.report.shape[0] != rows:
+            self.report = np.zeros((rows, 7))
+        return self.report
 
     def blocks(self, threads: int) -> np.ndarray:
         """The strips cut into one run per thread (``thread_blocks``), worked out once per
@@ -431,12 +468,15 @@ class NeighborList:
         wb = walls
         w_box = (np.minimum(wb.ax, wb.bx), np.maximum(wb.ax, wb.bx),
                  np.minimum(wb.ay, wb.by), np.maximum(wb.ay, wb.by))
-        cell_wstart, cell_walls = walls_by_cell(*w_box, wb.active, 3.0 * r_max + self.skin,
+        bin_reach = 3.0 * r_max + self.skin
+        cell_wstart, cell_walls = walls_by_cell(*w_box, wb.active, bin_reach,
                                                 xmin, ymin, cell_size, ncx, ncy)
+        wall_gap = np.empty(n)
         w_start, wc_w = self._strided(
             _wall_candidates_of, n,
             (n, x, y, radius, *w_box, wb.ax, wb.ay, wb.bx, wb.by, wb.one_sided,
-             self.skin, xmin, ymin, cell_size, ncx, ncy, cell_wstart, cell_walls),
+             self.skin, xmin, ymin, cell_size, ncx, ncy, cell_wstart, cell_walls, bin_reach,
+             wall_gap),
             "_wall_stride", threads)
         wc_fs = np.empty(wc_w.size)
         wc_fn = np.empty(wc_w.size)
@@ -450,6 +490,14 @@ class NeighborList:
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn
         self.wc_fx = np.zeros(wc_w.size)
         self.wc_fy = np.zeros(wc_w.size)
+        self.wall_gap = wall_gap
+        self.cell_grid = np.array([xmin, ymin, cell_size, ncx, ncy], dtype=float)
+        # the test by cells needs each cell's grains (off until the next build if there are
+        # many more cells than grains)
+        many = ncx * ncy > CELL_TEST_MAX_CELLS_PER_GRAIN * max(n, 1)
+        self.cell_start = np.zeros(0, dtype=INDEX) if many else cell_start.astype(INDEX)
+        if self.fast.shape[0] < p.capacity:
+            self.fast = np.empty(p.capacity, dtype=INDEX)
         self._pair_i = self._wc_i = None  # expanded on demand (measurements only)
 
         slot = np.full(p.next_uid, -1, dtype=np.int64)

@@ -3,7 +3,8 @@
 One step, in the order the code runs it (``Simulation.run``; ``step`` is ``run(1)``):
 
 1. rebuild the neighbour list if two grains may have closed in by ``skin`` or a grain may have
-   reached a wall since the last build (see ``list_expired``), or grains/walls changed;
+   reached a wall since the last build (``list_validity``: the global test, then the test by
+   cells), or grains/walls changed;
 2. grain-grain contact forces (contact law on every candidate pair), summed per grain as they
    are computed (even strips of cell rows, then odd ones: race-free with threads);
 3. per grain: its grain-wall contact forces, added to its sums, then integrate (leap-frog,
@@ -22,22 +23,30 @@ import numpy as np
 
 from silodem.engine.contact import GrainLaw, pair_forces
 from silodem.engine.integrate import walls_and_leapfrog
+from silodem.engine.list_validity import cells_keep_list, list_expired
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
 from silodem.errors import UnstableRunError
-from silodem.jit import njit, specialised
+from silodem.jit import specialised
+
+# an empty wall gap: the leap-frog lists no fast grains, and the test by cells fails (it is
+# off, or the walls move: their drift grows after the leap-frog's report)
+_NO_GAP = np.zeros(0)
 
 
 class Simulation:
     """Owns the particles, walls, neighbour list and clock.
 
     Parameters: ``law`` grain-grain contact parameters (series values), ``dt`` time step [s],
-    ``gravity`` g [m/s^2] acting along -y, ``skin`` Verlet skin [m].
+    ``gravity`` g [m/s^2] acting along -y, ``skin`` Verlet skin [m], ``cell_test`` whether
+    the list is kept past the global test while the test by cells holds (``list_validity``;
+    off: rebuilt by the global test alone, as before the fourteenth session).
     """
 
     def __init__(self, particles: Particles, walls: Walls, law: GrainLaw, dt: float,
-                 gravity: float = 9.81, skin: float | None = None) -> None:
+                 gravity: float = 9.81, skin: float | None = None,
+                 cell_test: bool = True) -> None:
         if dt <= 0:
             raise ValueError("time step must be positive")
         self.particles = particles
@@ -49,6 +58,7 @@ class Simulation:
             r = particles.view("radius")
             skin = 0.4 * float(r.mean()) if r.size else 0.01
         self.neighbors = NeighborList(skin)
+        self.cell_test = bool(cell_test)
         self.time = 0.0
         self.steps = 0
         self._stale = True  # the neighbour list must be rebuilt before the next force pass
@@ -110,7 +120,9 @@ class Simulation:
                 w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
                 p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks, law.mu, law.zeta,
                 law.allow_tension, law.local_damping, self.gravity, dt, nb.skin,
-                self._wall_drift, self.time)
+                self._wall_drift, self.time, nb.step_report(threads if threaded else 1),
+                nb.wall_gap if self.cell_test and not walls_move else _NO_GAP, nb.fast,
+                nb.cell_grid, nb.cell_start)
             self.steps += done
             self.time = time
             left -= done
@@ -124,25 +136,19 @@ class Simulation:
                 self._wall_drift += w.advance(dt)
 
     def _list_expired(self) -> bool:
-        """Whether the Verlet list may miss a contact (``list_expired``)."""
-        return list_expired(self._drift, *self._spread, self._wall_drift, self.neighbors.skin)
-
-
-@njit
-def list_expired(drift, lox, hix, loy, hiy, wall_drift, skin):
-    """Whether the Verlet list may miss a contact, from the largest grain displacement since
-    the build ``drift`` [m], the bounding box of the displacement vectors, and how far the
-    walls moved [m].
-
-    A pair (i, j) left out at the build was at least r_i + r_j + skin apart; it has closed in
-    by at most |D_i - D_j| (D = displacement since the build), which is at most
-    min(2 max|D|, diagonal of the bounding box of all D).  The second bound is the sharper one
-    when the grains move together (a falling column, a discharging bulk), and keeps the list
-    twice as long as the usual max|D| < skin/2 when part of the grains is at rest.  A
-    grain-wall candidate is kept within r + skin, so a wall is safe while max|D| + wall drift
-    < skin."""
-    diagonal = math.hypot(hix - lox, hiy - loy) if hix >= lox else 0.0
-    return min(2.0 * drift, diagonal) >= skin or drift + wall_drift >= skin
+        """Whether the Verlet list may miss a contact (``list_validity``: the global test,
+        and if that fails and ``cell_test`` is on, the test by cells on the last step's
+        report)."""
+        nb, p = self.neighbors, self.particles
+        if not list_expired(self._drift, *self._spread, self._wall_drift, nb.skin):
+            return False
+        if not self.cell_test or nb.report.shape[0] == 0:
+            return True
+        lox, hix, loy, hiy = self._spread
+        diagonal = math.hypot(hix - lox, hiy - loy) if hix >= lox else 0.0
+        return not cells_keep_list(nb.report, nb.strip_start, nb.report_blocks, nb.fast,
+                                   nb.wall_gap, p.x, p.y, p.x_ref, p.y_ref, nb.skin,
+                                   nb.cell_grid, nb.cell_start, self._drift, diagonal)
 
 
 # the kernels ``_steps`` calls; each compiled copy below binds them to one variant
@@ -154,17 +160,18 @@ def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
            w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
            x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
            kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
-           wall_drift, time):
+           wall_drift, time, runs, wall_gap, fast, cell_grid, cell_start):
     """Steps 2 and 3, repeated up to ``max_steps`` times and until the neighbour list expires
-    (``list_expired``) or a position is not finite.  Compiled twice (``jit.specialised``):
-    ``serial_steps`` calls the serial kernels, ``threaded_steps`` the parallel ones (one
-    thread per run of strips in ``blocks``).  Returns the steps done, the clock [s] after
+    (``list_validity``: the global test, then the test by cells on the leap-frog's report in
+    ``runs``, unless ``wall_gap`` is empty) or a position is not finite.  Compiled twice
+    (``jit.specialised``): ``serial_steps`` calls the serial kernels, ``threaded_steps`` the
+    parallel ones (one thread per run of strips in ``blocks``).  Returns the steps done, the clock [s] after
     them, the largest squared displacement since the build [m^2] (not finite: the last step
     attempted was unstable and is not counted) and the bounding box of the displacements
     [m]."""
     done = 0
     max_d2 = lox = hix = loy = hiy = 0.0
-    runs = np.empty((blocks.shape[0] - 1, 5))  # each run's displacements: no allocation below
+    fast_d2 = 0.25 * skin * skin  # moved skin/2 or more: compared by the test by cells
     while done < max_steps:
         _pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
                      x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
@@ -172,12 +179,16 @@ def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
         max_d2, lox, hix, loy, hiy = _walls_and_leapfrog(
             strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
             x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-            zeta, allow_tension, local_damping, dt, runs)
+            zeta, allow_tension, local_damping, dt, runs, wall_gap, wall_drift, fast_d2, fast)
         if not np.isfinite(max_d2):
             break
         done += 1
         time += dt
-        if list_expired(math.sqrt(max_d2), lox, hix, loy, hiy, wall_drift, skin):
+        drift = math.sqrt(max_d2)
+        if list_expired(drift, lox, hix, loy, hiy, wall_drift, skin) and not (
+                wall_gap.shape[0] > 0 and cells_keep_list(
+                    runs, strip_start, blocks, fast, wall_gap, x, y, x_ref, y_ref, skin,
+                    cell_grid, cell_start, drift, math.hypot(hix - lox, hiy - loy))):
             break
     return done, time, max_d2, lox, hix, loy, hiy
 
