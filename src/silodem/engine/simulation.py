@@ -111,6 +111,7 @@ class Simulation:
                 nb.rebuild(p, w)
                 self._stale = False
                 self._wall_drift = 0.0
+                self._drift, self._spread = 0.0, (0.0, 0.0, 0.0, 0.0)
             threads = numba.get_num_threads()  # asked once: it takes a lock
             threaded = pair_forces.pick(p.n, threads) is pair_forces.parallel
             done, time, max_d2, *self._spread = (threaded_steps if threaded else serial_steps)(
@@ -122,7 +123,7 @@ class Simulation:
                 law.allow_tension, law.local_damping, self.gravity, dt, nb.skin,
                 self._wall_drift, self.time, nb.step_report(threads if threaded else 1),
                 nb.wall_gap if self.cell_test and not walls_move else _NO_GAP, nb.fast,
-                nb.cell_grid, nb.cell_start)
+                nb.cell_grid, nb.cell_start, self._drift, *self._spread)
             self.steps += done
             self.time = time
             left -= done
@@ -160,26 +161,34 @@ def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
            w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
            x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
            kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
-           wall_drift, time, runs, wall_gap, fast, cell_grid, cell_start):
+           wall_drift, time, runs, wall_gap, fast, cell_grid, cell_start,
+           drift, lox, hix, loy, hiy):
     """Steps 2 and 3, repeated up to ``max_steps`` times and until the neighbour list expires
     (``list_validity``: the global test, then the test by cells on the leap-frog's report in
-    ``runs``, unless ``wall_gap`` is empty) or a position is not finite.  Compiled twice
-    (``jit.specialised``): ``serial_steps`` calls the serial kernels, ``threaded_steps`` the
-    parallel ones (one thread per run of strips in ``blocks``).  Returns the steps done, the clock [s] after
-    them, the largest squared displacement since the build [m^2] (not finite: the last step
-    attempted was unstable and is not counted) and the bounding box of the displacements
-    [m]."""
+    ``runs``, unless ``wall_gap`` is empty) or a position is not finite.  The leap-frog lists
+    the fast grains for the test by cells only on steps that follow one whose global bound
+    (from ``drift`` and the box ``lox, hix, loy, hiy`` of the displacements [m], those of the
+    step before this call at first) reached half the skin: before, the global test cannot
+    fail unless a grain jumps by that much in one step, and then the list is rebuilt.
+    Compiled twice (``jit.specialised``): ``serial_steps`` calls the serial kernels,
+    ``threaded_steps`` the parallel ones (one thread per run of strips in ``blocks``).
+    Returns the steps done, the clock [s] after them, the largest squared displacement since
+    the build [m^2] (not finite: the last step attempted was unstable and is not counted) and
+    the bounding box of the displacements [m]."""
     done = 0
-    max_d2 = lox = hix = loy = hiy = 0.0
+    max_d2 = drift * drift
     fast_d2 = 0.25 * skin * skin  # moved skin/2 or more: compared by the test by cells
+    no_gap = wall_gap[:0]
     while done < max_steps:
         _pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
                      x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
                      kn, ks, mu, zeta, allow_tension, dt)
+        near = min(2.0 * drift, math.hypot(hix - lox, hiy - loy)) >= 0.5 * skin
+        gap = wall_gap if near else no_gap  # (numba: no conditional inside a long call)
         max_d2, lox, hix, loy, hiy = _walls_and_leapfrog(
             strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
             x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-            zeta, allow_tension, local_damping, dt, runs, wall_gap, wall_drift, fast_d2, fast)
+            zeta, allow_tension, local_damping, dt, runs, gap, wall_drift, fast_d2, fast)
         if not np.isfinite(max_d2):
             break
         done += 1
