@@ -30,8 +30,8 @@ from silodem.errors import UnstableRunError
 from silodem.jit import kernel, njit, prange
 
 _MAX_CELLS_PER_GRAIN = 64
-# the test by cells keeps a box per cell of the build's grid; with more cells than this per
-# grain (a few grains spread over a large domain) the list falls back to the global test
+# the test by cells keeps each cell's first grain from the build; with more cells than this
+# per grain (a few grains spread over a large domain) the list falls back to the global test
 CELL_TEST_MAX_CELLS_PER_GRAIN = 4
 STRIPS = 64  # strips of cell rows for the pair loop (contact.pair_forces): 32 per parity
 # candidate lists and their starts hold 32-bit indices: the pair loop streams them every step,
