@@ -135,8 +135,8 @@ def test_pair_loop_and_leapfrog_give_the_same_bits_for_any_runs_of_strips():
             nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs.copy(), nb.wc_fn.copy(),
             nb.wc_fx, nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy,
             p.torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, sim.law.zeta,
-            sim.law.allow_tension, sim.law.local_damping, sim.dt, np.empty((blocks.size, 7)),
-            nb.wall_gap, 0.0, 0.25 * nb.skin**2, nb.fast)
+            sim.law.allow_tension, sim.law.local_damping, sim.dt, np.empty((blocks.size, 8)),
+            True, nb.wall_gap, 0.0, 0.25 * nb.skin**2, nb.fast)
         return [p.view(name).copy() for name in names] + [nb.pair_fs.copy(), moved]
 
     one = one_step(np.array([0, n_strips], dtype=np.int32))
@@ -304,7 +304,6 @@ def test_cell_test_keeps_every_contact_and_saves_list_builds():
     every overlapping pair and grain-wall overlap is in it (brute force); and the list is
     rebuilt less often than by the global test alone."""
     from silodem.bench import advance, build
-    from silodem.engine.list_validity import list_expired
 
     builds = {}
     for cell_test in (False, True):
@@ -314,9 +313,7 @@ def test_cell_test_keeps_every_contact_and_saves_list_builds():
         start, kept = sim.neighbors.rebuilds, 0
         for _ in range(600):
             advance(sim, top, 1)
-            past_global = list_expired(sim._drift, *sim._spread, sim._wall_drift,
-                                       sim.neighbors.skin)
-            if cell_test and past_global and not sim._list_expired():
+            if cell_test and sim._past_global_test() and not sim._list_expired():
                 assert _missed_contacts(sim) == 0  # this list makes the next forces
                 kept += 1
         builds[cell_test] = sim.neighbors.rebuilds - start
@@ -334,8 +331,6 @@ def test_cell_test_misses_no_contact_of_a_grain_shot_into_a_resting_block(x0, y0
     every overlapping pair is in the list (brute force), through the approach and the
     impact.  A test by cells that allowed twice the skin, or looked at the cells 1 away
     only, fails here."""
-    from silodem.engine.list_validity import list_expired
-
     xs, ys = np.meshgrid(np.arange(20) * 0.25, np.arange(20) * 0.25)
     p = Particles(8)
     p.add(xs.ravel(), ys.ravel(), 0.1, 1000.0)
@@ -345,8 +340,7 @@ def test_cell_test_misses_no_contact_of_a_grain_shot_into_a_resting_block(x0, y0
     kept = touched = 0
     for _ in range(400):
         sim.step()
-        past_global = list_expired(sim._drift, *sim._spread, sim._wall_drift,
-                                   sim.neighbors.skin)
+        past_global = sim._past_global_test()
         if not sim._list_expired():  # this list makes the next forces
             kept += past_global
             assert _missed_contacts(sim) == 0

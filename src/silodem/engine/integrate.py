@@ -36,7 +36,7 @@ from silodem.jit import kernel, njit, prange
 def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                        x, y, vx, vy, omega, fx, fy, torque, radius, mass,
                        x_ref, y_ref, gravity, zeta, allow_tension, alpha, dt, runs,
-                       wall_gap, wall_drift, fast_d2, fast):
+                       collect, wall_gap, wall_drift, fast_d2, fast):
     """Compute each grain's wall contacts (candidates ``w_start[i]:w_start[i+1]`` of the
     neighbour list, walls ``Walls.arrays()``, ``contact.wall_contact``) and add them to the
     sums of its grain-grain contacts (``fx, fy``, and in ``torque`` the sum of their shear
@@ -47,18 +47,19 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
     the displacement vectors [m]).  Each thread takes one run of strips (``blocks``), the
     same grains as in ``pair_forces``, so that they are still in its core's cache, and
     writes its run's largest squared displacement and box to its row of ``runs`` (at least
-    one row per run, 7 columns; given, not allocated here).
+    one row per run, 8 columns; given, not allocated here).
 
-    For the list test by cells (``list_validity.cells_keep_list``) it also lists the grains
-    of each run whose squared displacement reaches ``fast_d2`` [m^2] (in ``fast``, from the
-    run's first grain on; their number in column 5) and sets column 6 to 1 if a grain's
-    displacement plus the walls' drift ``wall_drift`` [m] reaches its ``wall_gap`` [m] (an
-    empty ``wall_gap``: the test is off, nothing is listed and column 6 is 1)."""
+    If ``collect``, for the list test by cells (``list_validity.cells_keep_list``) it also
+    lists the grains of each run whose squared displacement reaches ``fast_d2`` [m^2] (in
+    ``fast``, from the run's first grain on: that index in column 7, their number in column 5)
+    and sets column 6 to 1 if a grain's displacement plus the walls' drift ``wall_drift`` [m]
+    reaches its ``wall_gap`` [m]; without ``collect`` (or without the build's arrays) nothing
+    is listed and column 6 is 1, so that the test cannot pass."""
     (ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu, w_active, w_cap_a, w_cap_b, w_guard,
      w_one_sided) = walls
     n_blocks = blocks.shape[0] - 1
     n_all = strip_start[strip_start.shape[0] - 1]
-    cells = wall_gap.shape[0] >= n_all and fast.shape[0] >= n_all > 0
+    cells = collect and wall_gap.shape[0] >= n_all and fast.shape[0] >= n_all > 0
     for c in prange(n_blocks):
         first = strip_start[blocks[c]]
         n_fast = 0
@@ -132,6 +133,7 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
         runs[c, 4] = hiy
         runs[c, 5] = n_fast
         runs[c, 6] = near_wall
+        runs[c, 7] = first
     return _reduce(runs, n_blocks)
 
 

@@ -5,11 +5,12 @@ r + skin to a wall (``neighbors``).  A pair left out can only touch once the two
 closed in by more than the skin, |D_i - D_j| > skin, where D is a grain's displacement since
 the build.
 
-``list_expired`` (the global test) bounds |D_i - D_j| by the largest displacement of all:
-min(2 max|D|, diagonal of the box of all D).  In a large system some grain somewhere is
-always fast (in the benchmark silo, grains falling freely for tens of metres), so the list
-is rebuilt at the pace of the fastest grain, and more often the larger the system: 59 builds
-per 500 steps in one silo, 111 in 100 side by side (docs/performance.md).
+``list_expired`` (the global test) bounds |D_i - D_j| by the largest displacement of all
+(``global_bound``): min(2 max|D|, diagonal of the box of all D).  In a large system some
+grain somewhere is always fast (in the benchmark silo, grains falling freely for tens of
+metres), so the list is rebuilt at the pace of the fastest grain, and more often the larger
+the system: 59 builds per 500 steps in one silo, 111 in 100 side by side
+(docs/performance.md).
 
 ``cells_keep_list`` (the test by cells) asks only the grains that could meet.  On the
 build's cell grid (cells of size c = 2 r_max + skin, each grain in the cell of its build
@@ -44,20 +45,27 @@ from silodem.jit import njit
 
 
 @njit
-def list_expired(drift, lox, hix, loy, hiy, wall_drift, skin):
-    """Whether the Verlet list may miss a contact by the global test, from the largest grain
-    displacement since the build ``drift`` [m], the bounding box of the displacement vectors,
-    and how far the walls moved [m].
+def global_bound(drift, lox, hix, loy, hiy):
+    """The global bound [m] on how far two grains have closed in since the build, from the
+    largest displacement ``drift`` [m] and the bounding box of the displacement vectors:
+    min(2 max|D|, diagonal of the box) (0 for an empty box).
 
-    A pair (i, j) left out at the build was at least r_i + r_j + skin apart; it has closed in
-    by at most |D_i - D_j| (D = displacement since the build), which is at most
-    min(2 max|D|, diagonal of the bounding box of all D).  The second bound is the sharper one
-    when the grains move together (a falling column, a discharging bulk), and keeps the list
-    twice as long as the usual max|D| < skin/2 when part of the grains is at rest.  A
-    grain-wall candidate is kept within r + skin, so a wall is safe while max|D| + wall drift
-    < skin."""
+    A pair (i, j) has closed in by at most |D_i - D_j| (D = displacement since the build),
+    which is at most min(2 max|D|, diagonal of the bounding box of all D).  The second bound is
+    the sharper one when the grains move together (a falling column, a discharging bulk), and
+    keeps the list twice as long as the usual max|D| < skin/2 when part of the grains is at
+    rest."""
     diagonal = math.hypot(hix - lox, hiy - loy) if hix >= lox else 0.0
-    return min(2.0 * drift, diagonal) >= skin or drift + wall_drift >= skin
+    return min(2.0 * drift, diagonal)
+
+
+@njit
+def list_expired(bound, drift, wall_drift, skin):
+    """Whether the Verlet list may miss a contact by the global test, from ``global_bound``,
+    the largest grain displacement since the build ``drift`` and how far the walls moved
+    [m]: a pair left out at the build was at least r_i + r_j + skin apart, and a grain-wall
+    candidate is kept within r + skin, so a wall is safe while max|D| + wall drift < skin."""
+    return bound >= skin or drift + wall_drift >= skin
 
 
 # past one fast grain in this many the test gives up (a rebuild): each fast grain is compared
@@ -66,38 +74,34 @@ FAST_SHARE_MAX = 16
 
 
 @njit
-def cells_keep_list(runs, strip_start, blocks, fast, wall_gap, x, y, x_ref, y_ref, skin,
-                    cell_grid, cell_start, largest, diagonal):
-    """True if the list still holds every contact by the test by cells (module docstring),
-    given what the leap-frog reported for the step just done (``integrate.walls_and_leapfrog``):
-    per run of strips b (``blocks``) a row of ``runs`` with, in column 5, how many of its
-    grains moved skin/2 or more since the build (listed from ``fast[strip_start[blocks[b]]]``
-    on) and, in column 6, 1 if a grain came within reach of a wall it is not a candidate of;
-    and the largest displacement ``largest`` and the diagonal of the box of all displacements
-    ``diagonal`` [m].  ``cell_grid`` (xmin, ymin, cell size, ncx, ncy) and ``cell_start``
-    (each cell's first grain) are the build's, as is ``wall_gap`` (only its size is read
-    here: the leap-frog lists nothing without it); False (rebuild) when the build left
-    none.
+def cells_keep_list(n, runs, fast, x, y, x_ref, y_ref, skin, cell_grid, cell_start, bound):
+    """True if the list still holds every contact of the ``n`` grains by the test by cells
+    (module docstring), given ``global_bound`` [m] and what the leap-frog reported for the step
+    just done (``integrate.walls_and_leapfrog``): per run of strips a row of ``runs`` with, in
+    column 5, how many of its grains moved skin/2 or more since the build (listed in ``fast``
+    from the run's first grain on, column 7), and in column 6 a 1 if a grain came within
+    reach of a wall it is not a candidate of, or if the leap-frog listed nothing.
+    ``cell_grid`` (xmin, ymin, cell size, ncx, ncy) and ``cell_start`` (each cell's first
+    grain) are the build's; False (rebuild) when the build left none.
 
     Two grains that both moved less than skin/2 cannot have closed in by the skin, so only
     the fast grains are compared, each with the grains of the cells up to 2 from its own."""
     xmin, ymin, cell = cell_grid[0], cell_grid[1], cell_grid[2]
     ncx, ncy = int(cell_grid[3]), int(cell_grid[4])
-    n = strip_start[strip_start.shape[0] - 1]
-    if cell_start.shape[0] != ncx * ncy + 1 or wall_gap.shape[0] < n or fast.shape[0] < n:
+    if cell_start.shape[0] != ncx * ncy + 1:
         return False
-    if not min(2.0 * largest, diagonal) < cell + skin:  # cells 3 or more apart
+    if not bound < cell + skin:  # cells 3 or more apart
         return False
     n_fast = 0
-    for b in range(blocks.shape[0] - 1):
+    for b in range(runs.shape[0]):
+        if runs[b, 6] != 0.0:
+            return False
         n_fast += int(runs[b, 5])
     if n_fast * FAST_SHARE_MAX > n:  # comparing them would cost more than a build
         return False
     skin2 = skin * skin
-    for b in range(blocks.shape[0] - 1):
-        if runs[b, 6] != 0.0:
-            return False
-        first = strip_start[blocks[b]]
+    for b in range(runs.shape[0]):
+        first = int(runs[b, 7])
         for q in range(int(runs[b, 5])):
             f = fast[first + q]
             dfx = x[f] - x_ref[f]

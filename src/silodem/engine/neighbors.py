@@ -353,8 +353,7 @@ class NeighborList:
         self.cell_grid = np.zeros(5)
         self.cell_start = np.zeros(0, dtype=INDEX)
         self.fast = np.zeros(0, dtype=INDEX)  # grains that moved skin/2 or more, per run
-        self.report = np.zeros((0, 7))  # the leap-frog's report of the last step, per run
-        self.report_blocks = np.zeros(2, dtype=INDEX)
+        self.report = np.zeros((0, 8))  # the leap-frog's report of the last step, per run
         self.slot_of_uid = np.zeros(0, dtype=np.int64)
         self._pair_i: np.ndarray | None = empty_i
         self._wc_i: np.ndarray | None = empty_i
@@ -389,10 +388,9 @@ class NeighborList:
         """Rows for the leap-frog's report of each step, one per run of strips of
         ``blocks(threads)`` (``integrate.walls_and_leapfrog``); the last step's report stays
         here (and in checkpoints) for the list test that follows it."""
-        self.report_blocks = self.blocks(threads)
-        rows = self.report_blocks.shape[0] - 1
+        rows = self.blocks(threads).shape[0] - 1
         if self.report.shape[0] != rows:
-            self.report = np.zeros((rows, 7))
+            self.report = np.zeros((rows, 8))
         return self.report
 
     def blocks(self, threads: int) -> np.ndarray:

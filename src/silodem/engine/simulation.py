@@ -23,16 +23,12 @@ import numpy as np
 
 from silodem.engine.contact import GrainLaw, pair_forces
 from silodem.engine.integrate import walls_and_leapfrog
-from silodem.engine.list_validity import cells_keep_list, list_expired
+from silodem.engine.list_validity import cells_keep_list, global_bound, list_expired
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
 from silodem.errors import UnstableRunError
 from silodem.jit import specialised
-
-# an empty wall gap: the leap-frog lists no fast grains, and the test by cells fails (it is
-# off, or the walls move: their drift grows after the leap-frog's report)
-_NO_GAP = np.zeros(0)
 
 
 class Simulation:
@@ -122,8 +118,9 @@ class Simulation:
                 p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks, law.mu, law.zeta,
                 law.allow_tension, law.local_damping, self.gravity, dt, nb.skin,
                 self._wall_drift, self.time, nb.step_report(threads if threaded else 1),
-                nb.wall_gap if self.cell_test and not walls_move else _NO_GAP, nb.fast,
-                nb.cell_grid, nb.cell_start, self._drift, *self._spread)
+                # not while walls move: their drift grows after the leap-frog's report
+                self.cell_test and not walls_move, nb.wall_gap, nb.fast, nb.cell_grid,
+                nb.cell_start, self._drift, *self._spread)
             self.steps += done
             self.time = time
             left -= done
@@ -136,20 +133,23 @@ class Simulation:
             if walls_move:  # step 4, one step at a time
                 self._wall_drift += w.advance(dt)
 
+    def _past_global_test(self) -> bool:
+        """Whether the global test alone would rebuild the list (``list_validity``)."""
+        bound = global_bound(self._drift, *self._spread)
+        return list_expired(bound, self._drift, self._wall_drift, self.neighbors.skin)
+
     def _list_expired(self) -> bool:
         """Whether the Verlet list may miss a contact (``list_validity``: the global test,
         and if that fails and ``cell_test`` is on, the test by cells on the last step's
         report)."""
         nb, p = self.neighbors, self.particles
-        if not list_expired(self._drift, *self._spread, self._wall_drift, nb.skin):
+        if not self._past_global_test():
             return False
         if not self.cell_test or nb.report.shape[0] == 0:
             return True
-        lox, hix, loy, hiy = self._spread
-        diagonal = math.hypot(hix - lox, hiy - loy) if hix >= lox else 0.0
-        return not cells_keep_list(nb.report, nb.strip_start, nb.report_blocks, nb.fast,
-                                   nb.wall_gap, p.x, p.y, p.x_ref, p.y_ref, nb.skin,
-                                   nb.cell_grid, nb.cell_start, self._drift, diagonal)
+        return not cells_keep_list(p.n, nb.report, nb.fast, p.x, p.y, p.x_ref, p.y_ref,
+                                   nb.skin, nb.cell_grid, nb.cell_start,
+                                   global_bound(self._drift, *self._spread))
 
 
 # the kernels ``_steps`` calls; each compiled copy below binds them to one variant
@@ -161,11 +161,11 @@ def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
            w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
            x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
            kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
-           wall_drift, time, runs, wall_gap, fast, cell_grid, cell_start,
+           wall_drift, time, runs, cell_test, wall_gap, fast, cell_grid, cell_start,
            drift, lox, hix, loy, hiy):
     """Steps 2 and 3, repeated up to ``max_steps`` times and until the neighbour list expires
-    (``list_validity``: the global test, then the test by cells on the leap-frog's report in
-    ``runs``, unless ``wall_gap`` is empty) or a position is not finite.  The leap-frog lists
+    (``list_validity``: the global test, then if ``cell_test`` the test by cells on the
+    leap-frog's report in ``runs``) or a position is not finite.  The leap-frog lists
     the fast grains for the test by cells only on steps that follow one whose global bound
     (from ``drift`` and the box ``lox, hix, loy, hiy`` of the displacements [m], those of the
     step before this call at first) reached half the skin: before, the global test cannot
@@ -177,27 +177,27 @@ def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
     the bounding box of the displacements [m]."""
     done = 0
     max_d2 = drift * drift
+    bound = global_bound(drift, lox, hix, loy, hiy)
     fast_d2 = 0.25 * skin * skin  # moved skin/2 or more: compared by the test by cells
-    no_gap = wall_gap[:0]
     while done < max_steps:
         _pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
                      x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
                      kn, ks, mu, zeta, allow_tension, dt)
-        near = min(2.0 * drift, math.hypot(hix - lox, hiy - loy)) >= 0.5 * skin
-        gap = wall_gap if near else no_gap  # (numba: no conditional inside a long call)
+        collect = cell_test and bound >= 0.5 * skin
         max_d2, lox, hix, loy, hiy = _walls_and_leapfrog(
             strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
             x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-            zeta, allow_tension, local_damping, dt, runs, gap, wall_drift, fast_d2, fast)
+            zeta, allow_tension, local_damping, dt, runs, collect, wall_gap, wall_drift, fast_d2,
+            fast)
         if not np.isfinite(max_d2):
             break
         done += 1
         time += dt
         drift = math.sqrt(max_d2)
-        if list_expired(drift, lox, hix, loy, hiy, wall_drift, skin) and not (
-                wall_gap.shape[0] > 0 and cells_keep_list(
-                    runs, strip_start, blocks, fast, wall_gap, x, y, x_ref, y_ref, skin,
-                    cell_grid, cell_start, drift, math.hypot(hix - lox, hiy - loy))):
+        bound = global_bound(drift, lox, hix, loy, hiy)
+        if list_expired(bound, drift, wall_drift, skin) and not (cell_test and cells_keep_list(
+                strip_start[-1], runs, fast, x, y, x_ref, y_ref, skin, cell_grid, cell_start,
+                bound)):
             break
     return done, time, max_d2, lox, hix, loy, hiy
 
