@@ -66,8 +66,9 @@ def ns_per_grain(sim: Simulation, most: int | None, calls: int) -> tuple[float, 
     grains = int(start[-1])
 
     def once():
-        pair_forces.serial(start, blocks, nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn, p.x, p.y,
-                           p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy, p.torque,
+        pair_forces.serial(start, blocks, nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs,
+                           nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
+                           p.fx, p.fy, p.torque,
                            law.kn, law.ks, law.mu, law.zeta, law.allow_tension, sim.dt)
 
     once()

@@ -51,6 +51,58 @@ def test_verlet_list_equals_brute_force_on_random_polydisperse_grains(seed):
     assert np.all(sim.neighbors.pair_i < sim.neighbors.pair_j)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_candidates_that_touch_at_the_build_come_first_and_give_the_branchs_bits(seed):
+    """The pair loop evaluates each grain's first candidates (up to ``i_apart``) without a
+    branch on the touch test, selecting zeros for one that does not touch.  Those must be
+    exactly the grain's candidates that touch at the build (brute force), each group in index
+    order; and evaluating them without the branch must give the same bits as with it (forces,
+    torques, history), also for candidates that have come apart since the build."""
+    from silodem.engine.contact import pair_forces
+
+    rng = np.random.default_rng(seed)
+    p = _random_grains(rng, 400, 4.0)  # area fraction ~0.57: many overlaps
+    sim = Simulation(p, Walls(), law(1e5, mu=0.3, zeta=0.2), dt=1e-4, gravity=0.0, skin=0.03)
+    nb = sim.neighbors
+    nb.rebuild(p, sim.walls)
+    x, y, r = p.view("x"), p.view("y"), p.view("radius")
+    touching = 0
+    for i in range(p.n):
+        a, m, b = nb.i_start[i], nb.i_apart[i], nb.i_start[i + 1]
+        assert a <= m <= b
+        js = nb.pair_j[a:b]
+        touch = np.hypot(x[js] - x[i], y[js] - y[i]) < r[i] + r[js]
+        assert np.all(touch[: m - a]) and not np.any(touch[m - a:])
+        assert np.all(np.diff(js[: m - a]) > 0) and np.all(np.diff(js[m - a:]) > 0)
+        touching += m - a
+    assert touching > 200
+    # shake the grains so that some contacts open and others form since the build, and give
+    # every candidate a shear history and every grain a velocity and spin
+    for name, scale in (("x", 0.01), ("y", 0.01), ("vx", 0.5), ("vy", 0.5), ("omega", 5.0)):
+        p.view(name)[:] += rng.normal(0.0, scale, p.n)
+    history = rng.normal(0.0, 1.0, nb.pair_j.size)
+    blocks = np.array([0, nb.strip_start.size - 1], dtype=np.int32)
+
+    def forces(i_apart):
+        fs, fn = history.copy(), np.zeros(history.size)
+        pair_forces.serial(nb.strip_start, blocks, nb.i_start, i_apart, nb.pair_j, fs, fn,
+                           p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy,
+                           p.torque, sim.law.kn, sim.law.ks, sim.law.mu, sim.law.zeta,
+                           sim.law.allow_tension, sim.dt)
+        return [a.copy() for a in (p.fx, p.fy, p.torque)] + [fs, fn]
+
+    without_branch = forces(nb.i_apart)
+    with_branch = forces(nb.i_start[:-1].copy())  # every candidate behind the branch
+    for a, b in zip(without_branch, with_branch):
+        assert np.array_equal(a, b)
+    fn = without_branch[-1]
+    first = np.zeros(fn.size, dtype=bool)
+    for i in range(p.n):
+        first[nb.i_start[i]:nb.i_apart[i]] = True
+    assert np.count_nonzero(first & (fn == 0)) > 10  # came apart: zeros selected
+    assert np.count_nonzero(~first & (fn != 0)) > 10  # formed since the build
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_strips_make_the_pair_loop_race_free(seed):
     """The pair loop runs strips of one parity at once; that is race-free only if every pair
@@ -127,9 +179,9 @@ def test_pair_loop_and_leapfrog_give_the_same_bits_for_any_runs_of_strips():
         for name in names:
             p.view(name)[:] = start[name]
         nb.pair_fs[:] = start_fs
-        pair_forces.serial(nb.strip_start, blocks, nb.i_start, nb.pair_j, nb.pair_fs,
-                           nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass,
-                           p.fx, p.fy, p.torque, sim.law.kn, sim.law.ks, sim.law.mu,
+        pair_forces.serial(nb.strip_start, blocks, nb.i_start, nb.i_apart, nb.pair_j,
+                           nb.pair_fs, nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius,
+                           p.inv_mass, p.fx, p.fy, p.torque, sim.law.kn, sim.law.ks, sim.law.mu,
                            sim.law.zeta, sim.law.allow_tension, sim.dt)
         moved = walls_and_leapfrog.serial(
             nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs.copy(), nb.wc_fn.copy(),

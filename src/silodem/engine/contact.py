@@ -111,18 +111,60 @@ def pair_contact(d2, dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, ze
 
 
 @numba.njit(inline="always", cache=True)
-def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn,
+def add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius, inv_mass,
+             fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension, dt, sx, sy, ss, branch):
+    """Candidate ``k`` of grain ``i``: contact law, history, and its force added to grain j's
+    sums and to grain i's running sums ``sx, sy, ss`` (returned).  A candidate that does not
+    touch gets F_n = F_s = 0 (a contact that opens forgets its shear force) and adds nothing.
+
+    ``branch`` (a compile-time constant) says how "does not touch" is handled: by a branch
+    that skips the law, or by evaluating the law and selecting zeros (no branch to
+    mispredict).  Both give the same bits: adding +0.0 to a sum that starts at +0.0 (and so
+    is never -0.0) changes nothing."""
+    j = numba.uint64(pair_j[k])
+    dx = x[j] - x[i]
+    dy = y[j] - y[i]
+    rsum = radius[i] + radius[j]
+    d2 = dx * dx + dy * dy
+    touch = d2 < rsum * rsum
+    if branch and not touch:
+        pair_fs[k] = 0.0
+        pair_fn[k] = 0.0
+        return sx, sy, ss
+    fn, fs, fkx, fky = pair_contact(
+        d2, dx, dy, rsum, vx[j] - vx[i], vy[j] - vy[i],
+        omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
+        pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
+    if not branch:  # selects, not branches
+        fn = fn if touch else 0.0
+        fs = fs if touch else 0.0
+        fkx = fkx if touch else 0.0
+        fky = fky if touch else 0.0
+    pair_fs[k] = fs
+    pair_fn[k] = fn
+    fx[j] += fkx
+    fy[j] += fky
+    fs_sum[j] += fs
+    return sx - fkx, sy - fky, ss + fs
+
+
+@numba.njit(inline="always", cache=True)
+def strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn,
                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                 kn, ks, mu, zeta, allow_tension, dt):
-    """The candidates of the grains of strip ``s``, in index order: contact law, and each force
-    added to the sums of both grains (grain i's own pairs summed in registers).  Updates the
-    shear history ``pair_fs[k]`` and writes the normal force ``pair_fn[k]`` of every candidate
-    (both 0 for one that does not touch: a contact that opens forgets its shear force).  The
-    force vector is not stored: two fewer stores per pair, and ``quantities.grain_contacts``
-    rebuilds it from F_n and F_s.
+    """The candidates of the grains of strip ``s``, grain by grain in list order: contact law,
+    and each force added to the sums of both grains (grain i's own pairs summed in
+    registers).  Updates the shear history ``pair_fs[k]`` and writes the normal force
+    ``pair_fn[k]`` of every candidate (both 0 for one that does not touch).  The force vector
+    is not stored: two fewer stores per pair, and ``quantities.grain_contacts`` rebuilds it
+    from F_n and F_s.
 
-    A candidate that does not touch adds nothing to the sums (skipping it gives the same bits
-    as adding +0.0: a sum that starts at +0.0 is never -0.0)."""
+    Each grain's candidates that touched at the list build come first (up to ``i_apart[i]``;
+    ``neighbors``): most of them still touch, so they are evaluated without a branch on the
+    touch test; the rest, most of which still do not touch, skip the law by a branch.  Either
+    way the branch predictor rarely misses, which it did on about one candidate in four when
+    touching and apart candidates came mixed (a large system's contacts are too many for it
+    to learn; docs/performance.md, fifteenth session)."""
     for i_ in range(strip_start[s], strip_start[s + 1]):
         # unsigned indices: numba then skips its negative-index test on every access (-10 to
         # -25 % time here)
@@ -130,35 +172,21 @@ def strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn,
         sx = fx[i]
         sy = fy[i]
         ss = fs_sum[i]
-        for k in range(i_start[i_], i_start[i_ + 1]):
-            j = numba.uint64(pair_j[k])
-            dx = x[j] - x[i]
-            dy = y[j] - y[i]
-            rsum = radius[i] + radius[j]
-            d2 = dx * dx + dy * dy
-            if d2 >= rsum * rsum:
-                pair_fs[k] = 0.0
-                pair_fn[k] = 0.0
-                continue
-            fn, fs, fkx, fky = pair_contact(
-                d2, dx, dy, rsum, vx[j] - vx[i], vy[j] - vy[i],
-                omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
-                pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
-            pair_fs[k] = fs
-            pair_fn[k] = fn
-            fx[j] += fkx
-            fy[j] += fky
-            fs_sum[j] += fs
-            sx -= fkx
-            sy -= fky
-            ss += fs
+        for k in range(i_start[i_], i_apart[i_]):
+            sx, sy, ss = add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius,
+                                  inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension,
+                                  dt, sx, sy, ss, False)
+        for k in range(i_apart[i_], i_start[i_ + 1]):
+            sx, sy, ss = add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius,
+                                  inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension,
+                                  dt, sx, sy, ss, True)
         fx[i] = sx
         fy[i] = sy
         fs_sum[i] = ss
 
 
 @kernel
-def pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+def pair_forces(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                 kn, ks, mu, zeta, allow_tension, dt):
     """Grain-grain contacts of the candidate list, and each grain's sums of their forces.
@@ -172,7 +200,8 @@ def pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
     the first row of the next strip.  The even strips run first, then the odd ones: two strips
     of one parity never write the same grain, so they run in parallel with no race, and every
     grain receives its terms in the same order with or without threads (its own strip's pairs
-    in index order, then the lower strip's): the same bits for any thread count.  Each even
+    in list order, then the lower strip's): the same bits for any thread count.  Each grain's
+    candidates are listed touching-at-the-build first (``i_apart``, ``strip_pairs``).  Each even
     strip first zeroes the sums of its grains and of the next strip's.
 
     ``blocks`` cuts the strips into runs of consecutive strips, one per thread (strips
@@ -187,12 +216,12 @@ def pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
                 fx[g] = 0.0
                 fy[g] = 0.0
                 fs_sum[g] = 0.0
-            strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn, x, y,
+            strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn, x, y,
                         vx, vy, omega, radius, inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta,
                         allow_tension, dt)
     for b in prange(blocks.shape[0] - 1):
         for s in range(blocks[b] + 1 - (blocks[b] & 1), blocks[b + 1], 2):  # odd strips
-            strip_pairs(s, strip_start, i_start, pair_j, pair_fs, pair_fn,
+            strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn,
                         x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
                         kn, ks, mu, zeta, allow_tension, dt)
 

@@ -1,9 +1,11 @@
 """Neighbour search: a cell list builds a Verlet list of candidate contacts with a skin.
 
 At each rebuild every pair closer than r_i + r_j + skin is listed once (i < j), grouped by i
-(CSR: the candidates of grain i are ``pair_j[i_start[i]:i_start[i+1]]``), and every grain closer
-than r + skin to an active wall (3r + skin for one-sided walls; only the walls binned to its
-cell are tested) gets a grain-wall candidate, grouped by grain the same way (``w_start``).
+(CSR: the candidates of grain i are ``pair_j[i_start[i]:i_start[i+1]]``, those that touch at
+the build first, up to ``i_apart[i]``: the pair loop's branch predictor then rarely misses,
+``contact.strip_pairs``), and every grain closer than r + skin to an active wall (3r + skin
+for one-sided walls; only the walls binned to its cell are tested) gets a grain-wall
+candidate, grouped by grain the same way (``w_start``).
 The list stays valid while no two grains can have closed in by the skin since the build
 (``list_validity``: a global test on the largest displacement, then a test by cells on the
 grains that moved skin/2 or more); the build leaves what the test by cells needs: each
@@ -73,7 +75,9 @@ def cell_list(n, x, y, xmin, ymin, cell_size, ncx, ncy):
 def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows, skin,
               counts, buf, stride):
     """The candidates j > i of every grain i, written to ``buf[i*stride : i*stride+stride]``
-    (only the first ``stride`` of them; ``counts[i]`` is the true number).
+    as 2 j + 1 if they touch now, 2 j if not (only the first ``stride`` of them; ``counts[i]``
+    is the true number; ``_compact_touching_first`` reads them).  The touch test is the pair
+    loop's (``contact.add_pair``).
 
     The grains must be sorted by cell (row-major), so that cell c holds the index range
     cell_start[c]:cell_start[c+1]; then a half stencil (the grain's own cell after i, and the
@@ -105,22 +109,27 @@ def _search_cell(c, x, y, radius, ncx, ncy, cell_start, skin, counts, buf, strid
         last = stride - 1
         xi = x[i]
         yi = y[i]
-        ri = radius[i] + skin
+        rad_i = radius[i]
+        ri = rad_i + skin
         for j in range(i + 1, end_a):
             u = numba.uint64(j)  # unsigned: no negative-index test on each access
             dx = x[u] - xi
             dy = y[u] - yi
+            d2 = dx * dx + dy * dy
+            rsum = rad_i + radius[u]
             cut = ri + radius[u]
             # branch-free: always write, advance only for a candidate
-            buf[base + min(k, last)] = j
-            k += dx * dx + dy * dy < cut * cut
+            buf[base + min(k, last)] = 2 * j + (d2 < rsum * rsum)
+            k += d2 < cut * cut
         for j in range(lo_b, hi_b):
             u = numba.uint64(j)
             dx = x[u] - xi
             dy = y[u] - yi
+            d2 = dx * dx + dy * dy
+            rsum = rad_i + radius[u]
             cut = ri + radius[u]
-            buf[base + min(k, last)] = j
-            k += dx * dx + dy * dy < cut * cut
+            buf[base + min(k, last)] = 2 * j + (d2 < rsum * rsum)
+            k += d2 < cut * cut
         counts[i] = k
 
 
@@ -132,6 +141,30 @@ def _compact(n, buf, stride, start, out):
         o = start[i]
         for k in range(start[i + 1] - o):
             out[o + k] = buf[base + k]
+
+
+@kernel
+def _compact_touching_first(n, buf, stride, start, out, apart):
+    """``_compact`` for the grain-grain candidates of ``_pairs_of`` (entries 2 j + touch):
+    each grain's candidates that touch now come first, then the others, each group in index
+    order; ``apart[i]`` is the first of the others (the pair loop evaluates the first group
+    without a branch: ``contact.strip_pairs``).  Branch-free too: whether a candidate
+    touches is a coin toss."""
+    for i in prange(n):
+        base = i * stride
+        m = start[i + 1] - start[i]
+        touching = 0
+        for k in range(m):
+            touching += buf[base + k] & 1
+        t = start[i]  # where the next touching candidate goes
+        a = t + touching  # where the next one apart goes
+        apart[i] = a
+        for k in range(m):
+            e = buf[base + k]
+            touch = e & 1
+            out[t if touch else a] = e >> 1
+            t += touch
+            a += 1 - touch
 
 
 @njit
@@ -324,8 +357,9 @@ def _owners(start: np.ndarray) -> np.ndarray:
 class NeighborList:
     """Verlet list of grain-grain and grain-wall candidates, with their contact state.
 
-    Per grain pair k (grouped by i): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N]
-    (history) and normal force ``pair_fn`` [N] of the last step; ``strip_start`` cuts the
+    Per grain pair k (grouped by i; grain i's candidates that touched at the build first, up
+    to ``i_apart[i]``): ``pair_i[k] < pair_j[k]``, shear force ``pair_fs`` [N] (history) and
+    normal force ``pair_fn`` [N] of the last step; ``strip_start`` cuts the
     grains into strips of whole cell rows (``strip_rows``, ``first_grains``), shared out
     among the threads by ``blocks``.  Per grain-wall candidate k (grouped by grain):
     ``wc_i, wc_w``, and ``wc_fs, wc_fn, wc_fx, wc_fy`` likewise (force on the grain).
@@ -340,6 +374,7 @@ class NeighborList:
         self.pair_j = empty_i
         self.pair_fs = self.pair_fn = np.zeros(0)
         self.i_start = np.zeros(1, dtype=INDEX)
+        self.i_apart = np.zeros(0, dtype=INDEX)
         self.strip_start = np.zeros(2, dtype=INDEX)
         self._blocks = np.zeros(2, dtype=INDEX)  # what ``blocks`` returns, cut for
         self._blocks_threads = 0  # this many threads (0: not cut since the last build)
@@ -401,10 +436,11 @@ class NeighborList:
             self._blocks_threads = threads
         return self._blocks
 
-    def _strided(self, search, n, args, name, threads):
+    def _strided(self, search, n, args, name, threads, compact=None):
         """Run a search kernel that writes up to ``stride`` entries per grain into a strided
         buffer (widening it and searching again if a grain had more), then compact the entries
-        to CSR form: returns (start, entries)."""
+        to CSR form (``compact(n, buf, stride, start, out)``, ``_compact`` by default):
+        returns (start, entries)."""
         while True:
             stride = getattr(self, name)
             if self._buf.size < n * stride:
@@ -422,7 +458,7 @@ class NeighborList:
         start = np.zeros(n + 1, dtype=INDEX)
         start[1:] = total
         out = np.empty(int(start[-1]), dtype=INDEX)
-        _compact.pick(n, threads)(n, self._buf, stride, start, out)
+        (compact or _compact.pick(n, threads))(n, self._buf, stride, start, out)
         return start, out
 
     def rebuild(self, particles, walls) -> None:
@@ -453,10 +489,12 @@ class NeighborList:
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
         rows = strip_rows(cell_start, ncx, ncy)
+        i_apart = np.empty(n, dtype=INDEX)
         i_start, pair_j = self._strided(
             _pairs_of, n,
             (n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows, self.skin),
-            "_pair_stride", threads)
+            "_pair_stride", threads,
+            lambda *csr: _compact_touching_first.pick(n, threads)(*csr, i_apart))
         old_of = np.empty(n, dtype=INDEX)
         _old_index.pick(n, threads)(n, uid, self.slot_of_uid, old_of)
         pair_fs = np.empty(pair_j.size)
@@ -481,7 +519,7 @@ class NeighborList:
         _carry_walls.pick(n, threads)(n, old_of, w_start, wc_w, wc_fs, wc_fn,
                              self.w_start, self.wc_w, self.wc_fs, self.wc_fn)
 
-        self.i_start, self.pair_j, self.pair_fs = i_start, pair_j, pair_fs
+        self.i_start, self.i_apart, self.pair_j, self.pair_fs = i_start, i_apart, pair_j, pair_fs
         self.pair_fn = np.zeros(pair_j.size)
         self.strip_start = first_grains(cell_start, ncx, rows)
         self._blocks_threads = 0  # to be cut again

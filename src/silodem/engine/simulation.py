@@ -112,7 +112,7 @@ class Simulation:
             threaded = pair_forces.pick(p.n, threads) is pair_forces.parallel
             done, time, max_d2, *self._spread = (threaded_steps if threaded else serial_steps)(
                 1 if walls_move else left, nb.strip_start, nb.blocks(threads if threaded else 1),
-                nb.i_start, nb.pair_j, nb.pair_fs, nb.pair_fn,
+                nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs, nb.pair_fn,
                 nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
                 w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.mass, p.inv_mass,
                 p.fx, p.fy, p.torque, p.x_ref, p.y_ref, law.kn, law.ks, law.mu, law.zeta,
@@ -157,7 +157,7 @@ _pair_forces = pair_forces.serial
 _walls_and_leapfrog = walls_and_leapfrog.serial
 
 
-def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+def _steps(max_steps, strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
            w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
            x, y, vx, vy, omega, radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref,
            kn, ks, mu, zeta, allow_tension, local_damping, gravity, dt, skin,
@@ -180,7 +180,7 @@ def _steps(max_steps, strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
     bound = global_bound(drift, lox, hix, loy, hiy)
     fast_d2 = 0.25 * skin * skin  # moved skin/2 or more: compared by the test by cells
     while done < max_steps:
-        _pair_forces(strip_start, blocks, i_start, pair_j, pair_fs, pair_fn,
+        _pair_forces(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
                      x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
                      kn, ks, mu, zeta, allow_tension, dt)
         collect = cell_test and bound >= 0.5 * skin
