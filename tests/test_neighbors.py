@@ -381,8 +381,8 @@ def test_cell_test_misses_no_contact_of_a_grain_shot_into_a_resting_block(x0, y0
     of the approach): the global test expires every few steps, the test
     by cells keeps the list while the fast grain is away from the others; after every step,
     every overlapping pair is in the list (brute force), through the approach and the
-    impact.  A test by cells that allowed twice the skin, or looked at the cells 1 away
-    only, fails here."""
+    impact.  A test by cells that took a touching pair for a candidate without looking, or
+    looked at the cells 1 away only, fails here."""
     xs, ys = np.meshgrid(np.arange(20) * 0.25, np.arange(20) * 0.25)
     p = Particles(8)
     p.add(xs.ravel(), ys.ravel(), 0.1, 1000.0)

@@ -148,7 +148,8 @@ class Simulation:
         if not self.cell_test or nb.report.shape[0] == 0:
             return True
         return not cells_keep_list(p.n, nb.report, nb.fast, p.x, p.y, p.x_ref, p.y_ref,
-                                   nb.skin, nb.cell_grid, nb.cell_start,
+                                   p.radius, nb.i_start, nb.pair_j, nb.skin, nb.cell_grid,
+                                   nb.cell_start,
                                    global_bound(self._drift, *self._spread))
 
 
@@ -196,8 +197,8 @@ def _steps(max_steps, strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pa
         drift = math.sqrt(max_d2)
         bound = global_bound(drift, lox, hix, loy, hiy)
         if list_expired(bound, drift, wall_drift, skin) and not (cell_test and cells_keep_list(
-                strip_start[-1], runs, fast, x, y, x_ref, y_ref, skin, cell_grid, cell_start,
-                bound)):
+                strip_start[-1], runs, fast, x, y, x_ref, y_ref, radius, i_start, pair_j, skin,
+                cell_grid, cell_start, bound)):
             break
     return done, time, max_d2, lox, hix, loy, hiy
 
