@@ -91,8 +91,11 @@ def apart_or_listed(f, g, x, y, radius, i_start, pair_j):
     dx = x[j] - x[i]
     dy = y[j] - y[i]
     rsum = radius[i] + radius[j]
-    if dx * dx + dy * dy >= rsum * rsum:
+    d2 = dx * dx + dy * dy
+    if d2 >= rsum * rsum:
         return True
+    if not d2 < rsum * rsum:  # NaN: a rebuild, which reports the unstable run
+        return False
     for k in range(i_start[i], i_start[i + 1]):
         if pair_j[k] == j:
             return True

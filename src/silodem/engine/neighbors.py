@@ -489,6 +489,8 @@ class NeighborList:
         x, y, radius, uid = p.view("x"), p.view("y"), p.view("radius"), p.view("uid")
 
         rows = strip_rows(cell_start, ncx, ncy)
+        if 2 * n > np.iinfo(INDEX).max:  # the search writes 2 j + touch (``_pairs_of``)
+            raise ValueError(f"{n} grains: more than the 32-bit candidate lists hold")
         i_apart = np.empty(n, dtype=INDEX)
         i_start, pair_j = self._strided(
             _pairs_of, n,
