@@ -111,6 +111,16 @@ def pair_contact(d2, dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, ze
 
 
 @numba.njit(inline="always", cache=True)
+def pair_offset(i, j, x, y, radius):
+    """Centre offset j - i (dx, dy) [m], its square d2 [m^2] and the radius sum [m] of grains
+    i and j: they touch when d2 < rsum^2 (the one touch test of the pair loop, which the list
+    test by cells repeats on the same positions)."""
+    dx = x[j] - x[i]
+    dy = y[j] - y[i]
+    return dx, dy, dx * dx + dy * dy, radius[i] + radius[j]
+
+
+@numba.njit(inline="always", cache=True)
 def add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius, inv_mass,
              fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension, dt, sx, sy, ss, branch):
     """Candidate ``k`` of grain ``i``: contact law, history, and its force added to grain j's
@@ -122,10 +132,7 @@ def add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius, inv_ma
     mispredict).  Both give the same bits: adding +0.0 to a sum that starts at +0.0 (and so
     is never -0.0) changes nothing."""
     j = numba.uint64(pair_j[k])
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
-    rsum = radius[i] + radius[j]
-    d2 = dx * dx + dy * dy
+    dx, dy, d2, rsum = pair_offset(i, j, x, y, radius)
     touch = d2 < rsum * rsum
     if branch and not touch:
         pair_fs[k] = 0.0

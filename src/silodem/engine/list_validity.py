@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 
+from silodem.engine.contact import pair_offset
 from silodem.engine.neighbors import cell_of
 from silodem.jit import njit
 
@@ -88,10 +89,7 @@ def apart_or_listed(f, g, x, y, radius, i_start, pair_j):
     between them."""
     i = min(f, g)
     j = max(f, g)
-    dx = x[j] - x[i]
-    dy = y[j] - y[i]
-    rsum = radius[i] + radius[j]
-    d2 = dx * dx + dy * dy
+    _, _, d2, rsum = pair_offset(i, j, x, y, radius)
     if d2 >= rsum * rsum:
         return True
     if not d2 < rsum * rsum:  # NaN: a rebuild, which reports the unstable run

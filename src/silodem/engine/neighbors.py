@@ -77,7 +77,7 @@ def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows
     """The candidates j > i of every grain i, written to ``buf[i*stride : i*stride+stride]``
     as 2 j + 1 if they touch now, 2 j if not (only the first ``stride`` of them; ``counts[i]``
     is the true number; ``_compact_touching_first`` reads them).  The touch test is the pair
-    loop's (``contact.add_pair``).
+    loop's (``contact.pair_offset``).
 
     The grains must be sorted by cell (row-major), so that cell c holds the index range
     cell_start[c]:cell_start[c+1]; then a half stencil (the grain's own cell after i, and the
