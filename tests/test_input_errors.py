@@ -12,6 +12,7 @@ import datetime as dt
 import math
 import tempfile
 import tomllib
+import warnings
 from pathlib import Path
 
 import h5py
@@ -263,3 +264,20 @@ def test_extreme_numbers_build_a_run_or_are_refused_in_one_line(scenario, sets):
         return
     run = SiloRun(cfg)
     assert math.isfinite(run.dt) and run.dt > 0
+
+
+def test_a_wall_too_soft_to_limit_the_time_step_gives_the_grains_limit_without_a_warning():
+    """A wall ratio m / k_wall beyond the largest float is inf, which the minimum passes over:
+    dt_crit is then the grains' own limit, sqrt(min(m / k_n, m / (3 k_s))) with the series
+    stiffnesses k/2 of two equal grains (Cundall & Strack 1979), and numpy says nothing."""
+    cfg = load_config("paper-case1", ["material.density=1e250", "walls.kn=1e-90",
+                                      "walls.ks=1e-90"])
+    m = cfg.material
+    m_min = m.density * math.pi * m.radius_min**2 * m.thickness
+    expected = math.sqrt(min(m_min / m.kn, m_min / (3.0 * m.ks)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dt, dt_crit = check_numbers(cfg)
+        run = SiloRun(cfg)
+    assert dt_crit == pytest.approx(expected, rel=1e-12)
+    assert run.dt == dt

@@ -62,7 +62,8 @@ class GrainLaw:
     local_damping: float = 0.0  # PFC local damping alpha [-], applied in the integrator
 
 
-def critical_time_step(m_min: float, law: GrainLaw, wall_kn: np.ndarray, wall_ks: np.ndarray) -> float:
+def critical_time_step(m_min: float, law: GrainLaw, wall_kn: np.ndarray,
+                       wall_ks: np.ndarray) -> float:
     """dt_crit [s] = min over contact kinds of sqrt(m_eff / k).
 
     m_eff is m_min/2 (normal) and m_min/6 (shear, the rotational inertia of two disks with
@@ -70,8 +71,11 @@ def critical_time_step(m_min: float, law: GrainLaw, wall_kn: np.ndarray, wall_ks
     A single undamped contact is stable for dt < 2 sqrt(m_eff/k); dropping the factor 2 leaves
     room for a grain pressed by several contacts at once (Cundall & Strack 1979; PFC manual).
     """
-    ratios = [0.5 * m_min / law.kn, m_min / 6.0 / law.ks]
-    for kn, ks in zip(np.atleast_1d(wall_kn), np.atleast_1d(wall_ks)):
+    # Python floats, not numpy scalars: a ratio of a very soft wall may overflow to inf,
+    # which min() then passes over, without numpy's overflow warning
+    m_min = float(m_min)
+    ratios = [0.5 * m_min / float(law.kn), m_min / 6.0 / float(law.ks)]
+    for kn, ks in zip(np.atleast_1d(wall_kn).tolist(), np.atleast_1d(wall_ks).tolist()):
         ratios += [m_min / kn, m_min / 3.0 / ks]
     return math.sqrt(min(ratios))
 
