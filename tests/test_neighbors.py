@@ -291,6 +291,50 @@ def test_contact_history_survives_rebuilds():
                                atol=1e-6)
 
 
+def test_history_of_candidates_apart_at_the_build_is_never_read():
+    """The build carries the shear history over only for the candidates that touch at the
+    build and gives the others 0: the next force evaluation, on the same positions, finds
+    them apart and writes 0 without reading it.  Checked: a flowing, shaken pile rebuilt at
+    every step, once as built and once with random history put in those candidates after
+    each build, gives the same bits; and the build's own values there are 0 while many of
+    the candidates that touch carry a history."""
+    import copy
+
+    from silodem.engine.neighbors import NeighborList
+
+    rng = np.random.default_rng(7)
+    p = _random_grains(rng, 600, 6.0, rmin=0.08, rmax=0.14)
+    a = Simulation(p, _box(6.0), law(1e5, mu=0.4, zeta=0.2), dt=1e-4, skin=0.03)
+    a.run(1500)  # falling into a pile: contacts open and form
+    b = copy.deepcopy(a)
+    noise = np.random.default_rng(8)
+    apart_total = carried = 0
+
+    def rebuild_with_noise(particles, walls):
+        nonlocal apart_total, carried
+        NeighborList.rebuild(b.neighbors, particles, walls)
+        nb = b.neighbors
+        apart = np.ones(nb.pair_j.size, dtype=bool)
+        for i in range(particles.n):
+            apart[nb.i_start[i]:nb.i_apart[i]] = False
+        assert np.all(nb.pair_fs[apart] == 0.0)
+        apart_total += np.count_nonzero(apart)
+        carried += np.count_nonzero(nb.pair_fs[~apart])
+        nb.pair_fs[apart] = noise.normal(0.0, 1.0, np.count_nonzero(apart))
+
+    b.neighbors.rebuild = rebuild_with_noise
+    for _ in range(200):
+        a.invalidate()
+        b.invalidate()
+        a.step()
+        b.step()
+    assert apart_total > 10_000 and carried > 10_000
+    for name in ("x", "y", "vx", "vy", "omega", "fx", "fy", "torque"):
+        assert np.array_equal(a.particles.view(name), b.particles.view(name))
+    assert np.array_equal(a.neighbors.pair_fs, b.neighbors.pair_fs)
+    assert np.array_equal(a.neighbors.pair_fn, b.neighbors.pair_fn)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_wall_candidates_equal_brute_force_with_many_walls(seed):
     """The wall search looks only at the walls binned to a grain's cell; on 500 random grains

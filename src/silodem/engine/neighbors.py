@@ -258,11 +258,18 @@ def _old_index(n, uid, slot_of_uid, old_of):
 
 
 @kernel
-def _carry_pairs(n, old_of, i_start, pair_j, pair_fs, old_i_start, old_pair_j, old_pair_fs):
-    """Shear force of each new candidate from the old list (0 for a new pair)."""
+def _carry_pairs(n, old_of, i_start, i_apart, pair_j, pair_fs, old_i_start, old_pair_j,
+                 old_pair_fs):
+    """Shear force of each new candidate that touches at the build (up to ``i_apart``) from
+    the old list (0 for a new pair).  The others get 0 without a look: the step's next force
+    evaluation, on these same positions, finds them apart and writes F_s = 0 without reading
+    it (``contact.add_pair``), so their history is never used (in a flowing packing that is
+    about 40 % of the candidates, in a loose one over 90 %)."""
     for a in prange(n):
         oa = old_of[a]
-        for k in range(i_start[a], i_start[a + 1]):
+        for k in range(i_apart[a], i_start[a + 1]):
+            pair_fs[k] = 0.0
+        for k in range(i_start[a], i_apart[a]):
             fs = 0.0
             if oa >= 0:
                 ob = old_of[pair_j[k]]
@@ -500,8 +507,8 @@ class NeighborList:
         old_of = np.empty(n, dtype=INDEX)
         _old_index.pick(n, threads)(n, uid, self.slot_of_uid, old_of)
         pair_fs = np.empty(pair_j.size)
-        _carry_pairs.pick(n, threads)(n, old_of, i_start, pair_j, pair_fs,
-                             self.i_start, self.pair_j, self.pair_fs)
+        _carry_pairs.pick(n, threads)(n, old_of, i_start, i_apart, pair_j, pair_fs,
+                                      self.i_start, self.pair_j, self.pair_fs)
 
         wb = walls
         w_box = (np.minimum(wb.ax, wb.bx), np.maximum(wb.ax, wb.bx),
