@@ -294,8 +294,8 @@ def test_contact_history_survives_rebuilds():
 def test_history_of_candidates_apart_at_the_build_is_never_read():
     """The build carries the shear history over only for the candidates that touch at the
     build and gives the others 0: the next force evaluation, on the same positions, finds
-    them apart and writes 0 without reading it.  Checked: a flowing, shaken pile rebuilt at
-    every step, once as built and once with random history put in those candidates after
+    them apart and writes 0 without reading it.  Checked: grains falling into a pile, rebuilt
+    at every step, once as built and once with random history put in those candidates after
     each build, gives the same bits; and the build's own values there are 0 while many of
     the candidates that touch carry a history."""
     import copy
