@@ -39,7 +39,8 @@ exact look (touching? listed?) keeps the list through shear in a flowing packing
 neighbours part and pass by the skin without touching anew: in the packed benchmark silo
 33 of 88 builds per 1000 steps were for that before, and 72 of 101 with ten silos side by
 side (docs/performance.md, fifteenth session).
-The same rebuilds, hence the same bits, for any number of threads.
+``must_rebuild`` puts the two together: the one rule that the step loop and ``Simulation``
+both ask.  The same rebuilds, hence the same bits, for any number of threads.
 Proof checked in tests/test_neighbors.py: no contact missed after any step, by brute force,
 for a grain shot into a resting block and in the benchmark silo.
 """
@@ -151,3 +152,18 @@ def cells_keep_list(n, runs, fast, x, y, x_ref, y_ref, radius, i_start, pair_j, 
                                 f, g, x, y, radius, i_start, pair_j):
                             return False
     return True
+
+
+@njit
+def must_rebuild(bound, drift, wall_drift, skin, cell_test, n, runs, fast, x, y, x_ref, y_ref,
+                 radius, i_start, pair_j, cell_grid, cell_start):
+    """The one rule of when the list goes, for the step loop and for ``Simulation`` alike:
+    when the global test fails (``list_expired`` on ``global_bound``, ``drift`` and the
+    walls' drift [m]) and, if ``cell_test``, the test by cells on the leap-frog's last
+    report ``runs`` (``cells_keep_list``; no report: rebuild) does not keep it."""
+    if not list_expired(bound, drift, wall_drift, skin):
+        return False
+    if not cell_test or runs.shape[0] == 0:
+        return True
+    return not cells_keep_list(n, runs, fast, x, y, x_ref, y_ref, radius, i_start, pair_j,
+                               skin, cell_grid, cell_start, bound)

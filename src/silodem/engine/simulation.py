@@ -23,7 +23,7 @@ import numpy as np
 
 from silodem.engine.contact import GrainLaw, pair_forces
 from silodem.engine.integrate import walls_and_leapfrog
-from silodem.engine.list_validity import cells_keep_list, global_bound, list_expired
+from silodem.engine.list_validity import global_bound, list_expired, must_rebuild
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
 from silodem.engine.walls import Walls
@@ -143,14 +143,10 @@ class Simulation:
         and if that fails and ``cell_test`` is on, the test by cells on the last step's
         report)."""
         nb, p = self.neighbors, self.particles
-        if not self._past_global_test():
-            return False
-        if not self.cell_test or nb.report.shape[0] == 0:
-            return True
-        return not cells_keep_list(p.n, nb.report, nb.fast, p.x, p.y, p.x_ref, p.y_ref,
-                                   p.radius, nb.i_start, nb.pair_j, nb.skin, nb.cell_grid,
-                                   nb.cell_start,
-                                   global_bound(self._drift, *self._spread))
+        return must_rebuild(global_bound(self._drift, *self._spread), self._drift,
+                            self._wall_drift, nb.skin, self.cell_test, p.n, nb.report, nb.fast,
+                            p.x, p.y, p.x_ref, p.y_ref, p.radius, nb.i_start, nb.pair_j,
+                            nb.cell_grid, nb.cell_start)
 
 
 # the kernels ``_steps`` calls; each compiled copy below binds them to one variant
@@ -196,9 +192,8 @@ def _steps(max_steps, strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pa
         time += dt
         drift = math.sqrt(max_d2)
         bound = global_bound(drift, lox, hix, loy, hiy)
-        if list_expired(bound, drift, wall_drift, skin) and not (cell_test and cells_keep_list(
-                strip_start[-1], runs, fast, x, y, x_ref, y_ref, radius, i_start, pair_j, skin,
-                cell_grid, cell_start, bound)):
+        if must_rebuild(bound, drift, wall_drift, skin, cell_test, strip_start[-1], runs, fast,
+                        x, y, x_ref, y_ref, radius, i_start, pair_j, cell_grid, cell_start):
             break
     return done, time, max_d2, lox, hix, loy, hiy
 
