@@ -109,3 +109,49 @@ def test_lattice_vs_lammps_runs_both_codes_on_the_same_grains():
                           check=False)
     assert proc.returncode == 0, proc.stderr
     assert "N =      400 (     400 in LAMMPS)" in proc.stdout  # 20 x 20 in both codes
+
+
+def _profile_step_module():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "benchmarks" / "profile_step.py"
+    spec = importlib.util.spec_from_file_location("profile_step", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_profile_step_times_a_run_without_changing_it():
+    """``benchmarks/profile_step.py``: a run with its build timers gives the same bits as one
+    without, the kernels it times inside a build add up to no more than the builds' own time,
+    its timers are gone afterwards, and timing the step kernels (on a copy) leaves the
+    simulation's state bit for bit as it was."""
+    import collections
+
+    import silodem.engine.neighbors as nbm
+    from silodem.bench import advance, build
+
+    prof = _profile_step_module()
+    original = nbm._pairs_of
+    plain, _, top = build(12, 24)
+    timed, _, _ = build(12, 24)
+    acc = collections.defaultdict(float)
+    with prof.builds_timed(timed, acc):
+        advance(timed, top, 3000)
+    advance(plain, top, 3000)
+    assert timed.neighbors.rebuilds == plain.neighbors.rebuilds > 1
+    for name in ("x", "y", "vx", "vy", "omega"):
+        assert np.array_equal(timed.particles.view(name), plain.particles.view(name))
+    parts = sum(v for k, v in acc.items() if k != "build")
+    assert 0.0 < parts <= acc["build"]
+    assert {"_pairs_of", "_carry_pairs", "permute", "cell_list"} <= acc.keys()
+    assert nbm._pairs_of is original and "rebuild" not in vars(timed.neighbors)
+
+    p, nb = timed.particles, timed.neighbors
+    arrays = [p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, nb.pair_fs, nb.pair_fn,
+              nb.wc_fs, nb.wc_fn]
+    before = [a.copy() for a in arrays]
+    t_pair, t_move = prof.step_kernels(timed, 1, 3)
+    assert t_pair > 0.0 and t_move > 0.0
+    assert all(np.array_equal(a, b) for a, b in zip(arrays, before, strict=True))

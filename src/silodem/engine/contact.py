@@ -175,7 +175,7 @@ def strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn,
     touch test; the rest, most of which still do not touch, skip the law by a branch.  Either
     way the branch predictor rarely misses, which it did on about one candidate in four when
     touching and apart candidates came mixed (a large system's contacts are too many for it
-    to learn; docs/performance.md, fifteenth session)."""
+    to learn; docs/performance-history.md, fifteenth session)."""
     for i_ in range(strip_start[s], strip_start[s + 1]):
         # unsigned indices: numba then skips its negative-index test on every access (-10 to
         # -25 % time here)

@@ -10,7 +10,7 @@ the build.
 grain somewhere is always fast (in the benchmark silo, grains falling freely for tens of
 metres), so the list is rebuilt at the pace of the fastest grain, and more often the larger
 the system: 59 builds per 500 steps in one silo, 111 in 100 side by side
-(docs/performance.md).
+(docs/performance-history.md, fourteenth session).
 
 ``cells_keep_list`` (the test by cells) asks only the grains that could meet.  On the
 build's cell grid (cells of size c = 2 r_max + skin, each grain in the cell of its build
@@ -38,7 +38,7 @@ the leap-frog's report).  Where a fast grain has closed in on a neighbour by the
 exact look (touching? listed?) keeps the list through shear in a flowing packing, where
 neighbours part and pass by the skin without touching anew: in the packed benchmark silo
 33 of 88 builds per 1000 steps were for that before, and 72 of 101 with ten silos side by
-side (docs/performance.md, fifteenth session).
+side (docs/performance-history.md, fifteenth session).
 ``must_rebuild`` puts the two together: the one rule that the step loop and ``Simulation``
 both ask.  The same rebuilds, hence the same bits, for any number of threads.
 Proof checked in tests/test_neighbors.py: no contact missed after any step, by brute force,

@@ -37,7 +37,7 @@ _MAX_CELLS_PER_GRAIN = 64
 CELL_TEST_MAX_CELLS_PER_GRAIN = 4
 STRIPS = 64  # strips of cell rows for the pair loop (contact.pair_forces): 32 per parity
 # candidate lists and their starts hold 32-bit indices: the pair loop streams them every step,
-# and half the bytes make it 8 % faster at 3e5 grains (none at 3e4; docs/performance.md)
+# and half the bytes make it 8 % faster at 3e5 grains (none at 3e4; docs/performance-history.md)
 INDEX = np.int32
 
 
@@ -335,7 +335,7 @@ def first_grains(cell_start, ncx, rows):
 
 
 # cost of one candidate pair in the pair loop against one grain in the leap-frog (a touching
-# pair ~20 ns, one that does not a few ns; ~6 ns per grain: docs/performance.md)
+# pair ~20 ns, one that does not a few ns; ~6 ns per grain: docs/performance-history.md)
 PAIR_WORK = 2.5
 
 
