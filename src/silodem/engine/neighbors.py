@@ -93,8 +93,26 @@ def _pairs_of(n, x, y, radius, xmin, ymin, cell_size, ncx, ncy, cell_start, rows
 
 
 @numba.njit(inline="always", cache=True)
+def _offer(j, xi, yi, rad_i, reach_i, x, y, radius, buf, base, k, last):
+    """Grain ``j`` as a candidate of grain i (at ``xi, yi`` with radius ``rad_i`` [m], and
+    ``reach_i`` = rad_i + skin): writes 2 j + touch to ``buf[base + min(k, last)]`` and
+    returns k + 1 if j is within r_i + r_j + skin, else k.  Branch-free: always write, advance
+    only for a candidate.  The touch test is the pair loop's arithmetic
+    (``contact.pair_offset``, with grain i's values held in registers)."""
+    u = numba.uint64(j)  # unsigned: no negative-index test on each access
+    dx = x[u] - xi
+    dy = y[u] - yi
+    d2 = dx * dx + dy * dy
+    rsum = rad_i + radius[u]
+    cut = reach_i + radius[u]
+    buf[base + min(k, last)] = 2 * j + (d2 < rsum * rsum)
+    return k + (d2 < cut * cut)
+
+
+@numba.njit(inline="always", cache=True)
 def _search_cell(c, x, y, radius, ncx, ncy, cell_start, skin, counts, buf, stride):
-    """The candidates of the grains of cell ``c`` (see ``_pairs_of``)."""
+    """The candidates of the grains of cell ``c`` (see ``_pairs_of``): the grain's own cell
+    after it and the cell east (one index range), then the three cells north (another)."""
     cx = c % ncx
     cy = c // ncx
     end_a = cell_start[c + 2] if cx + 1 < ncx else cell_start[c + 1]
@@ -110,26 +128,11 @@ def _search_cell(c, x, y, radius, ncx, ncy, cell_start, skin, counts, buf, strid
         xi = x[i]
         yi = y[i]
         rad_i = radius[i]
-        ri = rad_i + skin
+        reach_i = rad_i + skin
         for j in range(i + 1, end_a):
-            u = numba.uint64(j)  # unsigned: no negative-index test on each access
-            dx = x[u] - xi
-            dy = y[u] - yi
-            d2 = dx * dx + dy * dy
-            rsum = rad_i + radius[u]
-            cut = ri + radius[u]
-            # branch-free: always write, advance only for a candidate
-            buf[base + min(k, last)] = 2 * j + (d2 < rsum * rsum)
-            k += d2 < cut * cut
+            k = _offer(j, xi, yi, rad_i, reach_i, x, y, radius, buf, base, k, last)
         for j in range(lo_b, hi_b):
-            u = numba.uint64(j)
-            dx = x[u] - xi
-            dy = y[u] - yi
-            d2 = dx * dx + dy * dy
-            rsum = rad_i + radius[u]
-            cut = ri + radius[u]
-            buf[base + min(k, last)] = 2 * j + (d2 < rsum * rsum)
-            k += d2 < cut * cut
+            k = _offer(j, xi, yi, rad_i, reach_i, x, y, radius, buf, base, k, last)
         counts[i] = k
 
 
