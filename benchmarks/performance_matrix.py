@@ -1,12 +1,19 @@
 """Throughput of silodem and LAMMPS on the benchmark silo over N, threads and MPI ranks.
 
     python benchmarks/performance_matrix.py [--out docs/performance.json] [--quick]
+        [--passes 3]
     python benchmarks/performance_matrix.py --scaling [--passes 3] [--out docs/scaling.json]
         [--settle 3000] [--steps 1000]
 
 Each row runs `silodem bench --json [--lammps]` in a fresh process (so compilation and memory are
 per row).  Steps per size are chosen so a row takes minutes, not hours; both codes always run the
 same deck with the same SETTLE and STEPS.  The plot goes next to the JSON (.png).
+
+With ``--passes P`` the whole sweep runs P times, one pass after the other, and each code's
+best (highest) throughput per N and thread count is kept, the ratio taken between the two
+bests; every pass's figures stay in the row (``passes``).  This 2-core VM lends its second
+core elsewhere now and then, which costs a short run (990 grains: a step of 35 us) up to a
+third of its speed, for either code; the best of a few passes is what each code can do.
 
 ``--scaling`` measures the cost per particle-step against N on 1, 3, 10, 30 and 100 copies of
 one silo (NX = 32, NY = 200) side by side, so that every N is in the same flow state: with
@@ -28,6 +35,21 @@ from pathlib import Path
 #       N,        settle, steps
 PLAN = [(1_000, 10_000, 2_000), (10_000, 10_000, 2_000), (31_700, 10_000, 2_000),
         (100_000, 3_000, 500), (300_000, 1_500, 200), (1_000_000, 600, 100)]
+
+
+def best_of(runs: list[dict]) -> dict:
+    """One row from several passes of the same N and thread count: silodem's fastest pass,
+    with LAMMPS's fastest pass (if run) and their ratio, and every pass's two figures."""
+    best = dict(max(runs, key=lambda r: r["particle_steps_per_s"]))
+    best["passes"] = [{"silodem": r["particle_steps_per_s"],
+                       "lammps": r.get("lammps", {}).get("particle_steps_per_s")}
+                      for r in runs]
+    lam = [r["lammps"] for r in runs if "lammps" in r]
+    if lam:
+        best["lammps"] = max(lam, key=lambda r: r["particle_steps_per_s"])
+        best["ratio_vs_lammps"] = (best["particle_steps_per_s"]
+                                   / best["lammps"]["particle_steps_per_s"])
+    return best
 
 
 def row(n: int, threads: int, settle: int, steps: int, lammps: bool) -> dict:
@@ -125,7 +147,8 @@ def main() -> None:
     ap.add_argument("--threads", default="1,2", help="comma-separated thread/rank counts")
     ap.add_argument("--scaling", action="store_true",
                     help="cost per particle-step against N at a fixed column height")
-    ap.add_argument("--passes", type=int, default=1, help="--scaling: sweeps over N")
+    ap.add_argument("--passes", type=int, default=1,
+                    help="sweeps over N; the best of them is kept")
     ap.add_argument("--settle", type=int, default=SCALING_SETTLE,
                     help="--scaling: settling steps before the timed ones")
     ap.add_argument("--steps", type=int, default=SCALING_STEPS, help="--scaling: timed steps")
@@ -134,21 +157,29 @@ def main() -> None:
         scaling(Path(args.out), [int(t) for t in args.threads.split(",")], args.passes,
                 args.settle, args.steps)
         return
-    rows = []
-    for n, settle, steps in PLAN:
-        if args.quick and n > 31_700:
-            break
-        for threads in [int(t) for t in args.threads.split(",")]:
-            r = row(n, threads, settle, steps, lammps=n <= args.max_lammps_n)
-            r["settle"] = settle
-            rows.append(r)
-            lam = r.get("lammps", {}).get("particle_steps_per_s")
-            print(f"N={r['n']:8d} threads={threads} silodem "
-                  f"{r['particle_steps_per_s'] / 1e6:7.2f} M/s  mem "
-                  f"{r['peak_memory_bytes'] / 1e6:6.0f} MB"
-                  + (f"  LAMMPS {lam / 1e6:7.2f} M/s  ratio {r['ratio_vs_lammps']:.2f}"
-                     if lam else ""), flush=True)
-            Path(args.out).write_text(json.dumps(rows, indent=1))
+    runs: dict[tuple[int, int], list[dict]] = {}
+    for pass_ in range(1, args.passes + 1):
+        for n, settle, steps in PLAN:
+            if args.quick and n > 31_700:
+                break
+            for threads in [int(t) for t in args.threads.split(",")]:
+                r = row(n, threads, settle, steps, lammps=n <= args.max_lammps_n)
+                r["settle"] = settle
+                runs.setdefault((n, threads), []).append(r)
+                lam = r.get("lammps", {}).get("particle_steps_per_s")
+                print(f"pass {pass_} N={r['n']:8d} threads={threads} silodem "
+                      f"{r['particle_steps_per_s'] / 1e6:7.2f} M/s  mem "
+                      f"{r['peak_memory_bytes'] / 1e6:6.0f} MB"
+                      + (f"  LAMMPS {lam / 1e6:7.2f} M/s  ratio {r['ratio_vs_lammps']:.2f}"
+                         if lam else ""), flush=True)
+                rows = [best_of(v) for v in runs.values()]
+                Path(args.out).write_text(json.dumps(rows, indent=1))
+    for r in rows:
+        lam = r.get("lammps", {}).get("particle_steps_per_s")
+        print(f"best of {len(r['passes'])}: N={r['n']:8d} threads={r['threads']} silodem "
+              f"{r['particle_steps_per_s'] / 1e6:7.2f} M/s"
+              + (f"  LAMMPS {lam / 1e6:7.2f} M/s  ratio {r['ratio_vs_lammps']:.2f}"
+                 if lam else ""))
     plot(rows, Path(args.out).with_suffix(".png"))
 
 

@@ -111,15 +111,35 @@ def test_lattice_vs_lammps_runs_both_codes_on_the_same_grains():
     assert "N =      400 (     400 in LAMMPS)" in proc.stdout  # 20 x 20 in both codes
 
 
-def _profile_step_module():
+def _benchmark_module(name):
+    """A script of the top-level ``benchmarks/`` folder, imported as a module."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).parents[1] / "benchmarks" / "profile_step.py"
-    spec = importlib.util.spec_from_file_location("profile_step", path)
+    path = Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def test_matrix_keeps_each_codes_best_pass():
+    """``performance_matrix.py --passes``: the row of several passes holds silodem's fastest
+    pass and LAMMPS's fastest pass, even when they come from different passes, and their
+    ratio; every pass's pair of figures is kept."""
+    best_of = _benchmark_module("performance_matrix").best_of
+    runs = [{"n": 990, "threads": 2, "particle_steps_per_s": ps,
+             "lammps": {"particle_steps_per_s": lam}, "ratio_vs_lammps": ps / lam}
+            for ps, lam in ((30e6, 16e6), (20e6, 18e6), (36e6, 15e6))]
+    row = best_of(runs)
+    assert row["particle_steps_per_s"] == 36e6
+    assert row["lammps"]["particle_steps_per_s"] == 18e6
+    assert row["ratio_vs_lammps"] == 2.0
+    assert row["passes"] == [{"silodem": 30e6, "lammps": 16e6}, {"silodem": 20e6,
+                             "lammps": 18e6}, {"silodem": 36e6, "lammps": 15e6}]
+    assert runs[2]["lammps"]["particle_steps_per_s"] == 15e6  # the passes are not changed
+    alone = best_of([{"n": 1, "threads": 1, "particle_steps_per_s": 5.0}])
+    assert "lammps" not in alone and alone["passes"] == [{"silodem": 5.0, "lammps": None}]
 
 
 def test_profile_step_times_a_run_without_changing_it():
@@ -132,7 +152,7 @@ def test_profile_step_times_a_run_without_changing_it():
     import silodem.engine.neighbors as nbm
     from silodem.bench import advance, build
 
-    prof = _profile_step_module()
+    prof = _benchmark_module("profile_step")
     original = nbm._pairs_of
     plain, _, top = build(12, 24)
     timed, _, _ = build(12, 24)
