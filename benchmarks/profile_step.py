@@ -5,13 +5,14 @@
 
 For each size, ``copies`` silos of the scaling benchmark (NX = 32, NY = 200, 10,144 grains
 each, side by side; ``performance_matrix.py --scaling``) run SETTLE untimed steps, then STEPS
-timed steps in which every neighbour-list build and each kernel inside it is timed.  Then, on
-a copy of the final state, the two step kernels are called one after the other for 10-50
-steps on the same list, each call timed (median): the grain-grain pair loop
-(``contact.pair_forces``) and the wall contacts with the leap-frog
-(``integrate.walls_and_leapfrog``).  "rest" is the timed run less those two and the builds:
-the list tests (``list_validity``), the listing of fast grains for them, and the Python
-around the compiled step loop.
+timed steps of the compiled step loop (``Simulation.run``), in which every neighbour-list
+build and each kernel inside it is timed: the whole step and the builds.  Then STEPS more
+steps are taken one at a time from Python (``stepped``: the same kernels, tests and builds
+in the same order, with the same bits), each part timed: the grain-grain pair loop
+(``contact.pair_forces``), the wall contacts with the leap-frog
+(``integrate.walls_and_leapfrog``) and the list test by cells (``list_validity``, on the
+steps whose global test failed).  "rest" is the whole step less the builds and those three
+parts: the global list test and the Python around the compiled step loop.
 
 All figures are nanoseconds per grain: per step for the step's parts, and per build for the
 build's kernels (a build's share of a step is its cost times builds / steps).  ``--settle
@@ -25,6 +26,7 @@ import argparse
 import collections
 import contextlib
 import json
+import math
 import time
 from pathlib import Path
 
@@ -35,6 +37,7 @@ import silodem.engine.neighbors as nbm
 from silodem.bench import advance, build
 from silodem.engine.contact import pair_forces
 from silodem.engine.integrate import walls_and_leapfrog
+from silodem.engine.list_validity import global_bound, list_expired, must_rebuild
 
 BUILD_KERNELS = ["_pairs_of", "_compact_touching_first", "_old_index", "_carry_pairs",
                  "_wall_candidates_of", "_compact", "_carry_walls"]
@@ -81,36 +84,66 @@ def builds_timed(sim, acc):
         nb.__dict__.pop("rebuild", None)
 
 
-def step_kernels(sim, threads, reps):
-    """Median time [s] of the pair loop and of the walls + leap-frog, called one after the
-    other as in the step loop, on a copy of the current state (which they advance ``reps``
-    steps on the current list; the simulation itself is not changed).  No copy is made
-    between calls, so each call finds in the caches what it would find in a run."""
-    p, nb, law, w = sim.particles, sim.neighbors, sim.law, sim.walls
+def stepped(sim, steps, acc):
+    """Advance ``sim`` by ``steps`` steps as ``Simulation.run`` does (the same compiled
+    kernels, list tests and builds, in the same order, with the same bits; walls at rest), but
+    one step at a time from Python, adding each part's time to ``acc`` [s]: "build" (with the
+    hooks before it), "pair_loop", "walls_and_leapfrog", "test_by_cells" (the list test on
+    the steps whose global test failed).  What a step does besides these (the global test,
+    Python) is its whole time less them.  Returns the number of steps in which the leap-frog
+    listed the fast grains and in which the test by cells ran."""
+    p, nb, w, law, dt = sim.particles, sim.neighbors, sim.walls, sim.law, sim.dt
+    if w.moving():
+        raise ValueError("stepped() follows Simulation.run for walls at rest only")
+    threads = numba.get_num_threads()
     parallel = pair_forces.pick(p.n, threads) is pair_forces.parallel
     pair = pair_forces.parallel if parallel else pair_forces.serial
     move = walls_and_leapfrog.parallel if parallel else walls_and_leapfrog.serial
-    blocks = nb.blocks(threads if parallel else 1)
-    runs = nb.step_report(threads if parallel else 1)
-    x, y, vx, vy, omega, fx, fy, torque = (a.copy() for a in (
-        p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque))
-    pair_fs, pair_fn = nb.pair_fs.copy(), nb.pair_fn.copy()
-    wc = [a.copy() for a in (nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy)]
-    t_pair, t_move = [], []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        pair(nb.strip_start, blocks, nb.i_start, nb.i_apart, nb.pair_j, pair_fs, pair_fn,
-             x, y, vx, vy, omega, p.radius, p.inv_mass, fx, fy, torque, law.kn, law.ks,
-             law.mu, law.zeta, law.allow_tension, sim.dt)
-        t1 = time.perf_counter()
-        move(nb.strip_start, blocks, nb.w_start, nb.wc_w, *wc, w.arrays(), x, y, vx, vy,
-             omega, fx, fy, torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity,
-             law.zeta, law.allow_tension, law.local_damping, sim.dt, runs, False,
-             nb.wall_gap, 0.0, 0.25 * nb.skin**2, nb.fast)
-        t2 = time.perf_counter()
-        t_pair.append(t1 - t0)
-        t_move.append(t2 - t1)
-    return float(np.median(t_pair)), float(np.median(t_move))
+    clock = time.perf_counter
+    listed = tested = 0
+    for step in range(steps):
+        # Simulation.run asks the list test once when called, then after each step
+        if sim.needs_rebuild or (step == 0 and sim._list_expired()):
+            t = clock()
+            for hook in sim.before_rebuild:
+                hook(sim)
+            nb.rebuild(p, w)
+            acc["build"] += clock() - t
+            sim._stale = False
+            sim._wall_drift = 0.0
+            sim._drift, sim._spread = 0.0, (0.0, 0.0, 0.0, 0.0)
+        blocks = nb.blocks(threads if parallel else 1)
+        runs = nb.step_report(threads if parallel else 1)
+        bound = global_bound(sim._drift, *sim._spread)
+        collect = sim.cell_test and bound >= 0.5 * nb.skin
+        t0 = clock()
+        pair(nb.strip_start, blocks, nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs, nb.pair_fn,
+             p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy, p.torque,
+             law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
+        t1 = clock()
+        max_d2, *spread = move(
+            nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx,
+            nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque,
+            p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, law.zeta, law.allow_tension,
+            law.local_damping, dt, runs, collect, nb.wall_gap, sim._wall_drift,
+            0.25 * nb.skin * nb.skin, nb.fast)
+        t2 = clock()
+        acc["pair_loop"] += t1 - t0
+        acc["walls_and_leapfrog"] += t2 - t1
+        listed += collect
+        sim.steps += 1
+        sim.time += dt
+        sim._drift, sim._spread = math.sqrt(max_d2), tuple(spread)
+        bound = global_bound(sim._drift, *sim._spread)
+        if list_expired(bound, sim._drift, sim._wall_drift, nb.skin):  # the global test
+            t = clock()
+            sim._stale = must_rebuild(
+                bound, sim._drift, sim._wall_drift, nb.skin, sim.cell_test, p.n, runs, nb.fast,
+                p.x, p.y, p.x_ref, p.y_ref, p.radius, nb.i_start, nb.pair_j, nb.cell_grid,
+                nb.cell_start)
+            acc["test_by_cells"] += clock() - t
+            tested += sim.cell_test
+    return listed, tested
 
 
 def profile(copies, settle, steps, threads):
@@ -125,17 +158,21 @@ def profile(copies, settle, steps, threads):
         whole = time.perf_counter() - t
     builds = sim.neighbors.rebuilds - builds0
     n = sim.particles.n
-    reps = min(50, max(10, int(3e6 / n)))
-    pair, move = step_kernels(sim, threads, reps)
+    parts = collections.defaultdict(float)
+    builds0 = sim.neighbors.rebuilds
+    listed, tested = stepped(sim, steps, parts)
     per_step = 1e9 / (n * steps)
     row = {"n": n, "copies": copies, "threads": threads, "settle": settle, "steps": steps,
            "builds": builds,
            "candidates_per_grain": sim.neighbors.pair_j.size / n,
            "touching_share": float(np.mean(sim.neighbors.pair_fn > 0.0)),
-           "whole_step": whole * per_step, "pair_loop": pair * 1e9 / n,
-           "walls_and_leapfrog": move * 1e9 / n, "builds_per_step": acc["build"] * per_step}
-    row["rest"] = row["whole_step"] - row["pair_loop"] - row["walls_and_leapfrog"] \
-        - row["builds_per_step"]
+           "whole_step": whole * per_step, "builds_per_step": acc["build"] * per_step,
+           "stepped_builds": sim.neighbors.rebuilds - builds0,
+           "steps_listing_fast_grains": listed, "steps_with_test_by_cells": tested}
+    for part in ("pair_loop", "walls_and_leapfrog", "test_by_cells"):
+        row[part] = parts[part] * per_step
+    row["rest"] = row["whole_step"] - row["builds_per_step"] - sum(
+        row[part] for part in ("pair_loop", "walls_and_leapfrog", "test_by_cells"))
     per_build = 1e9 / (n * max(builds, 1))
     row["build_parts"] = {k: v * per_build for k, v in acc.items()}
     row["build_parts"]["(rest of the build)"] = (
@@ -148,7 +185,11 @@ def show(row):
           f"{row['settle']}, {row['steps']} steps, {row['builds']} builds; "
           f"{row['candidates_per_grain']:.2f} candidates per grain, "
           f"{100 * row['touching_share']:.0f} % touching")
-    for part in ("pair_loop", "walls_and_leapfrog", "builds_per_step", "rest", "whole_step"):
+    print(f"  then {row['steps']} steps one by one: {row['stepped_builds']} builds, fast grains "
+          f"listed in {row['steps_listing_fast_grains']} steps, the test by cells in "
+          f"{row['steps_with_test_by_cells']}")
+    for part in ("pair_loop", "walls_and_leapfrog", "test_by_cells", "builds_per_step", "rest",
+                 "whole_step"):
         print(f"  {part:28s} {row[part]:6.1f} ns per grain and step")
     parts = sorted(row["build_parts"].items(), key=lambda kv: -kv[1])
     for name, ns in parts:

@@ -145,8 +145,9 @@ def test_matrix_keeps_each_codes_best_pass():
 def test_profile_step_times_a_run_without_changing_it():
     """``benchmarks/profile_step.py``: a run with its build timers gives the same bits as one
     without, the kernels it times inside a build add up to no more than the builds' own time,
-    its timers are gone afterwards, and timing the step kernels (on a copy) leaves the
-    simulation's state bit for bit as it was."""
+    and its timers are gone afterwards; its step-by-step run (``stepped``, each part timed)
+    gives the same bits, list builds and clock as ``Simulation.run`` over the same steps, and
+    leaves the simulation where ``run`` goes on from it as it would have."""
     import collections
 
     import silodem.engine.neighbors as nbm
@@ -168,10 +169,18 @@ def test_profile_step_times_a_run_without_changing_it():
     assert {"_pairs_of", "_carry_pairs", "permute", "cell_list"} <= acc.keys()
     assert nbm._pairs_of is original and "rebuild" not in vars(timed.neighbors)
 
-    p, nb = timed.particles, timed.neighbors
-    arrays = [p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, nb.pair_fs, nb.pair_fn,
-              nb.wc_fs, nb.wc_fn]
-    before = [a.copy() for a in arrays]
-    t_pair, t_move = prof.step_kernels(timed, 1, 3)
-    assert t_pair > 0.0 and t_move > 0.0
-    assert all(np.array_equal(a, b) for a, b in zip(arrays, before, strict=True))
+    builds = plain.neighbors.rebuilds
+    steps = collections.defaultdict(float)
+    listed, tested = prof.stepped(timed, 700, steps)
+    advance(plain, top, 700)
+    # the stretch saw builds, steps listing fast grains, and tests by cells
+    assert plain.neighbors.rebuilds - builds > 5 and listed > tested > 5
+    for sim in (timed, plain):
+        advance(sim, top, 300)  # run() goes on from where each left off
+    assert timed.neighbors.rebuilds == plain.neighbors.rebuilds
+    assert (timed.steps, timed.time) == (plain.steps, plain.time)
+    for name in ("x", "y", "vx", "vy", "omega", "fx", "fy", "torque"):
+        assert np.array_equal(timed.particles.view(name), plain.particles.view(name))
+    assert np.array_equal(timed.neighbors.pair_fs, plain.neighbors.pair_fs)
+    assert all(steps[part] > 0.0 for part in ("pair_loop", "walls_and_leapfrog",
+                                               "test_by_cells", "build"))
