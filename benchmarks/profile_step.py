@@ -6,10 +6,10 @@
 For each size, ``copies`` silos of the scaling benchmark (NX = 32, NY = 200, 10,144 grains
 each, side by side; ``performance_matrix.py --scaling``) run SETTLE untimed steps, then STEPS
 timed steps of the compiled step loop (``Simulation.run``), in which every neighbour-list
-build and each kernel inside it is timed: the whole step and the builds.  Then STEPS more
-steps are taken one at a time from Python (``stepped``: the same kernels, tests and builds
-in the same order, with the same bits), each part timed: the grain-grain pair loop
-(``contact.pair_forces``), the wall contacts with the leap-frog
+build and each kernel inside it is timed: the whole step and the builds.  A copy of the
+settled simulation then takes the same STEPS one at a time from Python (``stepped``: the
+same kernels, tests and builds in the same order, with the same bits), each part timed: the
+grain-grain pair loop (``contact.pair_forces``), the wall contacts with the leap-frog
 (``integrate.walls_and_leapfrog``) and the list test by cells (``list_validity``, on the
 steps whose global test failed).  "rest" is the whole step less the builds and those three
 parts: the global list test and the Python around the compiled step loop.
@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import collections
 import contextlib
+import copy
 import json
 import math
 import time
@@ -89,9 +90,12 @@ def stepped(sim, steps, acc):
     kernels, list tests and builds, in the same order, with the same bits; walls at rest), but
     one step at a time from Python, adding each part's time to ``acc`` [s]: "build" (with the
     hooks before it), "pair_loop", "walls_and_leapfrog", "test_by_cells" (the list test on
-    the steps whose global test failed).  What a step does besides these (the global test,
-    Python) is its whole time less them.  Returns the number of steps in which the leap-frog
-    listed the fast grains and in which the test by cells ran."""
+    the steps whose global test failed).  Calling a compiled function from Python costs a
+    few microseconds that the compiled step loop does not pay (about 1 ns per grain at 1e4
+    grains); each part is counted less that cost, timed on calls that do no work.  What a
+    step does besides these parts (the global test, Python) is its whole time less them.
+    Returns the number of steps in which the leap-frog listed the fast grains and in which
+    the test by cells ran."""
     p, nb, w, law, dt = sim.particles, sim.neighbors, sim.walls, sim.law, sim.dt
     if w.moving():
         raise ValueError("stepped() follows Simulation.run for walls at rest only")
@@ -100,6 +104,37 @@ def stepped(sim, steps, acc):
     pair = pair_forces.parallel if parallel else pair_forces.serial
     move = walls_and_leapfrog.parallel if parallel else walls_and_leapfrog.serial
     clock = time.perf_counter
+
+    def pair_loop(blocks):
+        pair(nb.strip_start, blocks, nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs, nb.pair_fn,
+             p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy, p.torque,
+             law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
+
+    def walls_and_move(blocks, runs, collect):
+        return move(nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx,
+                    nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy,
+                    p.torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, law.zeta,
+                    law.allow_tension, law.local_damping, dt, runs, collect, nb.wall_gap,
+                    sim._wall_drift, 0.25 * nb.skin * nb.skin, nb.fast)
+
+    def list_test(bound, runs):
+        return must_rebuild(bound, sim._drift, sim._wall_drift, nb.skin, sim.cell_test, p.n,
+                            runs, nb.fast, p.x, p.y, p.x_ref, p.y_ref, p.radius, nb.i_start,
+                            nb.pair_j, nb.cell_grid, nb.cell_start)
+
+    def call_cost(call, *args):  # [s], median of calls that do no work
+        times = []
+        for _ in range(21):
+            t = clock()
+            call(*args)
+            times.append(clock() - t)
+        return float(np.median(times))
+
+    no_blocks = np.zeros(1, dtype=nb.strip_start.dtype)
+    cost = {"pair_loop": call_cost(pair_loop, no_blocks),
+            "walls_and_leapfrog": call_cost(walls_and_move, no_blocks, np.zeros((0, 8)), False),
+            "test_by_cells": call_cost(list_test, 0.0, np.zeros((0, 8)))}  # bound 0: kept
+
     listed = tested = 0
     for step in range(steps):
         # Simulation.run asks the list test once when called, then after each step
@@ -117,19 +152,12 @@ def stepped(sim, steps, acc):
         bound = global_bound(sim._drift, *sim._spread)
         collect = sim.cell_test and bound >= 0.5 * nb.skin
         t0 = clock()
-        pair(nb.strip_start, blocks, nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs, nb.pair_fn,
-             p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy, p.torque,
-             law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
+        pair_loop(blocks)
         t1 = clock()
-        max_d2, *spread = move(
-            nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx,
-            nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque,
-            p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, law.zeta, law.allow_tension,
-            law.local_damping, dt, runs, collect, nb.wall_gap, sim._wall_drift,
-            0.25 * nb.skin * nb.skin, nb.fast)
+        max_d2, *spread = walls_and_move(blocks, runs, collect)
         t2 = clock()
-        acc["pair_loop"] += t1 - t0
-        acc["walls_and_leapfrog"] += t2 - t1
+        acc["pair_loop"] += t1 - t0 - cost["pair_loop"]
+        acc["walls_and_leapfrog"] += t2 - t1 - cost["walls_and_leapfrog"]
         listed += collect
         sim.steps += 1
         sim.time += dt
@@ -137,11 +165,8 @@ def stepped(sim, steps, acc):
         bound = global_bound(sim._drift, *sim._spread)
         if list_expired(bound, sim._drift, sim._wall_drift, nb.skin):  # the global test
             t = clock()
-            sim._stale = must_rebuild(
-                bound, sim._drift, sim._wall_drift, nb.skin, sim.cell_test, p.n, runs, nb.fast,
-                p.x, p.y, p.x_ref, p.y_ref, p.radius, nb.i_start, nb.pair_j, nb.cell_grid,
-                nb.cell_start)
-            acc["test_by_cells"] += clock() - t
+            sim._stale = list_test(bound, runs)
+            acc["test_by_cells"] += clock() - t - cost["test_by_cells"]
             tested += sim.cell_test
     return listed, tested
 
@@ -150,6 +175,7 @@ def profile(copies, settle, steps, threads):
     numba.set_num_threads(threads)
     sim, _, top = build(32, 200, copies=copies)
     advance(sim, top, settle)
+    twin = copy.deepcopy(sim)  # the step-by-step run takes the same steps from the same state
     acc = collections.defaultdict(float)
     builds0 = sim.neighbors.rebuilds
     with builds_timed(sim, acc):
@@ -159,15 +185,15 @@ def profile(copies, settle, steps, threads):
     builds = sim.neighbors.rebuilds - builds0
     n = sim.particles.n
     parts = collections.defaultdict(float)
-    builds0 = sim.neighbors.rebuilds
-    listed, tested = stepped(sim, steps, parts)
+    builds0 = twin.neighbors.rebuilds
+    listed, tested = stepped(twin, steps, parts)
     per_step = 1e9 / (n * steps)
     row = {"n": n, "copies": copies, "threads": threads, "settle": settle, "steps": steps,
            "builds": builds,
            "candidates_per_grain": sim.neighbors.pair_j.size / n,
            "touching_share": float(np.mean(sim.neighbors.pair_fn > 0.0)),
            "whole_step": whole * per_step, "builds_per_step": acc["build"] * per_step,
-           "stepped_builds": sim.neighbors.rebuilds - builds0,
+           "stepped_builds": twin.neighbors.rebuilds - builds0,
            "steps_listing_fast_grains": listed, "steps_with_test_by_cells": tested}
     for part in ("pair_loop", "walls_and_leapfrog", "test_by_cells"):
         row[part] = parts[part] * per_step
