@@ -1,4 +1,5 @@
-"""What the pair loop costs per grain against N (docs/performance-history.md, ninth and fourteenth sessions).
+"""What the pair loop costs per grain against N (docs/performance-history.md, ninth and
+fourteenth sessions).
 
     python benchmarks/cache_probe.py [--sizes 100x100 316x316 1000x1000] [--subset 12000]
                                      [--contacts random|all|none]

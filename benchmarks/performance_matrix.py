@@ -158,6 +158,7 @@ def main() -> None:
                 args.settle, args.steps)
         return
     runs: dict[tuple[int, int], list[dict]] = {}
+    rows: list[dict] = []
     for pass_ in range(1, args.passes + 1):
         for n, settle, steps in PLAN:
             if args.quick and n > 31_700:

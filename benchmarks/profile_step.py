@@ -140,13 +140,8 @@ def stepped(sim, steps, acc):
         # Simulation.run asks the list test once when called, then after each step
         if sim.needs_rebuild or (step == 0 and sim._list_expired()):
             t = clock()
-            for hook in sim.before_rebuild:
-                hook(sim)
-            nb.rebuild(p, w)
+            sim._rebuild_list()
             acc["build"] += clock() - t
-            sim._stale = False
-            sim._wall_drift = 0.0
-            sim._drift, sim._spread = 0.0, (0.0, 0.0, 0.0, 0.0)
         blocks = nb.blocks(threads if parallel else 1)
         runs = nb.step_report(threads if parallel else 1)
         bound = global_bound(sim._drift, *sim._spread)

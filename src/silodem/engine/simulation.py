@@ -102,12 +102,7 @@ class Simulation:
         walls_move = w.moving()
         while left > 0:
             if self._stale or self._list_expired():
-                for hook in self.before_rebuild:
-                    hook(self)
-                nb.rebuild(p, w)
-                self._stale = False
-                self._wall_drift = 0.0
-                self._drift, self._spread = 0.0, (0.0, 0.0, 0.0, 0.0)
+                self._rebuild_list()
             threads = numba.get_num_threads()  # asked once: it takes a lock
             threaded = pair_forces.pick(p.n, threads) is pair_forces.parallel
             done, time, max_d2, *self._spread = (threaded_steps if threaded else serial_steps)(
@@ -132,6 +127,16 @@ class Simulation:
             self._drift = float(np.sqrt(max_d2))
             if walls_move:  # step 4, one step at a time
                 self._wall_drift += w.advance(dt)
+
+    def _rebuild_list(self) -> None:
+        """Step 1's build: the hooks (``before_rebuild``), then the neighbour list, which
+        becomes the reference of the displacements (drifts and their box back to 0)."""
+        for hook in self.before_rebuild:
+            hook(self)
+        self.neighbors.rebuild(self.particles, self.walls)
+        self._stale = False
+        self._wall_drift = 0.0
+        self._drift, self._spread = 0.0, (0.0, 0.0, 0.0, 0.0)
 
     def _past_global_test(self) -> bool:
         """Whether the global test alone would rebuild the list (``list_validity``)."""
