@@ -21,7 +21,7 @@ def spring_dashpot(k: float, m_eff: float, zeta: float) -> dict[str, float]:
 
     With tension allowed the contact lasts t_c = pi / w_d and e = exp(-zeta pi / sqrt(1-zeta^2)).
     Without tension it ends when the force k delta + c delta' vanishes, at
-    w_d t* = pi - atan(2 beta w_d / (w0^2 - 2 beta^2)), beta = zeta w0, with
+    w_d t* = pi - atan2(2 beta w_d, w0^2 - 2 beta^2), beta = zeta w0, with
     e* = exp(-beta t*) (beta/w_d sin w_d t* - cos w_d t*)   (Schwager & Poeschel, Granular
     Matter 9 (2007) 465).
     """
@@ -74,3 +74,28 @@ def wall_impact(e_law: GrainLaw, walls: Walls, vn: float, vt: float, dt: float):
     p = Particles()
     p.add(np.array([0.0]), np.array([R + 1e-6 + vn * dt]), R, RHO, vx=vt, vy=-vn)
     return Simulation(p, walls, e_law, dt=dt, gravity=0.0, skin=0.05)
+
+
+def frictionless_pair_leapfrog(x, y, vx, vy, mass, radius, k, dt):
+    """Brute-force reference: two disks with a linear spring (stiffness k [N/m], no damping,
+    no friction, no tension) integrated by the leap-frog of docs/physics.md (forces from the
+    positions at t, velocities at half steps), in plain Python, from the start until the
+    contact has begun and ended.  ``x, y, vx, vy``: lists of the two disks' values [m, m/s],
+    changed in place."""
+    started = False
+    while True:
+        dx = x[1] - x[0]
+        dy = y[1] - y[0]
+        d = math.hypot(dx, dy)
+        f = k * (2.0 * radius - d) if d < 2.0 * radius else 0.0
+        if f > 0.0:
+            started = True
+        elif started:
+            return
+        fx = f * dx / d  # the force on disk 1; disk 0 gets its opposite
+        fy = f * dy / d
+        for a, sign in ((0, -1.0), (1, 1.0)):
+            vx[a] += sign * fx / mass * dt
+            vy[a] += sign * fy / mass * dt
+            x[a] += vx[a] * dt
+            y[a] += vy[a] * dt

@@ -199,5 +199,6 @@ def test_en1991_4_discharge_magnifies_the_janssen_filling_load():
     np.testing.assert_allclose(p_h, th.janssen_sigma_h(z, RHO_B, G, 3.4, 0.5, 0.4), rtol=1e-12)
     np.testing.assert_allclose(p_v, th.janssen_sigma_v(z, RHO_B, G, 3.4, 0.5, 0.4), rtol=1e-12)
     p_he, p_we = th.en1991_4_discharge(z, GAMMA, 0.5, 0.4, 1.7)
+    # the discharge factors of slender silos, EN 1991-4:2006 §5.2.2.2: C_h = 1.15, C_w = 1.10
     np.testing.assert_allclose(p_he, 1.15 * p_h)
     np.testing.assert_allclose(p_we, 1.10 * p_w)

@@ -269,6 +269,10 @@ def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
     assert select_frame(frames, "end-of-filling").time == pytest.approx(h5["settled"]["time"])
     early, late = (select_frame(frames, v) for v in ("early-discharge", "late-discharge"))
     assert t_open < early.time < late.time <= h5["final"]["time"]
+    # ... at 15 % and 75 % of the discharge's duration, to the nearest frame (0.1 s apart)
+    duration = h5["events"]["discharge_time"]
+    for frame, share in ((early, 0.15), (late, 0.75)):
+        assert frame.time == pytest.approx(t_open + share * duration, abs=0.05 + h5["dt"])
     # a time picks the nearest frame
     assert force_network_png(run_dir / "results.h5", 2.0).startswith(b"\x89PNG")
     assert select_frame(frames, 2.03).time == pytest.approx(2.0, abs=0.05 + h5["dt"])

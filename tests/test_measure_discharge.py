@@ -1,0 +1,109 @@
+"""The discharge measurements (``measure.discharge``) on mass records whose rate is known:
+exact lines and parabolas, and a discharge with random, independent increments whose error
+follows from the theory of least squares on a random walk."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from silodem.measure.discharge import (
+    classify_flow,
+    dead_zone,
+    flow_rate_series,
+    mass_flow_index,
+    steady_rate,
+)
+
+
+def test_steady_rate_is_the_slope_between_the_start_up_and_the_emptying():
+    """m(t): a start-up (a parabola from rest), then a steady rate W, then the silo empties
+    (a parabola down to rest).  With the steady part covering 10-90 % of the final mass, the
+    15-75 % window lies inside it: the slope is W exactly and the batch-means error is 0."""
+    W, t_up, t_steady, t_end = 2.5, 0.4, 8.0, 0.8  # [kg/s], [s]
+    t = np.linspace(0.0, t_up + t_steady + t_end, 4001)
+    m_up = 0.5 * W * t_up  # mass at the end of the start-up (rate from 0 to W linearly)
+    m = np.where(t < t_up, 0.5 * W * t**2 / t_up, m_up + W * (t - t_up))
+    late = t > t_up + t_steady
+    s = t[late] - (t_up + t_steady)
+    m[late] = m_up + W * t_steady + W * s - 0.5 * W * s**2 / t_end
+    total = m_up + W * t_steady + 0.5 * W * t_end
+    assert m.max() == pytest.approx(total)
+    est = steady_rate(t, m)
+    assert est.rate == pytest.approx(W, rel=1e-12)
+    assert est.err == pytest.approx(0.0, abs=1e-9 * W)
+    # the window's ends: where m first reaches 15 % and last stays under 75 % of the total
+    assert est.t0 == pytest.approx(t_up + (0.15 * total - m_up) / W, abs=t[1] - t[0])
+    assert est.t1 == pytest.approx(t_up + (0.75 * total - m_up) / W, abs=t[1] - t[0])
+
+
+def test_steady_rate_error_is_that_of_a_random_walk():
+    """m(t) = W t + B(t), B a random walk with diffusion D [kg^2/s] (grains leave one by one,
+    independently): the least-squares slope over a window of length T has variance
+    6 D / (5 T) (the integral of (u - 1/2)(v - 1/2) min(u, v) over the unit square is 1/120,
+    times 144), and the five block slopes are independent, each with 6 D / (5 T/5), so the
+    batch-means error squared has that same expectation.  2000 records: the spread of the
+    rates and the mean squared error both agree with 6 D / (5 T) within their sampling
+    error (2.2 % and 3.2 % standard deviations; asserted within 4.5 of them)."""
+    rng = np.random.default_rng(7)
+    W, D, duration, n = 3.0, 0.04, 10.0, 5000
+    t = np.linspace(0.0, duration, n + 1)
+    dt = t[1] - t[0]
+    rates, errs2, windows = [], [], []
+    for _ in range(2000):
+        walk = np.concatenate([[0.0], np.cumsum(rng.normal(0.0, np.sqrt(D * dt), n))])
+        est = steady_rate(t, W * t + walk)
+        rates.append(est.rate)
+        errs2.append(est.err**2)
+        windows.append(est.t1 - est.t0)
+    expected = 6.0 * D / (5.0 * np.mean(windows))  # the window is 60 % of the run, +- noise
+    assert np.mean(rates) == pytest.approx(W, abs=4.5 * np.sqrt(expected / 2000))
+    assert np.var(rates, ddof=1) == pytest.approx(expected, rel=4.5 * np.sqrt(2 / 1999))
+    # err^2 is expected / 4 times a chi-square of 4 degrees of freedom: sd 1/sqrt(2) of it
+    assert np.mean(errs2) == pytest.approx(expected, rel=4.5 * np.sqrt(0.5 / 2000))
+
+
+def test_steady_rate_without_a_record_is_nan():
+    for t, m in [([0.0, 1.0], [0.0, 1.0]), ([0.0, 1.0, 2.0], [0.0, 0.0, 0.0]),
+                 ([0.0, 1.0, 2.0], [np.nan] * 3)]:
+        assert np.isnan(steady_rate(t, m).rate)
+
+
+def test_flow_rate_series_differentiates_a_parabola_exactly():
+    """A centred difference of m = a t^2 over any window is the exact derivative 2 a t at the
+    window's centre; near the ends the window is cut and centred elsewhere: there the rate is
+    a (t_a + t_b), still exact for the window it has."""
+    a = 0.7
+    t = np.arange(321) / 64.0  # 0 ... 5 s; t +- 0.25 exact in binary: windows of 33 samples
+    times, rate = flow_rate_series(t, a * t**2, width=0.5)
+    assert np.array_equal(times, t)
+    inner = (t >= 0.25) & (t <= 4.75)
+    np.testing.assert_allclose(rate[inner], 2 * a * t[inner], rtol=1e-12, atol=1e-12)
+    assert np.all(np.isfinite(rate)) and np.all(rate >= 0.0)
+    assert rate[0] == pytest.approx(a * (t[0] + 0.25), rel=1e-12)  # window [0, 0.25]
+    assert rate[-1] == pytest.approx(a * (4.75 + t[-1]), rel=1e-12)
+
+
+def test_mass_flow_index_is_the_ratio_of_the_mean_velocities_while_the_band_is_covered():
+    """Only the samples with the free surface above band_top + margin and both velocities
+    measured count; the ratio is of the means, not the mean of the ratios."""
+    v_axis = np.array([-2.0, -1.0, -3.0, -1.0, np.nan])
+    v_wall = np.array([-1.0, -0.6, 99.0, np.nan, -5.0])
+    level = np.array([5.0, 4.0, 1.0, 5.0, 5.0])  # sample 2's surface is below the band
+    mfi = mass_flow_index(v_wall, v_axis, level, band_top=2.0, margin=0.5)
+    assert mfi == pytest.approx((-1.0 - 0.6) / (-2.0 - 1.0), rel=1e-15)
+    assert np.isnan(mass_flow_index(v_wall, v_axis, level, band_top=10.0, margin=0.5))
+
+
+def test_dead_zone_and_flow_pattern():
+    """Dead: never left (no exit time) and never moved a grain radius; mass flow needs both
+    the index at the threshold or above and (almost) no dead grains."""
+    exit_time = np.array([np.nan, np.nan, 3.0, np.nan])
+    moved = np.array([0.001, 0.2, 0.001, 0.0049])
+    np.testing.assert_array_equal(dead_zone(exit_time, moved, 0.005),
+                                  [True, False, False, True])
+    assert classify_flow(0.3, 0.0) == "mass flow"
+    assert classify_flow(0.29, 0.0) == "funnel flow"
+    assert classify_flow(0.8, 0.01) == "funnel flow"
+    assert classify_flow(0.8, 0.5, threshold=0.9) == "funnel flow"
+    assert classify_flow(float("nan"), 0.0) == "unknown"
