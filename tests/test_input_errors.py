@@ -111,6 +111,20 @@ def test_out_pointing_at_a_file_is_refused(capsys, tmp_path):
                  "is a file, not a folder")
 
 
+@pytest.mark.parametrize("command", [["run", "--quick"], ["validate", "--quick"]])
+@pytest.mark.parametrize("where", ["/proc/silodem-out", "/sys/silodem-out", "name-too-long"])
+def test_out_the_system_will_not_create_is_refused(capsys, tmp_path, command, where):
+    """Folders the system refuses even to root (/proc, /sys; os.access says yes there) and a
+    name longer than a file name may be: one line naming --out, before any work."""
+    out = tmp_path / ("x" * 300) if where == "name-too-long" else Path(where)
+    assert_names(refused(capsys, *command, "--out", str(out)), "--out", "cannot write")
+
+
+@pytest.mark.parametrize("command", [["plot"], ["animate"], ["run", "--resume"]])
+def test_a_results_folder_name_the_system_refuses_is_one_line(capsys, tmp_path, command):
+    assert_names(refused(capsys, *command, str(tmp_path / ("x" * 300))), "too long")
+
+
 def test_out_holding_an_unfinished_run_is_refused(capsys, tmp_path):
     (tmp_path / "checkpoint.h5").write_bytes(b"")
     line = refused(capsys, "run", "--quick", "--out", str(tmp_path))

@@ -51,7 +51,8 @@ def test_plot_re_renders_from_results_without_running(run_dir, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(run_dir, copy)
     shutil.rmtree(copy / "figures")
-    (copy / "report.html").unlink()
+    for name in ("report.html", "settled.png", "final.png"):
+        (copy / name).unlink()
     digest = hashlib.sha256((copy / "results.h5").read_bytes()).hexdigest()
     with pytest.raises(SystemExit) as exc:
         main(["plot", str(copy)])
@@ -60,6 +61,47 @@ def test_plot_re_renders_from_results_without_running(run_dir, tmp_path):
     assert len(list((copy / "figures").glob("*.png"))) == len(list(
         (run_dir / "figures").glob("*.png")))
     assert hashlib.sha256((copy / "results.h5").read_bytes()).hexdigest() == digest
+    # the run drew its pictures from results.h5 as plot does: the same bytes
+    for name in ("settled.png", "final.png"):
+        assert (copy / name).read_bytes() == (run_dir / name).read_bytes()
+
+
+def test_interrupt_while_drawing_loses_nothing_and_says_so(tmp_path, monkeypatch, capsys):
+    """Ctrl-C after results.h5 is written (while the pictures are drawn): one line, exit 130,
+    results.h5 complete, no temporary file left, and 'silodem plot' draws what is missing."""
+    import h5py
+
+    import silodem.output
+    from silodem.scenario_files import config_to_toml
+
+    config = tmp_path / "tiny.toml"
+    config.write_text(config_to_toml(tiny_hopper_config()), encoding="utf-8")
+    out = tmp_path / "run"
+    draw_state = silodem.output.draw_state
+    drawn = []
+
+    def draw_then_interrupt(*args, **kwargs):
+        if drawn:  # the second picture: the user presses Ctrl-C inside the PNG writer
+            raise KeyboardInterrupt
+        drawn.append(draw_state(*args, **kwargs))
+
+    monkeypatch.setattr(silodem.output, "draw_state", draw_then_interrupt)
+    with pytest.raises(SystemExit) as exc:
+        main(["run", str(config), "--out", str(out)])
+    assert exc.value.code == 130
+    err = capsys.readouterr().err
+    last = err.strip().splitlines()[-1]  # after the progress bar
+    assert last.startswith("interrupted: after the run's results") and "Traceback" not in err
+    assert f"silodem plot {out}" in last
+    with h5py.File(out / "results.h5", "r") as h5:
+        assert h5.attrs["status"] == "complete"
+    assert (out / "settled.png").is_file() and not (out / "final.png").exists()
+    assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
+    monkeypatch.setattr(silodem.output, "draw_state", draw_state)
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(out)])
+    assert exc.value.code == 0
+    assert (out / "final.png").is_file() and (out / "report.html").is_file()
 
 
 @pytest.mark.parametrize("what", ["missing", "empty", "garbage"])

@@ -237,7 +237,8 @@ def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):
     _check_frames_differ_and_not_blank(images)
 
 
-@pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color"])
+@pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color",
+                                  "out_in_proc"])
 def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
     target = tmp_path / "r"
     extra: list[str] = []
@@ -248,10 +249,14 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
             f.attrs["scenario"] = "x"
     if case == "bad_color":
         target, extra = run_dir, ["--color", "rainbow"]
+    if case == "out_in_proc":  # refused before rendering, not after (root may write nowhere)
+        target, extra = run_dir, ["--out", "/proc/silodem.gif"]
     res = cli("animate", str(target), *extra)
     assert res.returncode == 2
     assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
     assert res.stderr.startswith("error:")
+    if case == "out_in_proc":
+        assert "rendering" not in res.stderr and "--out /proc/silodem.gif" in res.stderr
 
 
 def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):

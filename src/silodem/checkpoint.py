@@ -27,10 +27,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import json
-import os
 import tomllib
-from collections.abc import Iterator
-from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -39,6 +36,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from silodem import __version__
+from silodem.atomic import atomic_file
 from silodem.config import Config
 from silodem.errors import InputError, format_validation_error
 
@@ -59,36 +57,6 @@ _SIM_OBJECTS = ("particles", "walls", "neighbors", "law")
 
 class CheckpointError(InputError):
     """A checkpoint that is missing, unreadable or of another format (exit code 2)."""
-
-
-# --- atomic files --------------------------------------------------------------------------
-
-
-def fsync_path(path: Path) -> None:
-    """Flush a written file (or a folder's entries) to the disk."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-@contextmanager
-def atomic_file(path: Path | str) -> Iterator[Path]:
-    """Yield a temporary name in the folder of ``path``; on success, fsync it and rename it
-    onto ``path`` (``os.replace``), so ``path`` is always either the old or the new file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        yield tmp
-        fsync_path(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with suppress(OSError):
-            tmp.unlink()
-        raise
-    with suppress(OSError):  # make the rename itself durable (not possible everywhere)
-        fsync_path(path.parent)
 
 
 # --- encoding values -----------------------------------------------------------------------

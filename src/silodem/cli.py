@@ -98,7 +98,15 @@ def _given(ctx: typer.Context, name: str) -> bool:
 
 
 def _check_out(out: Path) -> None:
-    """Refuse an --out that is a file, lies under a file, or holds an unfinished run."""
+    """Refuse an --out that is a file, lies under a file, cannot be created or written, or
+    holds an unfinished run; create the folder."""
+    try:
+        _check_out_folder(out)
+    except OSError as exc:  # a name too long, a system folder (/proc, /sys), ...
+        raise InputError(f"--out {out}: cannot write a folder there ({exc.strerror})") from None
+
+
+def _check_out_folder(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} is a file, not a folder; give a folder for the results "
                          "(created if missing)")
@@ -113,6 +121,7 @@ def _check_out(out: Path) -> None:
         raise InputError(f"--out {out} holds an unfinished run (checkpoint.h5); continue it with "
                          f"'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
                          "start afresh there")
+    out.mkdir(parents=True, exist_ok=True)
 
 
 def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
@@ -257,13 +266,16 @@ def plot(
 ) -> None:
     """Re-draw every figure of a run from DIR/results.h5 (nothing is re-run) and write
     DIR/report.html: one page with the figures, the key numbers and the config, to open in a
-    browser. Figures also go to DIR/figures/*.png. Example:
+    browser. Figures also go to DIR/figures/*.png, and settled.png and final.png are drawn
+    again. Example:
 
       silodem plot runs/paper-case2
     """
-    from silodem.report import write_report  # matplotlib, scipy: only when plotting
+    from silodem.output import draw_pictures  # matplotlib, scipy: only when plotting
+    from silodem.report import write_report
 
     path = write_report(run_dir)
+    draw_pictures(run_dir)
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 
@@ -540,5 +552,10 @@ def main(argv: list[str] | None = None) -> None:
     except other as exc:
         _error(f"error: {exc.format_message()}", getattr(exc, "exit_code", 1))
     except abort:
+        _error("interrupted", 130)
+    except OSError as exc:  # a path given that the system refuses (name too long, ...)
+        where = f": {exc.filename}" if exc.filename else ""
+        _error(f"error: {exc.strerror or exc}{where}", 2)
+    if result == 130:  # typer turns a KeyboardInterrupt that no command caught into 130
         _error("interrupted", 130)
     raise SystemExit(result if isinstance(result, int) else 0)

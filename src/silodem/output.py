@@ -6,7 +6,6 @@ reader never sees a half-written file.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import h5py
@@ -19,38 +18,12 @@ from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.patches import Circle
 
 from silodem import __version__
+from silodem.atomic import atomic_file, write_atomic
 from silodem.silo.procedure import SiloRun, Snapshot
 
 
-def _atomic(path: Path):
-    tmp = path.with_name(f".{path.name}.tmp")
-
-    def commit() -> None:  # flush the data to the disk, rename over the old file, flush that
-        fd = os.open(tmp, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-        try:  # make the rename itself durable (not possible on every system)
-            fd = os.open(path.parent, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-        except OSError:
-            pass
-
-    return tmp, commit
-
-
 def write_text(path: Path, text: str) -> None:
-    tmp, commit = _atomic(path)
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    commit()
+    write_atomic(path, text)
 
 
 def _write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
@@ -70,8 +43,7 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
     ``status``: "complete" at the end of a run; "running", "interrupted" or "unstable" when
     written before the end (checkpoints, docs/reliability.md); attributes ``phase``, ``time``
     and ``steps`` say how far the run had come."""
-    tmp, commit = _atomic(path)
-    with h5py.File(tmp, "w") as h5:
+    with atomic_file(path) as tmp, h5py.File(tmp, "w") as h5:
         h5.attrs["status"] = status
         h5.attrs["phase"] = run.state.phase
         h5.attrs["time"] = run.sim.time
@@ -95,12 +67,39 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
         h5.create_dataset("warnings", data=np.array(run.warnings, dtype=h5py.string_dtype()))
         for name, snap in run.snapshots.items():
             _write_snapshot(h5.create_group(name), snap)
-    commit()
 
 
-def draw_state(run: SiloRun, snap: Snapshot, path: Path, title: str) -> None:
-    """Grains to scale, the force network (line width ~ normal force) and the walls."""
-    p, c = snap.particles, snap.contacts
+PICTURES = {"settled": "end of settling", "final": "end of run"}  # file stem: caption
+
+
+def draw_pictures(folder: Path | str) -> list[Path]:
+    """settled.png and final.png of the run in ``folder`` (if its config's ``output.png``),
+    drawn from the snapshots /settled and /final of its results.h5: by ``silodem run``, and
+    again by ``silodem plot``."""
+    from silodem.report.load import load_results
+
+    res = load_results(folder)
+    if not res.cfg.output.png:
+        return []
+    walls = res.group("walls")
+    out = []
+    for name, caption in PICTURES.items():
+        snap = res.snapshot(name)
+        if snap is None or walls is None:
+            continue
+        path = res.folder / f"{name}.png"
+        draw_state(snap["particles"], snap["contacts"], walls, snap["walls_active"], path,
+                   f"{res.cfg.name}: {caption}, t = {snap['@attrs']['time']:.2f} s")
+        out.append(path)
+    return out
+
+
+def draw_state(particles: dict, contacts: dict, walls: dict, walls_active, path: Path,
+               title: str) -> None:
+    """A PNG of grains to scale (``particles``: x, y, radius [m]), the force network
+    (``contacts``: i, j, fn; line width ~ normal force) and the walls (``walls``: ax, ay, bx,
+    by [m]; dotted where not ``walls_active``)."""
+    p, c, w = particles, contacts, walls
     fig, ax = plt.subplots(figsize=(6, 9), dpi=110)
     circles = [Circle((x, y), r) for x, y, r in zip(p["x"], p["y"], p["radius"])]
     ax.add_collection(PatchCollection(circles, facecolor="#d9d2c3", edgecolor="#8a7f6a",
@@ -111,18 +110,21 @@ def draw_state(run: SiloRun, snap: Snapshot, path: Path, title: str) -> None:
         fmax = float(c["fn"].max()) or 1.0
         ax.add_collection(LineCollection(segs, linewidths=0.2 + 3.0 * c["fn"] / fmax,
                                          colors="#b2182b"))
-    w = run.walls
-    for k in range(len(w)):
-        style = "-" if snap.walls_active[k] else ":"
-        ax.plot([w.ax[k], w.bx[k]], [w.ay[k], w.by[k]], style, color="k", lw=1.5)
+    for k in range(len(w["ax"])):
+        style = "-" if walls_active[k] else ":"
+        ax.plot([w["ax"][k], w["bx"][k]], [w["ay"][k], w["by"][k]], style, color="k", lw=1.5)
+    wall_x = np.concatenate([w["ax"], w["bx"]])
+    wall_y = np.concatenate([w["ay"], w["by"]])
+    low = min(-0.5, float(wall_y.min()), float(np.min(p["y"] - p["radius"], initial=0.0)))
     ax.set_aspect("equal")
-    ax.set_xlim(-0.3, run.shape.width + 0.3)
-    ax.set_ylim(min(-0.5, run.z_remove), run.shape.wall_top + 0.3)
+    ax.set_xlim(float(wall_x.min()) - 0.3, float(wall_x.max()) + 0.3)
+    ax.set_ylim(low, float(wall_y.max()) + 0.3)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
-    tmp, commit = _atomic(path)
-    fig.savefig(tmp, format="png")
-    plt.close(fig)
-    commit()
+    try:
+        with atomic_file(path) as tmp:
+            fig.savefig(tmp, format="png")
+    finally:
+        plt.close(fig)

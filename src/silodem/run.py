@@ -6,14 +6,16 @@ Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> di
 
 from __future__ import annotations
 
+import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
+from silodem.errors import RunInterrupted
 from silodem.measure.recorders import recorders_for
-from silodem.output import draw_state, write_results, write_text
+from silodem.output import draw_pictures, write_results, write_text
 from silodem.safety import RunGuard, check_numbers
 from silodem.silo.frames import FramesRecorder
 from silodem.silo.procedure import PHASES, Progress, SiloRun
@@ -99,13 +101,14 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
         guard.drive(run)
     write_results(run, out / "results.h5", toml_text)
     guard.completed()
-    if cfg.output.png:
-        draw_state(run, run.snapshots["settled"], out / "settled.png",
-                   f"{cfg.name}: end of settling, t = {run.snapshots['settled'].time:.2f} s")
-        draw_state(run, run.snapshots["final"], out / "final.png",
-                   f"{cfg.name}: end of run, t = {run.snapshots['final'].time:.2f} s")
-    if cfg.measure.report:
-        _write_report(out, run.warnings)
+    try:
+        draw_pictures(out)
+        if cfg.measure.report:
+            _write_report(out, run.warnings)
+    except KeyboardInterrupt:
+        raise RunInterrupted(f"after the run's results were written to {out / 'results.h5'}; "
+                             f"'silodem plot {out}' draws its pictures and report.html",
+                             signal.SIGINT) from None
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                       dict(run.events), list(run.warnings))
 

@@ -37,11 +37,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem import __version__
+from silodem.atomic import atomic_file
 from silodem.checkpoint import (
     CHECKPOINT_NAME,
     FAILURE_NAME,
     LoadedCheckpoint,
-    atomic_file,
     save_checkpoint,
 )
 from silodem.config import Config

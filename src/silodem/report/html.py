@@ -5,13 +5,13 @@ from __future__ import annotations
 import base64
 import html
 import io
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from silodem.atomic import write_atomic
 from silodem.report import figures_flow as ff
 from silodem.report import figures_stress as fs
 from silodem.report.analysis import Analysis, analyse
@@ -79,15 +79,6 @@ FIGURES = [
 ]
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-
-
 def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]:
     """Render every figure the data allows; write each PNG to ``fig_dir``; return them."""
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -100,7 +91,7 @@ def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]
         buf = io.BytesIO()
         fig.savefig(buf, format="png")
         png = buf.getvalue()
-        _atomic_write(fig_dir / f"{spec.name}.png", png)
+        write_atomic(fig_dir / f"{spec.name}.png", png)
         out.append((spec, png))
     return out
 
@@ -156,7 +147,7 @@ def render_snapshots(folder: Path, fig_dir: Path) -> list[tuple[str, str, bytes]
         if view not in pngs:
             (fig_dir / f"{name}.png").unlink(missing_ok=True)
             continue
-        _atomic_write(fig_dir / f"{name}.png", pngs[view])
+        write_atomic(fig_dir / f"{name}.png", pngs[view])
         out.append((name, caption, pngs[view]))
     return out
 
@@ -213,5 +204,5 @@ def write_report(folder: Path | str) -> Path:
     figures = render_figures(a, folder / "figures")
     snapshots = render_snapshots(folder, folder / "figures")
     path = folder / "report.html"
-    _atomic_write(path, build_html(a, figures, snapshots).encode("utf-8"))
+    write_atomic(path, build_html(a, figures, snapshots).encode("utf-8"))
     return path

@@ -25,8 +25,9 @@ matplotlib.use("Agg")
 import numpy as np
 from matplotlib.figure import Figure
 
+from silodem.atomic import write_atomic
 from silodem.report.draw import rolling_mean, shade_phases
-from silodem.report.html import _CSS, _atomic_write, _table
+from silodem.report.html import _CSS, _table
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
 from silodem.study.table import COLUMNS, switch_series
 
@@ -314,7 +315,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             continue
         buf = io.BytesIO()
         fig.savefig(buf, format="png")
-        _atomic_write(fig_dir / f"{name}.png", buf.getvalue())
+        write_atomic(fig_dir / f"{name}.png", buf.getvalue())
         pngs.append((name, paper, caption, buf.getvalue()))
     spec = plan.study.spec
     title = f"silodem study: {plan.name}" + (" (--quick)" if plan.quick else "")
@@ -360,5 +361,5 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     parts.append("<h2>Study file</h2><pre>" + html.escape(plan.study.text) + "</pre>")
     parts.append("</body></html>")
     path = out_dir / "report.html"
-    _atomic_write(path, "\n".join(parts).encode("utf-8"))
+    write_atomic(path, "\n".join(parts).encode("utf-8"))
     return path

@@ -95,8 +95,14 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
     frames = load_run_frames(run_dir)
     if out_path is None:
         out_path = Path(run_dir) / f"animation.{fmt}"
-    if not out_path.parent.is_dir():
-        raise InputError(f"--out {out_path}: folder '{out_path.parent}' does not exist")
+    try:
+        if not out_path.parent.is_dir():
+            raise InputError(f"--out {out_path}: folder '{out_path.parent}' does not exist")
+        probe = out_path.with_name(f".{out_path.stem}.tmp.{fmt}")  # render's temporary file
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:  # before rendering, not after
+        raise InputError(f"--out {out_path}: cannot write there ({exc.strerror})") from None
     return AnimationPlan(frames, out_path, fmt, color, fps)
 
 

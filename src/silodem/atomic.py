@@ -1,0 +1,50 @@
+"""Files written whole or not at all (docs/reliability.md: an interrupted run loses nothing it
+had written).
+
+Every file of a results folder is written to a temporary name beside it, flushed to the disk
+and renamed over the old one (``os.replace``, atomic on POSIX), so a reader, or a run
+interrupted at any moment, finds either the old file or the new one.  If writing fails or is
+interrupted, the temporary file is removed.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from pathlib import Path
+
+
+def fsync_path(path: Path) -> None:
+    """Flush a written file (or a folder's entries) to the disk."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def atomic_file(path: Path | str) -> Iterator[Path]:
+    """Yield a temporary name in the folder of ``path``; on success, fsync it and rename it
+    onto ``path`` (``os.replace``), so ``path`` is always either the old or the new file.  On
+    any exception (KeyboardInterrupt included) the temporary file is removed."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        yield tmp
+        fsync_path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with suppress(OSError):
+            tmp.unlink()
+        raise
+    with suppress(OSError):  # make the rename itself durable (not possible everywhere)
+        fsync_path(path.parent)
+
+
+def write_atomic(path: Path | str, data: bytes | str) -> None:
+    """Write ``data`` (text as UTF-8) to ``path`` through ``atomic_file``."""
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    with atomic_file(path) as tmp:
+        tmp.write_bytes(raw)
