@@ -154,6 +154,8 @@ def test_set_overrides_int_float_bool_and_string():
     assert cfg.name == "my run"
     assert cfg.description == "plain words"
     assert cfg.time.dt == 1e-5
+    # an integer is a number: kn = 50000 in a file is 50000.0
+    assert load_config("paper-case2", ["material.kn=50000"]).material.kn == 50000.0
 
 
 def test_set_on_the_command_line_reaches_the_config():
@@ -186,6 +188,15 @@ def test_set_with_a_bad_key_fails_with_one_line_naming_it(item, needles):
         ("silo.kind=round", "silo.kind"),
         ("discharge.enabled=[1, 2]", "discharge.enabled"),
         ("silo.outlet_width=9", "silo.outlet_width"),
+        # wrong types are refused, not converted (true is not 1, "7" is not 7)
+        ("fill.n_particles=true", "fill.n_particles"),
+        ("material.kn=true", "material.kn"),
+        ('seed="7"', "seed"),
+        ('material.kn="5e4"', "material.kn"),
+        ("discharge.enabled=yes", "discharge.enabled"),
+        ("discharge.enabled=1", "discharge.enabled"),
+        ("seed=99999999999999999999", "seed"),  # more than a 64-bit HDF5 attribute holds
+        ("fill.band_height=50", "fill.band_height"),  # deeper than the silo
     ],
 )
 def test_set_with_a_bad_value_fails_with_one_line_naming_the_key(item, key):

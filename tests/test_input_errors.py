@@ -125,6 +125,31 @@ def test_a_results_folder_name_the_system_refuses_is_one_line(capsys, tmp_path, 
     assert_names(refused(capsys, *command, str(tmp_path / ("x" * 300))), "too long")
 
 
+@pytest.mark.parametrize("sets, key", [
+    (["measure.grid_cell=1e-5"], "measure.grid_cell"),
+    (["measure.wall_bin=1e-7"], "measure.wall_bin"),
+    (["material.radius_min=2e-5", "material.radius_max=2e-5", "fill.band_height=0.5",
+      "measure.grid_cell=0.1", "measure.wall_bin=0.1"], "material.radius_max"),
+])
+def test_lengths_too_small_for_the_memory_are_refused_naming_the_key(capsys, tmp_path, sets,
+                                                                       key):
+    """Each value is valid, but the arrays it sizes would not fit (a 7e10-cell velocity grid,
+    1e8 wall bins, 5e9 search cells; a MemoryError traceback before)."""
+    args = [arg for item in sets for arg in ("--set", item)]
+    line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"), *args)
+    assert_names(line, key, "more than")
+
+
+def test_a_loose_fill_that_cannot_fit_is_refused_before_the_run(capsys, tmp_path):
+    """Refused before the run starts: no checkpoint is left, so the folder is not held by an
+    'unfinished run' that cannot be resumed either."""
+    line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path),
+                   "--set", "fill.method=\"loose\"", "--set", "fill.n_particles=3000")
+    assert_names(line, "fill.n_particles", "do not fit loose")
+    assert not (tmp_path / "checkpoint.h5").exists()
+    assert not (tmp_path / "results.h5").exists()
+
+
 def test_out_holding_an_unfinished_run_is_refused(capsys, tmp_path):
     (tmp_path / "checkpoint.h5").write_bytes(b"")
     line = refused(capsys, "run", "--quick", "--out", str(tmp_path))

@@ -18,7 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False,
+                              strict=True)
 
 
 class Material(_Strict):
@@ -277,7 +278,8 @@ class Config(_Strict):
 
     name: str = Field("custom", description="scenario name")
     description: str = Field("", description="free text")
-    seed: int = Field(ge=0, description="seed of the random generator (radii, positions)")
+    seed: int = Field(ge=0, le=2**63 - 1,
+                      description="seed of the random generator (radii, positions)")
     gravity: float = Field(9.81, ge=0, description="gravitational acceleration g [m/s^2]")
     material: Material
     walls: WallMaterial
@@ -301,5 +303,10 @@ class Config(_Strict):
             raise ValueError(
                 f"fill.band_height ({self.fill.band_height}) must be at least one grain diameter "
                 f"{2 * self.material.radius_max}"
+            )
+        if self.fill.band_height > self.silo.wall_height:
+            raise ValueError(
+                f"fill.band_height ({self.fill.band_height}) must not exceed silo.wall_height "
+                f"({self.silo.wall_height}): the band lies under the top of the walls"
             )
         return self

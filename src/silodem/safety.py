@@ -63,7 +63,8 @@ _STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
 
 def check_numbers(cfg: Config) -> tuple[float, float]:
     """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
-    run together (a zero, infinite or NaN time step, or more than ``MAX_STEPS`` steps)."""
+    run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, or a
+    loose fill with more grains than fit in the silo)."""
     from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
     from silodem.silo.geometry import build_walls
 
@@ -90,6 +91,12 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
     if not (math.isfinite(dt) and math.isfinite(dt_crit) and dt > 0):
         raise InputError(f"the grain and wall values give a time step of {dt:.3g} s (stability "
                          f"limit {dt_crit:.3g} s), which cannot be used; check {keys}")
+    check_sizes(cfg)
+    if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
+        from silodem.silo.geometry import silo_shape
+        from silodem.silo.procedure import loose_sites
+
+        loose_sites(silo_shape(cfg), cfg.material.radius_max, cfg.fill.n_particles)
     total = cfg.fill.max_time + cfg.settle.max_time
     if cfg.discharge.enabled:
         total += cfg.discharge.max_time
@@ -99,6 +106,45 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"limits ({total:g} s = fill.max_time + settle.max_time + discharge.max_time), more "
             f"than {MAX_STEPS:.0e}; check {keys}")
     return dt, dt_crit
+
+
+MAX_GRID_CELLS = 1e7  # velocity-field cells (3 sums each) [-]
+MAX_WALL_BINS = 1e6  # wall-stress bins [-]
+MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
+
+
+def check_sizes(cfg: Config) -> None:
+    """InputError when a length, valid by itself, is so small against the silo that the
+    arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
+    wall bins (``measure.wall_bin``), the neighbour search's cells (2 r_max + skin)."""
+    from silodem.measure.regions import bin_length, mean_diameter
+    from silodem.silo.geometry import silo_shape
+
+    shape = silo_shape(cfg)
+    width, height = shape.width, shape.wall_top
+    size = f"the silo ({width:.3g} m x {height:.3g} m)"
+    d = mean_diameter(cfg)
+    cell = cfg.measure.grid_cell or d
+    cells = max(1, round(width / cell)) * max(1, round(height / cell))
+    if cells > MAX_GRID_CELLS:
+        key = "measure.grid_cell" if cfg.measure.grid_cell else \
+            "measure.grid_cell (unset: one mean grain diameter)"
+        raise InputError(f"{key} = {cell:.3g} m cuts {size} into {cells:.3g} velocity cells, "
+                         f"more than {MAX_GRID_CELLS:.0e}; give a larger measure.grid_cell")
+    bins = 2.0 * (width + height) / bin_length(cfg)
+    if bins > MAX_WALL_BINS:
+        key = "measure.wall_bin" if cfg.measure.wall_bin else \
+            "measure.wall_bin (unset: two mean grain diameters)"
+        raise InputError(f"{key} = {bin_length(cfg):.3g} m cuts the walls of {size} into "
+                         f"{bins:.3g} bins, more than {MAX_WALL_BINS:.0e}; give a larger "
+                         "measure.wall_bin")
+    search = 2.0 * cfg.material.radius_max + 0.2 * d
+    cells = (width / search + 1) * (height / search + 1)
+    if cells > MAX_SEARCH_CELLS:
+        raise InputError(f"material.radius_max = {cfg.material.radius_max:.3g} m is so small "
+                         f"against {size} that its neighbour search needs {cells:.3g} cells, "
+                         f"more than {MAX_SEARCH_CELLS:.0e}; give larger grains or a smaller "
+                         "silo")
 
 
 # --- finding what went wrong ---------------------------------------------------------------

@@ -26,7 +26,7 @@ from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.errors import InputError
 from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
-from silodem.silo.geometry import GATE, build_walls, silo_shape
+from silodem.silo.geometry import GATE, SiloShape, build_walls, silo_shape
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
 
 PHASES = ("fill", "settle", "discharge", "done")
@@ -62,6 +62,35 @@ class ProcedureState:
     lost_mass: float = 0.0  # grains that left through a wall [kg]
     lost_count: int = 0
     pending_radii: list[float] = field(default_factory=list)  # discharged, to re-insert [m]
+
+
+def loose_spacing(radius_max: float) -> float:
+    """Lattice spacing of the loose fill [m]: a largest grain's diameter plus 5 %."""
+    return 2.0 * radius_max * 1.05
+
+
+def loose_sites(shape: SiloShape, radius_max: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``n`` sites (x, y) [m] of the loose fill's square lattice (``loose_spacing``),
+    row by row from the bottom, each row across the silo's inside; InputError when fewer fit
+    with the top row a largest grain's radius ``radius_max`` [m] under the top of the walls."""
+    spacing = loose_spacing(radius_max)
+    xs: list[float] = []
+    ys: list[float] = []
+    z = spacing / 2
+    while len(xs) < n:
+        if z > shape.wall_top - radius_max:
+            raise InputError(
+                f"fill.n_particles = {n} grains do not fit loose in the silo (room for "
+                f"{len(xs)}); raise silo.wall_height or use fill.method = 'pour'"
+            )
+        lo, hi = shape.inner_x_range(z - spacing / 2)
+        lo2, hi2 = shape.inner_x_range(z + spacing / 2)
+        lo, hi = max(lo, lo2), min(hi, hi2)
+        for k in range(int((hi - lo) / spacing)):
+            xs.append(lo + spacing * (k + 0.5))
+            ys.append(z)
+        z += spacing
+    return np.array(xs[:n]), np.array(ys[:n])
 
 
 class SiloRun:
@@ -276,30 +305,15 @@ class SiloRun:
 
     def _place_loose(self) -> None:
         """All grains at once on a jittered square lattice filling the silo from the bottom."""
-        m, shape, st = self.cfg.material, self.shape, self.state
+        m, st = self.cfg.material, self.state
         if st.placed:
             return
-        spacing = 2.0 * m.radius_max * 1.05
-        xs: list[float] = []
-        ys: list[float] = []
-        z = spacing / 2
-        while len(xs) < self.radii.size:
-            if z > shape.wall_top - m.radius_max:
-                raise InputError(
-                    f"fill.n_particles = {self.radii.size} grains do not fit loose in the silo "
-                    f"(room for {len(xs)}); raise silo.wall_height or use fill.method = 'pour'"
-                )
-            lo, hi = shape.inner_x_range(z - spacing / 2)
-            lo2, hi2 = shape.inner_x_range(z + spacing / 2)
-            lo, hi = max(lo, lo2), min(hi, hi2)
-            for k in range(int((hi - lo) / spacing)):
-                xs.append(lo + spacing * (k + 0.5))
-                ys.append(z)
-            z += spacing
+        spacing = loose_spacing(m.radius_max)
+        xs, ys = loose_sites(self.shape, m.radius_max, self.radii.size)
         n = self.radii.size
         jitter = 0.5 * (spacing - 2.0 * self.radii)
-        x = np.array(xs[:n]) + self.rng.uniform(-1, 1, n) * jitter
-        self.sim.particles.add(x, np.array(ys[:n]), self.radii, m.density, m.thickness)
+        x = xs + self.rng.uniform(-1, 1, n) * jitter
+        self.sim.particles.add(x, ys, self.radii, m.density, m.thickness)
         self.sim.invalidate()
         st.placed = n
 
