@@ -197,6 +197,7 @@ def test_set_with_a_bad_key_fails_with_one_line_naming_it(item, needles):
         ("discharge.enabled=1", "discharge.enabled"),
         ("seed=99999999999999999999", "seed"),  # more than a 64-bit HDF5 attribute holds
         ("fill.band_height=50", "fill.band_height"),  # deeper than the silo
+        ("settle.min_time=50", "settle.min_time"),  # longer than settle.max_time
     ],
 )
 def test_set_with_a_bad_value_fails_with_one_line_naming_the_key(item, key):

@@ -143,6 +143,13 @@ class Settle(_Strict):
     max_time: float = Field(10.0, gt=0, description="stop settling after this time [s] (warns)")
     min_time: float = Field(0.2, ge=0, description="settle at least this long [s]")
 
+    @model_validator(mode="after")
+    def _check(self) -> Settle:
+        if self.min_time > self.max_time:
+            raise ValueError(f"settle.min_time ({self.min_time}) must not exceed "
+                             f"settle.max_time ({self.max_time})")
+        return self
+
 
 class Discharge(_Strict):
     """Discharge: the gate under the outlet is withdrawn."""

@@ -125,14 +125,15 @@ def check_sizes(cfg: Config) -> None:
     size = f"the silo ({width:.3g} m x {height:.3g} m)"
     d = mean_diameter(cfg)
     cell = cfg.measure.grid_cell or d
-    cells = max(1, round(width / cell)) * max(1, round(height / cell))
-    if cells > MAX_GRID_CELLS:
+    # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
+    cells = max(1.0, width / cell) * max(1.0, height / cell)
+    if not cells <= MAX_GRID_CELLS:
         key = "measure.grid_cell" if cfg.measure.grid_cell else \
             "measure.grid_cell (unset: one mean grain diameter)"
         raise InputError(f"{key} = {cell:.3g} m cuts {size} into {cells:.3g} velocity cells, "
                          f"more than {MAX_GRID_CELLS:.0e}; give a larger measure.grid_cell")
     bins = 2.0 * (width + height) / bin_length(cfg)
-    if bins > MAX_WALL_BINS:
+    if not bins <= MAX_WALL_BINS:
         key = "measure.wall_bin" if cfg.measure.wall_bin else \
             "measure.wall_bin (unset: two mean grain diameters)"
         raise InputError(f"{key} = {bin_length(cfg):.3g} m cuts the walls of {size} into "
@@ -140,7 +141,7 @@ def check_sizes(cfg: Config) -> None:
                          "measure.wall_bin")
     search = 2.0 * cfg.material.radius_max + 0.2 * d
     cells = (width / search + 1) * (height / search + 1)
-    if cells > MAX_SEARCH_CELLS:
+    if not cells <= MAX_SEARCH_CELLS:
         raise InputError(f"material.radius_max = {cfg.material.radius_max:.3g} m is so small "
                          f"against {size} that its neighbour search needs {cells:.3g} cells, "
                          f"more than {MAX_SEARCH_CELLS:.0e}; give larger grains or a smaller "

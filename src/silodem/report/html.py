@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -200,9 +201,14 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
 def write_report(folder: Path | str) -> Path:
     """Re-render every figure from ``folder``/results.h5 and write ``folder``/report.html."""
     folder = Path(folder)
-    a = analyse(load_results(folder))
-    figures = render_figures(a, folder / "figures")
-    snapshots = render_snapshots(folder, folder / "figures")
+    with warnings.catch_warnings():
+        # a quantity with no data (no grain in a window, a field at rest) is NaN or an empty
+        # arrow in its figure and says so there; numpy's and matplotlib's warnings about
+        # the empty means and zero lengths behind it are not for the user's terminal
+        warnings.simplefilter("ignore", RuntimeWarning)
+        a = analyse(load_results(folder))
+        figures = render_figures(a, folder / "figures")
+        snapshots = render_snapshots(folder, folder / "figures")
     path = folder / "report.html"
     write_atomic(path, build_html(a, figures, snapshots).encode("utf-8"))
     return path
