@@ -78,7 +78,7 @@ def draw_pictures(folder: Path | str) -> list[Path]:
     again by ``silodem plot``."""
     from silodem.report.load import load_results
 
-    res = load_results(folder)
+    res = load_results(folder, only=("walls", *PICTURES))  # not the frames and series
     if not res.cfg.output.png:
         return []
     walls = res.group("walls")

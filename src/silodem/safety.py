@@ -117,14 +117,14 @@ def check_sizes(cfg: Config) -> None:
     """InputError when a length, valid by itself, is so small against the silo that the
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
     wall bins (``measure.wall_bin``), the neighbour search's cells (2 r_max + skin)."""
-    from silodem.measure.regions import bin_length, mean_diameter
+    from silodem.measure.regions import bin_length, grid_cell
     from silodem.silo.geometry import silo_shape
+    from silodem.silo.procedure import neighbour_skin
 
     shape = silo_shape(cfg)
     width, height = shape.width, shape.wall_top
     size = f"the silo ({width:.3g} m x {height:.3g} m)"
-    d = mean_diameter(cfg)
-    cell = cfg.measure.grid_cell or d
+    cell = grid_cell(cfg)
     # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
     cells = max(1.0, width / cell) * max(1.0, height / cell)
     if not cells <= MAX_GRID_CELLS:
@@ -139,7 +139,7 @@ def check_sizes(cfg: Config) -> None:
         raise InputError(f"{key} = {bin_length(cfg):.3g} m cuts the walls of {size} into "
                          f"{bins:.3g} bins, more than {MAX_WALL_BINS:.0e}; give a larger "
                          "measure.wall_bin")
-    search = 2.0 * cfg.material.radius_max + 0.2 * d
+    search = 2.0 * cfg.material.radius_max + neighbour_skin(cfg)  # as NeighborList.rebuild
     cells = (width / search + 1) * (height / search + 1)
     if not cells <= MAX_SEARCH_CELLS:
         raise InputError(f"material.radius_max = {cfg.material.radius_max:.3g} m is so small "

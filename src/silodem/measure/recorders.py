@@ -179,7 +179,7 @@ class _FlowPart:
         self.shape = shape
         self.delay, self.window = m.discharge_delay, m.window
         self.d = regions.mean_diameter(cfg)
-        cell = m.grid_cell or self.d
+        cell = regions.grid_cell(cfg)
         self.x_edges = np.linspace(0.0, shape.width, max(1, round(shape.width / cell)) + 1)
         self.z_edges = np.linspace(0.0, shape.wall_top, max(1, round(shape.wall_top / cell)) + 1)
         self.mfi_band = (np.nan, np.nan)  # set when the gate opens, from the fill level

@@ -116,6 +116,11 @@ def strip_width(cfg: Config) -> float:
     return cfg.measure.strip_width or 2.0 * mean_diameter(cfg)
 
 
+def grid_cell(cfg: Config) -> float:
+    """Cell size of the velocity-field grid [m] (default one mean diameter)."""
+    return cfg.measure.grid_cell or mean_diameter(cfg)
+
+
 def bin_length(cfg: Config) -> float:
     """Bin length along the walls and bin height of the profiles [m] (default two mean
     diameters)."""

@@ -13,12 +13,15 @@ from silodem.config import Config
 from silodem.errors import InputError
 
 
-def _tree(group) -> dict[str, Any]:
-    """A nested dict of an HDF5 group: datasets as NumPy arrays, attributes under '@attrs'."""
+def _tree(group, only: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """A nested dict of an HDF5 group: datasets as NumPy arrays, attributes under '@attrs'
+    (of the members named ``only``, if given)."""
     import h5py
 
     out: dict[str, Any] = {"@attrs": {k: _plain(v) for k, v in group.attrs.items()}}
     for key, item in group.items():
+        if only is not None and key not in only:
+            continue
         if isinstance(item, h5py.Group):
             out[key] = _tree(item)
         else:
@@ -65,8 +68,9 @@ class Results:
         return self.group(name)
 
 
-def load_results(folder: Path | str) -> Results:
-    """Load ``folder``/results.h5; InputError (one line) when it is missing or unreadable."""
+def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Results:
+    """Load ``folder``/results.h5 (its attributes and config, and of its groups only those
+    named ``only``, if given); InputError (one line) when it is missing or unreadable."""
     import h5py
 
     folder = Path(folder)
@@ -77,7 +81,7 @@ def load_results(folder: Path | str) -> Results:
         raise InputError(f"{folder} holds no results.h5 (run 'silodem run --out {folder}' first)")
     try:
         with h5py.File(path, "r") as h5:
-            data = _tree(h5)
+            data = _tree(h5, only)
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc}") from None
     attrs = data.get("@attrs", {})

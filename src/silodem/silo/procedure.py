@@ -64,6 +64,11 @@ class ProcedureState:
     pending_radii: list[float] = field(default_factory=list)  # discharged, to re-insert [m]
 
 
+def neighbour_skin(cfg: Config) -> float:
+    """Verlet-list skin of a silo run [m]: 0.4 mean grain radii."""
+    return 0.4 * 0.5 * (cfg.material.radius_min + cfg.material.radius_max)
+
+
 def loose_spacing(radius_max: float) -> float:
     """Lattice spacing of the loose fill [m]: a largest grain's diameter plus 5 %."""
     return 2.0 * radius_max * 1.05
@@ -108,7 +113,7 @@ class SiloRun:
         m = cfg.material
         self.radii = self.rng.uniform(m.radius_min, m.radius_max, cfg.fill.n_particles)
         self.sim = Simulation(Particles(cfg.fill.n_particles), self.walls, self.law, self.dt,
-                              gravity=cfg.gravity, skin=0.4 * 0.5 * (m.radius_min + m.radius_max))
+                              gravity=cfg.gravity, skin=neighbour_skin(cfg))
         self.state = ProcedureState()
         self.series = TimeSeries(cfg.output.sample_interval)
         self.recorders: list[Recorder] = [self.series, *(recorders or [])]
