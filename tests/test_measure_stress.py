@@ -71,14 +71,17 @@ def test_stress_of_a_packing_compressed_between_walls_equals_the_wall_stress(com
     assert m["stress"][1] == pytest.approx(applied_z, rel=0.02)
     solid = np.sum(np.pi * fr.r**2)
     assert m["porosity"] == pytest.approx(1.0 - solid / (width * height), abs=1e-9)
-    # circles inside the packing: same stress on average, within the scatter of ~100 grains
+    # circles inside the packing (about 70 grains each): the same stress on average. Each
+    # circle's value scatters with the grains it holds; the mean of the five is within one
+    # circle's scatter s of the applied stress (for independent circles its standard error is
+    # s / sqrt 5, for these overlapping ones between that and s): |mean - applied| < s
     xs = []
     for cx, cz in [(0.35, 0.35), (0.35, 0.65), (0.65, 0.35), (0.65, 0.65), (0.5, 0.5)]:
         xs.append(circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, cx * width,
                                  cz * height, 0.3 * width)["stress"])
-    mean = np.mean(xs, axis=0)
-    assert mean[0] == pytest.approx(applied_x, rel=0.25)
-    assert mean[1] == pytest.approx(applied_z, rel=0.25)
+    mean, scatter = np.mean(xs, axis=0), np.std(xs, axis=0, ddof=1)
+    assert abs(mean[0] - applied_x) < scatter[0]
+    assert abs(mean[1] - applied_z) < scatter[1]
     assert mean[0] > mean[1]  # the anisotropy of the load is seen
 
 
