@@ -72,13 +72,15 @@ def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[
 
 
 def surface_height(snap: dict[str, Any] | None, width: float, d: float) -> float:
-    """Mean height of the free surface [m]: the top of the highest grain in each column of
-    width d across the silo, averaged over the columns."""
+    """Mean height of the free surface [m]: the top of the highest grain in each of round(B/d)
+    equal columns across the silo (each about d wide), averaged over the columns."""
     if snap is None or snap["particles"]["x"].size == 0:
         return float("nan")
     p = snap["particles"]
     x, top = p["x"], p["y"] + p["radius"]
-    cols = np.clip((x / d).astype(int), 0, max(int(width / d) - 1, 0))
+    # round, not int: B/d = 12 can divide to 11.999999999999998 (a last column 2d wide)
+    n_cols = max(1, round(width / d))
+    cols = np.clip((x * (n_cols / width)).astype(int), 0, n_cols - 1)
     tops = [top[cols == c].max() for c in np.unique(cols)]
     return float(np.mean(tops))
 
