@@ -50,7 +50,7 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("discharge_rate_err", "kg/s", "its standard error (5 block slopes)"),
     ("mass_flow_index", "-", "v_wall / v_axis above the junction"),
     ("dead_fraction", "-", "fraction of the grains in a dead zone"),
-    ("flow_pattern", "", "mass flow or funnel flow"),
+    ("flow_pattern", "", "mass flow, funnel flow, or unknown (MFI not measured)"),
     ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
     ("fill_level", "m", "free surface after settling"),
     ("n_poured", "-", "grains poured"),

@@ -1,0 +1,819 @@
+"""The numbers a user reads in a run's report.html (``silodem.report.analysis.analyse``) and in
+a study's results.csv (``silodem.study.table``), checked against values from outside the code.
+
+* Synthetic results.h5 files written here with h5py following docs/output.md, whose series are
+  built so that every reported number has a closed form (window means, ratios, coefficients of
+  variation, % changes, profile peaks, a discharged mass exactly linear in time, grains placed by
+  hand for the surface height and the bulk density, a wall profile that is exactly Janssen's).
+* One tiny real run (tests/measure_helpers.py), whose numbers are recomputed here with plain
+  NumPy on the raw datasets of its results.h5, from the definitions in docs/measurements.md and
+  docs/sweeps.md, without calling the code under test.
+
+Geometry of ``tiny_hopper_config``: B = 1.2 m, D = 0.4 m, theta = 50 deg, radii in
+[0.045, 0.055] m (mean diameter d = 0.1 m), rho = 800 kg/m^3, t = 1 m, phi_P = 24 deg.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import types
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from measure_helpers import tiny_hopper_config
+
+from silodem.output import write_text
+from silodem.report.analysis import analyse, surface_height
+from silodem.report.load import load_results
+from silodem.run import run_simulation
+from silodem.scenario_files import config_to_toml
+from silodem.study.table import (
+    COLUMNS,
+    _change,
+    _ratio_stats,
+    read_table,
+    summarise_run,
+    table_columns,
+    table_csv,
+    table_rows,
+)
+
+REL = 1e-12  # exact constructions: only float round-off
+FIT_REL = 1e-9  # least-squares optimisers (curve_fit) on exact data, far above their round-off
+NAN = float("nan")
+
+# --- the tiny hopper, from its config numbers and the formulas of docs/measurements.md --------
+B, D_OUT, THETA, G = 1.2, 0.4, 50.0, 9.81
+DIAM = 0.045 + 0.055  # mean diameter = 2 x mean radius of radii uniform in [r_min, r_max]
+RHO, THICK = 800.0, 1.0
+MU_WALL = math.tan(math.radians(24.0))  # tan(phi_P)
+Z_J = 0.5 * (B - D_OUT) * math.tan(math.radians(THETA))  # z_j = (B - D)/2 tan(theta)
+SWITCH = (Z_J - 2 * DIAM, Z_J + 2 * DIAM)  # junction +- two mean diameters
+N_COLS = 12  # columns of width d across B = 1.2 m
+
+# --- the synthetic run: time grid and windows ---------------------------------------------------
+# measure samples every 1/16 s, at k/16 + 1/32 (binary-exact, never on a window edge);
+# phase 0 (fill) up to t = 2.625, 1 (settle) up to the gate opening T_OPEN = 3, then 2.
+WINDOW, DELAY, T_OPEN = 0.5, 0.25, 3.0
+T_MEAS = np.arange(80) / 16 + 1 / 32
+FILL_K = np.arange(42, 48)  # settle samples in [T_OPEN - WINDOW, T_OPEN]: 2.65625 .. 2.96875
+DIS_K = np.arange(52, 60)  # discharge samples in [T_OPEN + DELAY, + WINDOW]: 3.28125 .. 3.71875
+JUNK = 9.0e6  # value of every sample outside the windows: any leak shows
+
+
+def _phase(t: np.ndarray, settle_from: float = 2.625) -> np.ndarray:
+    return np.where(t < settle_from, 0, np.where(t < T_OPEN, 1, 2)).astype(np.int8)
+
+
+# switch-zone circles in the fill window (6 samples); the last sample is almost unloaded
+FILL_LEFT_H = [1500, 2500, 1500, 2500, 2000, 0]
+FILL_RIGHT_H = [2500, 3500, 2500, 3500, 3000, 80]
+FILL_LEFT_V = [4000] * 5 + [0]
+FILL_RIGHT_V = [6000] * 5 + [200]
+# ... and in the discharge window (8 samples)
+DIS_LEFT_H = [2200, 1400] * 4
+DIS_RIGHT_H = [2600, 1800] * 4
+DIS_V = [4000] * 8
+CENTRE = {"fill": (0.0, 1.0e6), "discharge": (7000.0, 1.5e6)}  # (sigma_h, sigma_v)
+
+# wall bins: z of the bins of the vertical wall (top to bottom) and of the hopper wall
+Z_CELL = [2.25, 1.75, 1.25, 1.0, 0.75, 0.625, 0.5]
+Z_HOP = [0.375, 0.25, 0.125]
+K_TRUE = 0.55  # the cell bins after filling follow Janssen with this K and mu_w = tan(phi_P)
+PEAK_FILL = {0.625: 3000.0, 0.5: 4500.0, 0.375: 4000.0, 0.25: 9000.0, 0.125: 6000.0}
+PROFILE_DIS = {2.25: 0.0, 1.75: 0.0, 1.25: 500.0, 1.0: 1000.0, 0.75: 12000.0, 0.625: 5000.0,
+               0.5: 6000.0, 0.375: 6500.0, 0.25: 20000.0, 0.125: 8000.0}
+TAU_CELL = {1.25: 100.0, 1.0: 300.0, 0.75: 500.0}  # downward wall shear on the cell bins
+C_FILL = [0.5, 1.5, 0.75, 1.25, 1.0, 1.0]  # sample factors, mean exactly 1
+C_DIS = [0.5, 1.5] * 4
+
+# grains of the settled snapshot: a lattice of 7 rows x 12 columns, a top grain per column
+LATTICE_Y = [0.55, 0.65, 0.75, 0.85, 0.95, 1.05, 1.15]
+TOP_Y = [1.30 + 0.01 * (c % 3) for c in range(N_COLS)]
+R_COL = [0.045 if c % 2 == 0 else 0.055 for c in range(N_COLS)]
+SURF_FILL = 1.36  # mean over the columns of (top grain centre + 0.05) = 1.35 + 0.01 * mean(c%3)
+SHIFT_DIS = 0.25  # the discharge snapshot is the same packing, 0.25 m lower
+# bulk density: the 6 rows in [z_j + d, surface - d), all 12 columns, mass rho pi r^2 t each
+BAND = (Z_J + DIAM, SURF_FILL - DIAM)
+RHO_B = (6 * RHO * math.pi * THICK * sum(r * r for r in R_COL)
+         / (B * (BAND[1] - BAND[0]) * THICK))
+
+W_RATE = 64.0  # discharged mass m = W (t - t_open - 0.25) between 0 and M_TOTAL
+M_TOTAL = 80.0
+T_SERIES = np.arange(320) / 64 + 1 / 128  # the /timeseries sample times
+
+
+def _janssen_sigma_h(depth, K, mu=MU_WALL, rho_b=RHO_B):
+    """Janssen's 2D slot (DESIGN.md section 4, docs/theory.md), written out here."""
+    c = 2.0 * K * mu / B
+    return K * rho_b * G / c * (1.0 - np.exp(-c * np.asarray(depth, dtype=float)))
+
+
+def _profile_fill() -> dict[float, float]:
+    prof = {2.25: 0.0, 1.75: 0.0}
+    for z in (1.25, 1.0, 0.75):
+        prof[z] = float(_janssen_sigma_h(SURF_FILL - z, K_TRUE))
+    prof.update(PEAK_FILL)
+    return prof
+
+
+def _config():
+    cfg = tiny_hopper_config()
+    return cfg.model_copy(update={"measure": cfg.measure.model_copy(
+        update={"window": WINDOW, "discharge_delay": DELAY})})
+
+
+def _particles(shift: float = 0.0) -> dict[str, np.ndarray]:
+    x, y, r = [], [], []
+    for c in range(N_COLS):
+        for yy in LATTICE_Y:
+            x.append(0.1 * c + 0.05)
+            y.append(yy - shift)
+            r.append(R_COL[c])
+        x.append(0.1 * c + 0.02)  # near the column's left edge, inside it
+        y.append(TOP_Y[c] - shift)
+        r.append(0.05)
+    x.append(0.6)  # one grain in the hopper, under the band
+    y.append(0.3 - shift)
+    r.append(0.05)
+    n = len(x)
+    return {"x": np.array(x), "y": np.array(y), "radius": np.array(r),
+            "uid": np.arange(n, dtype=np.int64), "vx": np.zeros(n), "vy": np.zeros(n)}
+
+
+def _write_group(g: h5py.Group, data: dict) -> None:
+    for key, val in data.items():
+        if isinstance(val, dict):
+            _write_group(g.create_group(key), val)
+        elif isinstance(val, list) and val and isinstance(val[0], str):
+            g.create_dataset(key, data=np.array(val, dtype=h5py.string_dtype()))
+        else:
+            g.create_dataset(key, data=np.asarray(val))
+
+
+def write_synthetic(folder: Path, *, discharge: bool = True, settle: bool = True,
+                    mass_flow: bool = False) -> Path:
+    """A results folder whose results.h5 follows docs/output.md, filled with the series above.
+
+    ``discharge=False``: a run without discharge (no discharge samples, no gate opening event,
+    no /measure/flow); ``settle=False``: no settling sample (the fill window is empty);
+    ``mass_flow``: the flow group of a mass-flow discharge (MFI exactly 0.3, no dead grain)."""
+    folder.mkdir(parents=True)
+    cfg = _config()
+    t = T_MEAS
+    phase = _phase(t, 2.625 if settle else T_OPEN)
+    S = t.size
+    # circles: switch_left, switch_centre, switch_right
+    stress = np.full((S, 3, 3), JUNK)
+    if settle:
+        stress[FILL_K, 0, 0], stress[FILL_K, 0, 1] = FILL_LEFT_H, FILL_LEFT_V
+        stress[FILL_K, 2, 0], stress[FILL_K, 2, 1] = FILL_RIGHT_H, FILL_RIGHT_V
+        stress[FILL_K, 1, 0], stress[FILL_K, 1, 1] = CENTRE["fill"]
+    stress[DIS_K, 0, 0], stress[DIS_K, 0, 1] = DIS_LEFT_H, DIS_V
+    stress[DIS_K, 2, 0], stress[DIS_K, 2, 1] = DIS_RIGHT_H, DIS_V
+    stress[DIS_K, 1, 0], stress[DIS_K, 1, 1] = CENTRE["discharge"]
+    # wall bins: left wall A (top) -> B (bottom), right wall bottom -> top, likewise hoppers
+    tangent = np.array([[0.0, -1.0], [0.0, 1.0],
+                        [math.cos(math.radians(THETA)), -math.sin(math.radians(THETA))],
+                        [math.cos(math.radians(THETA)), math.sin(math.radians(THETA))],
+                        [1.0, 0.0]])
+    bins = ([(0, z) for z in Z_CELL] + [(1, z) for z in Z_CELL[::-1]]
+            + [(2, z) for z in Z_HOP] + [(3, z) for z in Z_HOP[::-1]] + [(4, 0.0), (4, 0.0)])
+    wall = np.array([w for w, _ in bins])
+    zb = np.array([z for _, z in bins])
+    normal = np.full((S, len(bins)), JUNK)
+    shear = np.full((S, len(bins)), JUNK)
+    for key, ks, cs, prof in (("fill", FILL_K, C_FILL, _profile_fill()),
+                              ("discharge", DIS_K, C_DIS, PROFILE_DIS)):
+        if key == "fill" and not settle:
+            continue
+        for b, (w, z) in enumerate(bins):
+            if w == 4:
+                continue
+            left = w in (0, 2)
+            p = prof[z] * (1.25 if left else 0.75)  # sides differ, their mean is prof[z]
+            tau = TAU_CELL.get(z, 5.0e5)  # 5e5: bins that mu_mobilised must leave out
+            down = tau + (50.0 if left else -50.0)  # mean of both sides: tau
+            s = down if tangent[w, 1] < 0 else -down  # shear is along A -> B
+            normal[ks, b] = [p * c for c in cs]
+            shear[ks, b] = [s * c for c in cs]
+    # profiles: only the slice zz of the first bin above the junction matters (hopper q)
+    z_edges = np.array([0.0, 0.5 * Z_J, Z_J, Z_J + 0.2, Z_J + 0.4, Z_J + 0.6])
+    slices = np.full((S, 5, 3), 3.0e6)
+    if settle:
+        slices[FILL_K, 2, 1] = [5200.0, 4800.0, NAN, 5100.0, 4900.0, 5000.0]
+    measure = {
+        "time": t, "step": np.arange(S) * 100, "phase": phase,
+        "circles": {"name": ["switch_left", "switch_centre", "switch_right"],
+                    "x": [0.4, 0.6, 0.8], "z": [Z_J] * 3, "radius": [0.4] * 3,
+                    "stress": stress},
+        "wall_bins": {"wall": wall, "z": zb, "x": np.zeros(len(bins)),
+                      "tangent": tangent, "normal": normal, "shear": shear},
+        "profiles": {"z_edges": z_edges, "left": np.full((S, 5, 3), 1.0e3),
+                     "right": np.full((S, 5, 3), 1.0e3), "slices": slices},
+    }
+    if discharge:
+        measure["discharge_snapshot"] = {"particles": _particles(SHIFT_DIS)}
+        n = 20
+        exit_time = np.array([0.1 * (k + 1) for k in range(15)] + [NAN] * 5)
+        max_disp = np.array([0.0] * 15 + [0.01, 0.02, 0.049, 0.051, 0.3])
+        level = [1.4, 1.35, 1.3, 1.25, 1.2, 1.1, 1.0, 0.9]
+        v_wall = [-0.2, NAN, -0.1, -0.3, -5.0, -5.0, -5.0, -5.0]
+        v_axis = [-0.8, -0.5, -0.6, -0.4, -0.01, -0.01, -0.01, -0.01]
+        if mass_flow:
+            exit_time[15:] = 1.5
+            v_wall = [-0.375, NAN, -0.375, -0.375, -5.0, -5.0, -5.0, -5.0]
+            v_axis = [-1.25, -1.25, -1.25, -1.25, -0.01, -0.01, -0.01, -0.01]
+        measure["flow"] = {
+            "uid": np.arange(n), "x0": np.zeros(n), "z0": np.zeros(n), "r0": np.full(n, 0.05),
+            "exit_time": exit_time, "max_displacement": max_disp,
+            "mass_flow_index": {"time": np.arange(8) * 0.1, "level": level, "v_wall": v_wall,
+                                "v_axis": v_axis, "n_wall": np.ones(8), "n_axis": np.ones(8)}}
+    keep = np.ones(S, bool) if discharge else phase < 2
+    if not discharge:
+        for grp in ("circles", "wall_bins", "profiles"):
+            for key, val in measure[grp].items():
+                if key in ("stress", "normal", "shear", "left", "right", "slices"):
+                    measure[grp][key] = val[keep]
+        for key in ("time", "step", "phase"):
+            measure[key] = measure[key][keep]
+    ts_t = T_SERIES if discharge else T_SERIES[T_SERIES < T_OPEN]
+    ts_phase = _phase(ts_t, 2.625 if settle else T_OPEN)
+    mass = np.where(ts_phase == 2, np.clip(W_RATE * (ts_t - T_OPEN - 0.25), 0.0, M_TOTAL), 0.0)
+    events = {"n_poured": 150, "fill_level": 1.25, "fill_time": 2.625,
+              "discharged_fraction": 0.75 if discharge else 0.0}
+    if discharge:
+        events.update(discharge_start_time=T_OPEN, discharge_end_reason="fraction",
+                      initial_mass=M_TOTAL / 0.75)
+    with h5py.File(folder / "results.h5", "w") as h5:
+        h5.attrs.update({"status": "complete", "phase": "done", "time": float(t[-1]),
+                         "steps": 12345, "silodem_version": "test", "scenario": cfg.name,
+                         "seed": cfg.seed, "dt": 1.5e-4, "dt_crit": 7.5e-4,
+                         "config_toml": config_to_toml(cfg)})
+        _write_group(h5.create_group("timeseries"),
+                     {"time": ts_t, "phase": ts_phase.astype(float), "discharged_mass": mass})
+        _write_group(h5.create_group("measure"), measure)
+        h5["measure"].attrs["interval"] = 1 / 16
+        if discharge:
+            h5["measure/flow"].attrs.update({"t_open": T_OPEN, "window_start": DELAY,
+                                             "window": WINDOW, "mfi_band_lo": 0.6,
+                                             "mfi_band_hi": 0.9})
+        _write_group(h5.create_group("walls"), {
+            "name": ["left_wall", "right_wall", "left_hopper", "right_hopper", "gate"],
+            "ax": np.zeros(5), "ay": np.zeros(5), "bx": np.zeros(5), "by": np.zeros(5)})
+        ev = h5.create_group("events")
+        ev.attrs.update(events)
+        h5.create_dataset("warnings", data=np.array([], dtype=h5py.string_dtype()))
+        _write_group(h5.create_group("settled"), {"particles": _particles()})
+        h5["settled"].attrs["time"] = 2.96875
+    return folder
+
+
+@pytest.fixture(scope="module")
+def synth(tmp_path_factory):
+    """(analysis, summary) of the full synthetic run."""
+    folder = write_synthetic(tmp_path_factory.mktemp("synth") / "run")
+    return analyse(load_results(folder)), summarise_run(folder)
+
+
+def _pct(before: float, after: float) -> float:
+    return 100.0 * (after - before) / before  # docs/sweeps.md: 100 (discharge - fill) / fill
+
+
+def _is(value, expected, rel=REL) -> bool:
+    """value == expected up to ``rel``, NaN equal to NaN only."""
+    if isinstance(expected, float) and math.isnan(expected):
+        return isinstance(value, float) and math.isnan(value)
+    return value == pytest.approx(expected, rel=rel, abs=0.0)
+
+
+def _check(row: dict, expected: dict, rel=REL) -> None:
+    bad = {k: (row.get(k), v) for k, v in expected.items() if not _is(row.get(k), v, rel)}
+    assert not bad, bad
+
+
+# switch zone = mean of the two wall circles, sample by sample (docs/sweeps.md)
+SW_FILL_H = (2000 + 3000 + 2000 + 3000 + 2500 + 40) / 6  # = 2090
+SW_FILL_V = (5 * 5000 + 100) / 6
+SW_DIS_H, SW_DIS_V = 2000.0, 4000.0  # means of 2400, 1600, ... and of 4000
+
+
+def test_switch_zone_window_means_ratio_cv_and_change(synth):
+    """The switch-zone columns of a study's table on the synthetic run.  Expected values are
+    the closed forms of the constructed series: the window means of (left + right)/2 (samples
+    outside the windows, and the two fill-phase samples inside the time window of the fill, are
+    9e6 and must be left out); the ratio of those means; the coefficient of variation of the
+    sampled ratio with the almost unloaded last fill sample (sigma_v = 100 Pa < 10 % of the
+    median 5000 Pa) left out: kept ratios 0.4, 0.6, 0.4, 0.6, 0.5 -> mean 0.5, std sqrt(0.008);
+    discharge ratios 0.6, 0.4 alternating -> 0.1 / 0.5.  The std is the population one (NumPy's
+    default, ddof = 0), the usual reading of std / mean of a window's samples."""
+    _, s = synth
+    _check(s, {
+        "switch_sigma_h_fill": SW_FILL_H, "switch_sigma_v_fill": SW_FILL_V,
+        "switch_sigma_h_discharge": SW_DIS_H, "switch_sigma_v_discharge": SW_DIS_V,
+        "switch_sigma_h_change_pct": _pct(SW_FILL_H, SW_DIS_H),
+        "switch_sigma_v_change_pct": _pct(SW_FILL_V, SW_DIS_V),
+        "switch_ratio_fill": 12540 / 25100, "switch_ratio_discharge": 0.5,
+        "switch_ratio_cv_fill": math.sqrt(0.008) / 0.5, "switch_ratio_cv_discharge": 0.2})
+    # "ratio of the window means" is the ratio of the two table columns
+    assert s["switch_ratio_fill"] == pytest.approx(
+        s["switch_sigma_h_fill"] / s["switch_sigma_v_fill"], rel=REL)
+
+
+def test_per_circle_columns_and_the_report_change(synth):
+    """Per-circle columns of the table and the report's change fill -> discharge (Fig. 8).
+    Expected: means of the constructed per-circle series; the centre circle has sigma_h = 0
+    after filling, so its % change has no base and must be NaN (not inf, no exception); its
+    sampled ratio is constant in discharge, so its coefficient of variation is exactly 0."""
+    a, s = synth
+    expected = {
+        "switch_left": {"sigma_h_fill": 10000 / 6, "sigma_v_fill": 20000 / 6,
+                        "sigma_h_discharge": 1800.0, "sigma_v_discharge": 4000.0},
+        "switch_right": {"sigma_h_fill": 15080 / 6, "sigma_v_fill": 30200 / 6,
+                         "sigma_h_discharge": 2200.0, "sigma_v_discharge": 4000.0},
+        "switch_centre": {"sigma_h_fill": 0.0, "sigma_v_fill": 1.0e6,
+                          "sigma_h_discharge": 7000.0, "sigma_v_discharge": 1.5e6},
+    }
+    cv = {"switch_left": 0.1 / 0.45, "switch_right": 0.1 / 0.55, "switch_centre": 0.0}
+    for name, e in expected.items():
+        e["sigma_h_change_pct"] = (_pct(e["sigma_h_fill"], e["sigma_h_discharge"])
+                                   if e["sigma_h_fill"] else NAN)
+        e["sigma_v_change_pct"] = _pct(e["sigma_v_fill"], e["sigma_v_discharge"])
+        _check(a.change[name], e)
+        _check(s, {f"circle_{name}_{k}": v for k, v in e.items()})
+        assert s[f"circle_{name}_ratio_cv_discharge"] == pytest.approx(cv[name], rel=REL,
+                                                                        abs=1e-15)
+    assert math.isnan(s["circle_switch_centre_sigma_h_change_pct"])
+    assert s["circle_switch_centre_sigma_v_change_pct"] == pytest.approx(50.0, rel=REL)
+
+
+def test_wall_profile_and_switch_zone_peak(synth):
+    """Time-averaged edge profile (both sides averaged, sorted by z) and the switch-zone peak.
+    Expected: the constructed profile (left = 1.25 P, right = 0.75 P, sample factors of mean 1,
+    9e6 outside the windows); the peak is the largest value with z_j - 2d <= z <= z_j + 2d
+    (0.277 .. 0.677 m): 4500 Pa at z = 0.5 after filling (not the 9000 Pa at z = 0.25 below the
+    zone), 6500 Pa at z = 0.375 during discharge (not the 12000 Pa at z = 0.75 above it)."""
+    a, s = synth
+    assert a.switch == pytest.approx(SWITCH, rel=REL)
+    for key, prof in (("fill", _profile_fill()), ("discharge", PROFILE_DIS)):
+        e = a.edge[key]
+        zs = sorted(prof)
+        assert e.z.tolist() == zs
+        assert e.sigma_n == pytest.approx([prof[z] for z in zs], rel=REL)
+        assert e.on_vertical.tolist() == [z in Z_CELL for z in zs]
+        left_z, left_sn = e.sides["left"]
+        assert left_sn == pytest.approx([1.25 * prof[z] for z in zs], rel=REL)
+        assert left_z.tolist() == zs
+    assert a.peaks["fill"] == pytest.approx((4500.0, 0.5), rel=REL)
+    assert a.peaks["discharge"] == pytest.approx((6500.0, 0.375), rel=REL)
+    _check(s, {"wall_peak_fill": 4500.0, "wall_peak_z_fill": 0.5,
+               "wall_peak_discharge": 6500.0, "wall_peak_z_discharge": 0.375,
+               "wall_peak_change_pct": _pct(4500.0, 6500.0)})
+    _check(a.change["wall peak"], {"sigma_h_fill": 4500.0, "sigma_h_discharge": 6500.0,
+                                   "sigma_h_change_pct": _pct(4500.0, 6500.0)})
+
+
+def test_surface_height_and_bulk_density(synth):
+    """Free surface and bulk density from grains placed by hand.  Surface: the top of the
+    highest grain in each of the 12 columns of width d = 0.1 m, averaged: tops 1.35, 1.36, 1.37
+    repeating -> 1.36 m (1.11 m for the discharge snapshot, 0.25 m lower).  Bulk density: the
+    6 lattice rows with centres in [z_j + d, surface - d) (the row at 0.55 m, the top grains and
+    the hopper grain are outside), mass sum(rho pi r^2 t) over area B (hi - lo) t."""
+    a, _ = synth
+    assert a.surface["fill"] == pytest.approx(SURF_FILL, rel=REL)
+    assert a.surface["discharge"] == pytest.approx(SURF_FILL - SHIFT_DIS, rel=REL)
+    assert a.rho_b == pytest.approx(RHO_B, rel=REL)
+    # the last column is as wide as the others: a grain only in [1.1, 1.2) decides its top
+    snap = {"particles": {"x": np.array([1.05, 1.15]), "y": np.array([1.0, 0.5]),
+                          "radius": np.array([0.05, 0.05])}}
+    assert surface_height(snap, B, DIAM) == pytest.approx((1.05 + 0.55) / 2, rel=REL)
+
+
+def test_mobilised_wall_friction_and_janssen_fits(synth):
+    """Mobilised wall friction sum(tau)/sum(sigma_n) over the cell-wall bins above the switch
+    zone and under the surface (z = 1.25, 1.0, 0.75; the bins above the surface and in the
+    switch zone carry a shear of 5e5 Pa that must be left out): (100 + 300 + 500) / sum of the
+    three Janssen values.  Those values are Janssen's sigma_h with K = 0.55 and mu_w = tan 24
+    deg, so the fit with mu_w = tan(phi_P) must give K = 0.55 and the free fit (K, mu_w) =
+    (0.55, tan 24 deg), up to the optimiser's convergence (FIT_REL)."""
+    a, _ = synth
+    prof = _profile_fill()
+    assert a.mu_mobilised["fill"] == pytest.approx(
+        900.0 / (prof[1.25] + prof[1.0] + prof[0.75]), rel=REL)
+    assert a.janssen["fill"].K == pytest.approx(K_TRUE, rel=FIT_REL)
+    assert a.janssen["fill"].mu_w == MU_WALL
+    assert a.janssen_free.K == pytest.approx(K_TRUE, rel=FIT_REL)
+    assert a.janssen_free.mu_w == pytest.approx(MU_WALL, rel=FIT_REL)
+    # during discharge (surface 1.11 m): z = 1.25 is above it, z = 1.0 and 0.75 are in
+    assert a.mu_mobilised["discharge"] == pytest.approx((300.0 + 500.0) / (1000.0 + 12000.0),
+                                                        rel=REL)
+
+
+def test_hopper_theory_input_q(synth):
+    """q, the hopper theory's input: the window mean of the full-width slice sigma_zz in the
+    first profile bin above the junction; one NaN sample (empty bin) is skipped:
+    (5200 + 4800 + 5100 + 4900 + 5000) / 5 = 5000 Pa.  Slice heights are measured from the
+    hopper's virtual apex, D/2 / tan(alpha) under the outlet (docs/theory.md), so H = z_j + that
+    depth."""
+    a, _ = synth
+    assert a.hopper["q"] == pytest.approx(5000.0, rel=REL)
+    assert a.hopper["H"] == pytest.approx(
+        Z_J + 0.5 * D_OUT / math.tan(math.radians(90.0 - THETA)), rel=REL)
+
+
+def test_discharge_rate_is_the_slope_of_a_linear_mass_record(synth):
+    """Discharged mass m = 64 (t - t_open - 0.25) kg, 0 before, 80 kg (empty) after: between
+    15 % and 75 % of the final mass it is exactly linear, so the steady rate is its slope,
+    64 kg/s, and every block slope is 64 too, so the standard error is 0 (up to round-off, a
+    bound far below any real error).  The sliding 0.25 s rate is 64 wherever its window lies
+    in the linear part.  Beverloo C = W / (rho_b sqrt(g) (D - 1.5 d)^1.5 t) (docs/theory.md)."""
+    a, s = synth
+    r = a.flow["rate"]
+    assert r.rate == pytest.approx(W_RATE, rel=REL)
+    assert abs(r.err) <= 1e-9 * W_RATE
+    assert s["discharge_rate"] == pytest.approx(W_RATE, rel=REL)
+    assert abs(s["discharge_rate_err"]) <= 1e-9 * W_RATE
+    t, rate = a.flow["series"]
+    inner = (t >= 0.25 + 0.125) & (t <= 1.5 - 0.125)
+    assert inner.sum() > 40
+    assert rate[inner] == pytest.approx(np.full(inner.sum(), W_RATE), rel=REL)
+    C = W_RATE / (RHO_B * math.sqrt(G) * (D_OUT - 1.5 * DIAM) ** 1.5 * THICK)
+    assert a.flow["beverloo_C"] == pytest.approx(C, rel=REL)
+
+
+def test_flow_pattern_dead_fraction_and_mass_flow_index(synth, tmp_path):
+    """Funnel-flow case: 3 of 20 grains never left and moved less than d/2 = 0.05 m (0.051 and
+    0.3 m moved too far; grains that left count as not dead even with a displacement of 0):
+    dead fraction 0.15.  MFI = mean v_wall / mean v_axis over the samples whose surface is
+    above band_hi + (band_hi - band_lo) = 1.2 m and where both are measured: samples 0, 2, 3
+    -> (-0.6/3) / (-1.8/3) = 1/3; dead grains make it funnel flow.  Mass-flow case: MFI =
+    -0.375 / -1.25 = 0.3 exactly, the threshold (mass flow when MFI >= 0.3), no dead grain."""
+    a, s = synth
+    assert a.flow["dead_fraction"] == pytest.approx(0.15, rel=REL)
+    assert a.flow["dead"].tolist() == [False] * 15 + [True, True, True, False, False]
+    assert a.flow["mfi"] == pytest.approx(1 / 3, rel=REL)
+    assert a.flow["pattern"] == "funnel flow"
+    _check(s, {"dead_fraction": 0.15, "mass_flow_index": 1 / 3})
+    assert s["flow_pattern"] == "funnel flow"
+    folder = write_synthetic(tmp_path / "mass", mass_flow=True)
+    s2 = summarise_run(folder)
+    assert s2["mass_flow_index"] == 0.3 and s2["dead_fraction"] == 0.0
+    assert s2["flow_pattern"] == "mass flow"
+
+
+def test_plain_columns_copy_the_run(synth):
+    """The columns copied from the run: junction height (B - D)/2 tan(theta), and the events
+    and attributes written into the synthetic file."""
+    _, s = synth
+    _check(s, {"junction_z": Z_J, "fill_level": 1.25, "discharged_fraction": 0.75,
+               "dt": 1.5e-4})
+    assert (s["n_poured"], s["steps"], s["discharge_end_reason"]) == (150, 12345, "fraction")
+
+
+def _number(a, start: str) -> str:
+    rows = [v for label, v, _ in a.numbers if label.startswith(start)]
+    assert len(rows) == 1, (start, a.numbers)
+    return rows[0]
+
+
+def _first_float(text: str) -> float:
+    return float(text.split()[0].replace(",", ""))
+
+
+def test_key_numbers_of_the_report(synth):
+    """The 'Key numbers' table of report.html shows the expected values, rounded as printed
+    (4 significant digits by default: relative error <= 5e-4; 3 digits: 5e-3; Pa to the unit).
+    Expected values as in the tests above; the peak / Janssen ratio is 4500 Pa over Janssen's
+    sigma_h with K = 0.55 at the depth 1.36 - 0.5 m; 'n/a' where a change has no base."""
+    a, _ = synth
+    assert _first_float(_number(a, "free surface after filling")) == pytest.approx(
+        SURF_FILL, rel=5e-4)
+    assert _first_float(_number(a, "bulk density")) == pytest.approx(RHO_B, rel=5e-4)
+    assert _number(a, "switch-zone peak of the wall normal stress, after filling") == (
+        "4,500 at z = 0.5 m")
+    assert _number(a, "switch-zone peak of the wall normal stress, during discharge") == (
+        "6,500 at z = 0.375 m")
+    ratio = 4500.0 / float(_janssen_sigma_h(SURF_FILL - 0.5, K_TRUE))
+    assert float(_number(a, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
+    assert _first_float(_number(a, "Janssen K fitted to the cell wall profile, after")) == (
+        pytest.approx(K_TRUE, rel=5e-3))
+    assert _number(a, "measured mean vertical stress q") == "5,000"
+    assert _first_float(_number(a, "steady discharge rate W")) == pytest.approx(W_RATE,
+                                                                                 rel=5e-4)
+    assert _number(a, "flow pattern") == "funnel flow"
+    assert float(_number(a, "dead-zone fraction")) == pytest.approx(0.15, rel=5e-3)
+    assert float(_number(a, "mass flow index")) == pytest.approx(1 / 3, rel=5e-3)
+    assert _number(a, "change fill -> discharge, switch_centre") == "h n/a %, v 50 %"
+    peak = _number(a, "change fill -> discharge, wall peak")
+    assert float(peak.split()[1]) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
+
+
+TABLE_NAN_WITHOUT_DISCHARGE = [
+    "switch_sigma_h_discharge", "switch_sigma_v_discharge", "switch_sigma_h_change_pct",
+    "switch_sigma_v_change_pct", "switch_ratio_discharge", "switch_ratio_cv_discharge",
+    "wall_peak_discharge", "wall_peak_z_discharge", "wall_peak_change_pct", "discharge_rate",
+    "discharge_rate_err", "mass_flow_index", "dead_fraction"]
+
+
+def test_a_run_without_discharge_gives_nan_discharge_columns(tmp_path):
+    """No discharge sample (discharge disabled): every discharge quantity and every change is
+    NaN ('could not be measured', docs/sweeps.md), while the fill columns keep the values of
+    the full synthetic run (the fill window is the last 0.5 s of settling either way)."""
+    s = summarise_run(write_synthetic(tmp_path / "nodis", discharge=False))
+    _check(s, {k: NAN for k in TABLE_NAN_WITHOUT_DISCHARGE})
+    _check(s, {"switch_sigma_h_fill": 2090.0, "switch_sigma_v_fill": SW_FILL_V,
+               "switch_ratio_fill": 12540 / 25100, "wall_peak_fill": 4500.0,
+               "switch_ratio_cv_fill": math.sqrt(0.008) / 0.5,
+               "circle_switch_left_ratio_cv_discharge": NAN,
+               "circle_switch_left_sigma_h_change_pct": NAN})
+    assert s["flow_pattern"] == ""
+
+
+def test_an_empty_fill_window_gives_nan_fill_columns(tmp_path):
+    """No settling sample (the gate opened right after filling): the fill window is empty, so
+    the fill values are NaN and so is every change (NaN base), in the table and in the
+    report's change rows; the discharge values keep their closed forms."""
+    folder = write_synthetic(tmp_path / "nofill", settle=False)
+    s = summarise_run(folder)
+    _check(s, {"switch_sigma_h_fill": NAN, "switch_sigma_v_fill": NAN,
+               "switch_ratio_fill": NAN, "switch_ratio_cv_fill": NAN,
+               "switch_sigma_h_change_pct": NAN, "switch_sigma_v_change_pct": NAN,
+               "wall_peak_fill": NAN, "wall_peak_change_pct": NAN,
+               "circle_switch_right_sigma_v_fill": NAN,
+               "circle_switch_right_sigma_v_change_pct": NAN,
+               "switch_sigma_h_discharge": SW_DIS_H, "switch_ratio_cv_discharge": 0.2,
+               "wall_peak_discharge": 6500.0})
+    a = analyse(load_results(folder))
+    _check(a.change["switch_left"], {"sigma_h_fill": NAN, "sigma_h_change_pct": NAN,
+                                     "sigma_h_discharge": 1800.0})
+    assert "fill" not in a.peaks and a.peaks["discharge"] == pytest.approx((6500.0, 0.375))
+
+
+def test_change_without_a_base_is_nan():
+    """_change(fill, discharge) = 100 (discharge - fill) / fill (docs/sweeps.md), worked by
+    hand; a zero, NaN or infinite base, or a NaN after, has no % change: NaN."""
+    assert _change(200.0, 150.0) == -25.0
+    assert _change(-200.0, -100.0) == -50.0
+    assert _change(4.0, 5.0) == 25.0
+    for before, after in ((0.0, 5.0), (-0.0, 5.0), (NAN, 5.0), (math.inf, 5.0), (4.0, NAN)):
+        assert math.isnan(_change(before, after)), (before, after)
+
+
+def test_ratio_stats_by_hand():
+    """_ratio_stats(sigma_h, sigma_v) = (ratio of the means, std/mean of the sampled ratio
+    without the samples under 10 % of the median sigma_v), worked by hand: means 12/4 and
+    12.2/4 with the unloaded sample (sigma_v = 0.2 < 0.1 x median 4) in them; ratios 0.5, 1.0,
+    0.75 kept -> mean 0.75, population std sqrt(0.125 / 3).  No usable sample (empty, all NaN,
+    sigma_v <= 0) gives NaN, NaN."""
+    sh = np.array([2.0, 4.0, 3.0, 3.0])
+    sv = np.array([4.0, 4.0, 4.0, 0.2])
+    ratio, cv = _ratio_stats(sh, sv)
+    assert ratio == pytest.approx(12.0 / 12.2, rel=REL)
+    assert cv == pytest.approx(math.sqrt(0.125 / 3) / 0.75, rel=REL)
+    for a, b in ((np.zeros(0), np.zeros(0)), (np.array([NAN]), np.array([NAN])),
+                 (np.array([1.0, 2.0]), np.array([0.0, -1.0]))):
+        r, c = _ratio_stats(a, b)
+        assert math.isnan(r) and math.isnan(c)
+
+
+# --- one real run: recompute from the raw datasets ---------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def real_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("real") / "run"
+    run_simulation(tiny_hopper_config(report=False), out, progress=False)  # no report.html
+    return out
+
+
+def _read(folder: Path) -> dict:
+    with h5py.File(folder / "results.h5", "r") as h5:
+        def get(path):
+            return h5[path][()]
+        raw = {"events": dict(h5["events"].attrs), "attrs": dict(h5.attrs),
+               "flow_attrs": dict(h5["measure/flow"].attrs)}
+        for p in ("measure/time", "measure/phase", "measure/circles/stress",
+                  "measure/wall_bins/wall", "measure/wall_bins/z", "measure/wall_bins/normal",
+                  "timeseries/time", "timeseries/phase", "timeseries/discharged_mass",
+                  "measure/flow/exit_time", "measure/flow/max_displacement",
+                  "measure/flow/mass_flow_index/v_wall", "measure/flow/mass_flow_index/v_axis",
+                  "measure/flow/mass_flow_index/level", "settled/particles/x",
+                  "settled/particles/y", "settled/particles/radius"):
+            raw[p] = get(p)
+        raw["circles"] = [n.decode() if isinstance(n, bytes) else str(n)
+                          for n in get("measure/circles/name")]
+        raw["walls"] = [n.decode() if isinstance(n, bytes) else str(n) for n in get("walls/name")]
+    return raw
+
+
+def _recompute(raw: dict) -> dict:
+    """The table's quantities from their definitions (docs/sweeps.md, docs/measurements.md)."""
+    cfg = tiny_hopper_config()
+    window, delay = cfg.measure.window, cfg.measure.discharge_delay
+    t, phase = raw["measure/time"], raw["measure/phase"]
+    t_open = float(raw["events"]["discharge_start_time"])
+    edges = (t_open - window, t_open + delay, t_open + delay + window)
+    # precondition: no sample on an edge, so open or closed windows are the same thing
+    assert min(abs(t - e).min() for e in edges) > 1e-6
+    win = {"fill": (phase == 1) & (t > t_open - window) & (t <= t_open),
+           "discharge": (phase == 2) & (t > edges[1]) & (t < edges[2])}
+    assert win["fill"].sum() >= 10 and win["discharge"].sum() >= 10
+    stress = raw["measure/circles/stress"]
+    names = raw["circles"]
+    wall = [names.index("switch_left"), names.index("switch_right")]
+    out: dict = {}
+
+    def stats(sh, sv, prefix):
+        for key, m in win.items():
+            h, v = sh[m], sv[m]
+            assert np.isfinite(h).all() and np.isfinite(v).all() and (v > 0).all()
+            out[f"{prefix}sigma_h_{key}"], out[f"{prefix}sigma_v_{key}"] = h.mean(), v.mean()
+            loaded = v >= 0.1 * np.median(v)
+            r = h[loaded] / v[loaded]
+            cv = r.std() / abs(r.mean())
+            if prefix == "switch_":
+                out[f"switch_ratio_{key}"] = h.mean() / v.mean()
+                out[f"switch_ratio_cv_{key}"] = cv
+            elif key == "discharge":
+                out[f"{prefix}ratio_cv_discharge"] = cv
+        for comp in ("sigma_h", "sigma_v"):
+            out[f"{prefix}{comp}_change_pct"] = _pct(out[f"{prefix}{comp}_fill"],
+                                                     out[f"{prefix}{comp}_discharge"])
+
+    stats(stress[:, wall, 0].mean(axis=1), stress[:, wall, 1].mean(axis=1), "switch_")
+    for k, name in enumerate(names):
+        stats(stress[:, k, 0], stress[:, k, 1], f"circle_{name}_")
+    # wall profile: both edges (vertical wall + hopper wall), window means, sides averaged
+    wb, zb, nb = raw["measure/wall_bins/wall"], raw["measure/wall_bins/z"], \
+        raw["measure/wall_bins/normal"]
+    for key, m in win.items():
+        side = {}
+        for s in ("left", "right"):
+            sel = np.isin(wb, [raw["walls"].index(f"{s}_wall"), raw["walls"].index(f"{s}_hopper")])
+            order = np.argsort(zb[sel])
+            side[s] = (zb[sel][order], nb[m][:, sel].mean(axis=0)[order])
+        # mirror-image bins: the same heights up to round-off
+        assert np.allclose(side["left"][0], side["right"][0], rtol=0.0, atol=1e-12)
+        z, sn = side["left"][0], 0.5 * (side["left"][1] + side["right"][1])
+        zone = (z >= SWITCH[0]) & (z <= SWITCH[1])
+        k = np.flatnonzero(zone)[np.argmax(sn[zone])]
+        out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = sn[k], z[k]
+    out["wall_peak_change_pct"] = _pct(out["wall_peak_fill"], out["wall_peak_discharge"])
+    # steady rate: least squares between 15 % and 75 % of the final mass, 5 block slopes
+    sel = raw["timeseries/phase"] == 2
+    tt, mm = raw["timeseries/time"][sel] - t_open, raw["timeseries/discharged_mass"][sel]
+    keep = (mm >= 0.15 * mm.max()) & (mm <= 0.75 * mm.max())
+    ts, ms = tt[keep], mm[keep]
+
+    def slope(x, y):
+        return np.sum((x - x.mean()) * (y - y.mean())) / np.sum((x - x.mean()) ** 2)
+
+    out["discharge_rate"] = slope(ts, ms)
+    be = ts[0] + (ts[-1] - ts[0]) * np.arange(6) / 5
+    assert min(abs(ts - e).min() for e in be[1:-1]) > 1e-6  # no sample on a block edge
+    blocks = [(ts >= a) & (ts <= b) for a, b in itertools.pairwise(be)]
+    assert min(b.sum() for b in blocks) >= 3
+    slopes = np.array([slope(ts[b], ms[b]) for b in blocks])
+    out["discharge_rate_err"] = slopes.std(ddof=1) / math.sqrt(5)
+    # flow pattern
+    fa = raw["flow_attrs"]
+    lo, hi = float(fa["mfi_band_lo"]), float(fa["mfi_band_hi"])
+    vw, va = raw["measure/flow/mass_flow_index/v_wall"], raw["measure/flow/mass_flow_index/v_axis"]
+    ok = (raw["measure/flow/mass_flow_index/level"] > hi + (hi - lo)) & np.isfinite(vw) & \
+        np.isfinite(va)
+    out["mass_flow_index"] = vw[ok].mean() / va[ok].mean()
+    dead = np.isnan(raw["measure/flow/exit_time"]) & \
+        (raw["measure/flow/max_displacement"] < 0.5 * DIAM)
+    out["dead_fraction"] = dead.mean()
+    ev = raw["events"]
+    out.update(junction_z=Z_J, fill_level=float(ev["fill_level"]),
+               discharged_fraction=float(ev["discharged_fraction"]),
+               dt=float(raw["attrs"]["dt"]))
+    # surface: highest grain top in each of the 12 columns of width d; bulk density below it
+    x, y, r = (raw[f"settled/particles/{k}"] for k in ("x", "y", "radius"))
+    col = np.clip(np.searchsorted(np.linspace(0.0, B, N_COLS + 1), x, side="right") - 1,
+                  0, N_COLS - 1)
+    surf = np.mean([(y + r)[col == c].max() for c in range(N_COLS) if (col == c).any()])
+    lo_b, hi_b = Z_J + DIAM, surf - DIAM
+    inside = (y >= lo_b) & (y < hi_b)
+    out["_surface"] = surf
+    out["_rho_b"] = (RHO * math.pi * r[inside] ** 2 * THICK).sum() / (B * (hi_b - lo_b) * THICK)
+    return {k: float(v) for k, v in out.items()}
+
+
+@pytest.fixture(scope="module")
+def real(real_run):
+    raw = _read(real_run)
+    return raw, _recompute(raw), summarise_run(real_run), analyse(load_results(real_run))
+
+
+def test_real_run_table_row_matches_a_recomputation(real):
+    """Every number of the real run's table row equals its recomputation from the raw datasets
+    (docs' definitions, plain NumPy here), up to float round-off: the means, ratios, coefficients
+    of variation and changes exactly (REL); the least-squares rate and its error to 1e-9 (two
+    different least-squares algorithms, same data)."""
+    raw, recomputed, s, _ = real
+    rates = {k: recomputed[k] for k in ("discharge_rate", "discharge_rate_err")}
+    exp = {k: v for k, v in recomputed.items() if not k.startswith("_") and k not in rates}
+    _check(s, exp)
+    _check(s, rates, rel=1e-9)
+    assert s["flow_pattern"] == ("mass flow" if exp["mass_flow_index"] >= 0.3
+                                 and exp["dead_fraction"] < 0.01 else "funnel flow")
+    ev = raw["events"]
+    assert (s["n_poured"], s["steps"]) == (int(ev["n_poured"]), int(raw["attrs"]["steps"]))
+    assert s["discharge_end_reason"] == str(ev["discharge_end_reason"])
+    # conservation: the discharged fraction is the mass that left over the initial mass
+    assert s["discharged_fraction"] == pytest.approx(
+        raw["timeseries/discharged_mass"][-1] / float(ev["initial_mass"]), rel=REL)
+    # every cell is a plain Python value (a NumPy scalar would be written 'np.float64(...)')
+    assert {type(v) for v in s.values()} <= {float, int, str}
+    assert set(s) >= {c for c, _, _ in COLUMNS}
+
+
+def test_real_run_report_matches_a_recomputation(real):
+    """The report's surface height, bulk density, switch-zone peaks and rate on the real run
+    equal their recomputation from the settled grains, the wall bins and the discharged mass."""
+    _, exp, _, a = real
+    assert a.surface["fill"] == pytest.approx(exp["_surface"], rel=REL)
+    assert a.rho_b == pytest.approx(exp["_rho_b"], rel=REL)
+    for key in ("fill", "discharge"):
+        assert a.peaks[key] == pytest.approx(
+            (exp[f"wall_peak_{key}"], exp[f"wall_peak_z_{key}"]), rel=REL)
+    assert a.flow["rate"].rate == pytest.approx(exp["discharge_rate"], rel=1e-9)
+    assert a.flow["mfi"] == pytest.approx(exp["mass_flow_index"], rel=REL)
+    for name in ("switch_left", "switch_centre", "switch_right"):
+        for comp in ("sigma_h", "sigma_v"):
+            for key in ("fill", "discharge"):
+                assert a.change[name][f"{comp}_{key}"] == pytest.approx(
+                    exp[f"circle_{name}_{comp}_{key}"], rel=REL)
+
+
+# the table's columns as docs/sweeps.md lists them, in its order
+DOC_COLUMNS = [
+    "switch_sigma_h_fill", "switch_sigma_h_discharge", "switch_sigma_h_change_pct",
+    "switch_sigma_v_fill", "switch_sigma_v_discharge", "switch_sigma_v_change_pct",
+    "switch_ratio_fill", "switch_ratio_discharge", "switch_ratio_cv_fill",
+    "switch_ratio_cv_discharge", "wall_peak_fill", "wall_peak_z_fill", "wall_peak_discharge",
+    "wall_peak_z_discharge", "wall_peak_change_pct", "discharge_rate", "discharge_rate_err",
+    "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level", "n_poured",
+    "discharged_fraction", "discharge_end_reason", "steps", "dt"]
+
+
+def _read_back(cell: str, value):
+    if isinstance(value, bool):
+        return cell == "true"
+    if isinstance(value, float):
+        return float(cell)
+    if isinstance(value, int):
+        return int(cell)
+    return cell
+
+
+def test_table_csv_round_trips_every_value(real, synth, tmp_path):
+    """table_rows -> table_csv -> results.csv -> read_table gives back every value exactly
+    (floats bit for bit, NaN as NaN, -0.0 with its sign, ints, strings with commas, quotes and
+    a line break), rows in plan order (a run without a summary has no row), columns in the
+    documented order: id, slug, seed, grid keys, the columns of docs/sweeps.md, then the extra
+    (per-circle) ones sorted.  Expected values: the summaries given to it."""
+    _, _, real_summary, _ = real
+    _, synth_summary = synth
+    odd = dict(synth_summary, discharge_rate=0.1, discharge_rate_err=1 / 3, dt=5e-324,
+               fill_level=1.7976931348623157e308, wall_peak_z_fill=-0.0,
+               switch_ratio_fill=math.inf, switch_ratio_discharge=NAN,
+               n_poured=2**53 + 1, discharge_end_reason='clog, "arch"\nat the outlet',
+               summary_error="ValueError: a, b")
+    grid = ["silo.hopper_angle_from_horizontal_deg", "material.friction_deg"]
+    runs = [types.SimpleNamespace(id=i, slug=f"slug-{i}", seed=seed,
+                                  point={grid[0]: theta, grid[1]: phi})
+            for i, seed, theta, phi in (("a", 7, 50.0, 25), ("b", 8, 35.0, 30),
+                                        ("c", 9, 0.1, 20))]
+    plan = types.SimpleNamespace(runs=runs)
+    rows = table_rows(plan, {"c": odd, "a": real_summary})
+    assert [r["id"] for r in rows] == ["a", "c"]
+    assert rows[1][grid[0]] == 0.1 and rows[1]["seed"] == 9
+    columns = table_columns(grid, rows)
+    extra = sorted((set(real_summary) | set(odd)) - set(DOC_COLUMNS))
+    assert columns == ["id", "slug", "seed", *grid, *DOC_COLUMNS, *extra]
+    assert "summary_error" in extra and "circle_switch_left_sigma_h_fill" in extra
+    path = tmp_path / "results.csv"
+    write_text(path, table_csv(columns, rows))
+    back = read_table(path)
+    assert len(back) == 2
+    for row, cells in zip(rows, back):
+        assert list(cells) == columns
+        for col in columns:
+            value = row.get(col)
+            if value is None:
+                assert cells[col] == "", col
+                continue
+            got = _read_back(cells[col], value)
+            if isinstance(value, float):
+                assert (math.isnan(got) and math.isnan(value)) or (
+                    got == value and math.copysign(1, got) == math.copysign(1, value)), col
+            else:
+                assert got == value, col
+    assert back[1]["discharge_end_reason"] == 'clog, "arch"\nat the outlet'
+    assert back[0]["flow_pattern"] == real_summary["flow_pattern"]
