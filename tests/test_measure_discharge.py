@@ -63,6 +63,19 @@ def test_steady_rate_error_is_that_of_a_random_walk():
     assert np.mean(errs2) == pytest.approx(expected, rel=4.5 * np.sqrt(0.5 / 2000))
 
 
+def test_steady_rate_blocks_are_disjoint_batches():
+    """Samples at t = 0, 1, ..., 20 s put the inner block edges (4, 8, 12, 16 s) on samples.
+    Batch means need disjoint batches: the blocks are written out here by hand, [0, 4), [4, 8),
+    [8, 12), [12, 16), [16, 20], and the error is the standard error of their five slopes."""
+    t = np.arange(21.0)
+    m = 1.0 + 2.0 * t + np.array([0.3, -0.1, 0.4, -0.2] * 5 + [0.1])  # wiggles, all m > 0
+    est = steady_rate(t, m, lo=0.0, hi=1.0, blocks=5)
+    hand = [range(0, 4), range(4, 8), range(8, 12), range(12, 16), range(16, 21)]
+    slopes = [np.polyfit(t[list(k)], m[list(k)], 1)[0] for k in hand]
+    assert est.rate == pytest.approx(np.polyfit(t, m, 1)[0], rel=1e-12)
+    assert est.err == pytest.approx(np.std(slopes, ddof=1) / np.sqrt(5), rel=1e-12)
+
+
 def test_steady_rate_without_a_record_is_nan():
     for t, m in [([0.0, 1.0], [0.0, 1.0]), ([0.0, 1.0, 2.0], [0.0, 0.0, 0.0]),
                  ([0.0, 1.0, 2.0], [np.nan] * 3)]:

@@ -47,7 +47,9 @@ def steady_rate(t, m, lo: float = 0.15, hi: float = 0.75, blocks: int = 5) -> Ra
     edges = np.linspace(ts[0], ts[-1], blocks + 1)
     slopes = []
     for a, b in itertools.pairwise(edges):
-        k = (ts >= a) & (ts <= b)
+        # disjoint batches: half-open blocks, the last one closed (a sample on an inner edge
+        # would otherwise count in two)
+        k = (ts >= a) & ((ts < b) | (b == edges[-1]))
         if k.sum() >= 3 and np.ptp(ts[k]) > 0:
             slopes.append(np.polyfit(ts[k], ms[k], 1)[0])
     err = float(np.std(slopes, ddof=1) / np.sqrt(len(slopes))) if len(slopes) > 1 else float(
