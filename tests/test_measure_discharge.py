@@ -70,7 +70,7 @@ def test_steady_rate_blocks_are_disjoint_batches():
     t = np.arange(21.0)
     m = 1.0 + 2.0 * t + np.array([0.3, -0.1, 0.4, -0.2] * 5 + [0.1])  # wiggles, all m > 0
     est = steady_rate(t, m, lo=0.0, hi=1.0, blocks=5)
-    hand = [range(0, 4), range(4, 8), range(8, 12), range(12, 16), range(16, 21)]
+    hand = [range(4), range(4, 8), range(8, 12), range(12, 16), range(16, 21)]
     slopes = [np.polyfit(t[list(k)], m[list(k)], 1)[0] for k in hand]
     assert est.rate == pytest.approx(np.polyfit(t, m, 1)[0], rel=1e-12)
     assert est.err == pytest.approx(np.std(slopes, ddof=1) / np.sqrt(5), rel=1e-12)
