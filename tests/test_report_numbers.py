@@ -817,3 +817,17 @@ def test_table_csv_round_trips_every_value(real, synth, tmp_path):
                 assert got == value, col
     assert back[1]["discharge_end_reason"] == 'clog, "arch"\nat the outlet'
     assert back[0]["flow_pattern"] == real_summary["flow_pattern"]
+
+
+def test_numbers_are_written_with_their_significant_digits():
+    """The reports' number format, worked by hand: 3 significant digits, and every integer digit
+    from 10^3 on (a stress of 2053.4 Pa is '2053', not '2.05e+03'); an exponent only for very
+    small or very large values; n/a for what is not a number."""
+    from silodem.report.numbers import significant
+
+    cases = [(2053.4, "2053"), (-2053.6, "-2054"), (999.6, "1000"), (123.44, "123"),
+             (12.345, "12.3"), (0.012345, "0.0123"), (1.5e-5, "1.5e-05"), (0.0, "0"),
+             (2.5e9, "2.5e+09"), (float("nan"), "n/a"), (float("inf"), "n/a"), (None, "n/a")]
+    for value, text in cases:
+        assert significant(value) == text, value
+    assert significant(64.0, 4) == "64" and significant(12345.6, 4) == "12346"

@@ -16,6 +16,7 @@ from silodem.measure import discharge as dis
 from silodem.measure import regions
 from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report.load import Results
+from silodem.report.numbers import significant
 from silodem.silo.geometry import silo_shape
 
 SETTLE, DISCHARGE = 1, 2
@@ -274,9 +275,7 @@ def _flow(a: Analysis, shape) -> None:
 
 
 def _fmt(v: float, digits: int = 4) -> str:
-    if v is None or not np.isfinite(v):
-        return "n/a"
-    return f"{v:.{digits}g}"
+    return significant(v, digits)
 
 
 def _pa(v: float) -> str:

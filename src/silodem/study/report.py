@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 from silodem.atomic import write_atomic
 from silodem.report.draw import rolling_mean, shade_phases
 from silodem.report.html import _CSS, _table
+from silodem.report.numbers import significant
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
 from silodem.study.table import COLUMNS, switch_series
 
@@ -215,7 +216,7 @@ def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | Non
             kw = {"vmin": -lim, "vmax": lim}
         im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, aspect="auto", **kw)
         for (i, j), v in np.ndenumerate(grid):
-            ax.text(j, i, "n/a" if not np.isfinite(v) else f"{v:.3g}", ha="center",
+            ax.text(j, i, significant(v), ha="center",
                     va="center", fontsize=7, color="k",
                     bbox={"facecolor": "white", "alpha": 0.6, "lw": 0, "pad": 1})
         ax.set_xticks(range(len(lay.cols)), [lay.col_label(c) for c in lay.cols], fontsize=7,
@@ -239,7 +240,7 @@ def _fmt(value: Any, digits: int = 3) -> str:
         v = float(value)
     except (TypeError, ValueError):
         return str(value) if value not in (None, "") else "n/a"
-    return f"{v:.{digits}g}" if math.isfinite(v) else "n/a"
+    return significant(v, digits)
 
 
 def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[str, str]) -> str:

@@ -1,0 +1,21 @@
+"""How the reports write a number: significant digits without an exponent where a reader
+expects none (a wall stress of 2053 Pa, not 2.05e+03)."""
+
+from __future__ import annotations
+
+import math
+
+
+def significant(value, digits: int = 3) -> str:
+    """``value`` to ``digits`` significant digits, but every integer digit of a value under 1e9
+    that would otherwise take an exponent (2053.4 -> '2053', 999.6 -> '1000'); 'n/a' for None,
+    NaN or infinity."""
+    if value is None:
+        return "n/a"
+    v = float(value)
+    if not math.isfinite(v):
+        return "n/a"
+    text = f"{v:.{digits}g}"
+    if "e" in text and 1.0 <= abs(v) < 1e9:  # 2053.4 -> 2.05e+03, 999.6 -> 1e+03
+        return f"{v:.0f}"
+    return text
