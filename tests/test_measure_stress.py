@@ -85,6 +85,30 @@ def test_stress_of_a_packing_compressed_between_walls_equals_the_wall_stress(com
     assert mean[0] > mean[1]  # the anisotropy of the load is seen
 
 
+def test_stress_field_of_the_compressed_box_adds_up_to_the_wall_stress(compressed_box):
+    """The coarse-grained field on a 4 x 4 grid over the box: each grain is in one cell, so the
+    cells' stresses weighted by their areas add up to the whole box's Love-Weber stress
+    (exactly) and so to the applied wall stress (to the 2 % above)."""
+    from silodem.measure.fields import cell_sums, fields_of
+
+    sim = compressed_box
+    w = sim.walls
+    width, height = w.ax[1], w.ay[2]
+    f = q.force_on_walls(sim)
+    applied_x, applied_z = f[1, 0] / height, f[2, 1] / width
+    fr = frame_from_sim(sim)
+    xe, ze = np.linspace(0, width, 5), np.linspace(0, height, 5)
+    mass, moments = cell_sums(fr.x, fr.z, fr.mass, fr.moments, xe, ze)
+    area = np.outer(np.diff(xe), np.diff(ze))
+    density, stress = fields_of(mass, moments, area, 1.0, 1)
+    whole = region_stress(fr.moments, np.ones(fr.n, bool), width * height, 1.0)
+    np.testing.assert_allclose((stress * area[..., None]).sum(axis=(0, 1)) / (width * height),
+                               whole, rtol=1e-12, atol=1e-12 * abs(whole).max())
+    assert whole[0] == pytest.approx(applied_x, rel=0.02)
+    assert whole[1] == pytest.approx(applied_z, rel=0.02)
+    assert (density * area).sum() == pytest.approx(fr.mass.sum(), rel=1e-12)
+
+
 def test_two_disks_pressed_together():
     # two disks of radius r touching along x with force F: sigma_xx = F * 2r / A, compression
     r, F = 0.5, 10.0

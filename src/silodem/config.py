@@ -250,6 +250,10 @@ class Measure(_Strict):
         None, gt=0, description="cell size of the velocity field grid [m]; unset: one mean "
         "grain diameter"
     )
+    field_cell: float | None = Field(
+        None, gt=0, description="cell size of the grid of the bulk density and stress fields "
+        "[m]; unset: four mean grain diameters"
+    )
     mass_flow_index_threshold: float = Field(
         0.3, gt=0, le=1, description="flow is mass flow when v_wall / v_centre above the "
         "junction exceeds this [-] (Johanson's mass flow index)"

@@ -109,6 +109,7 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
 
 
 MAX_GRID_CELLS = 1e7  # velocity-field cells (3 sums each) [-]
+MAX_FIELD_CELLS = 1e6  # density and stress field cells (2 x 4 sums, 256 quadrature points) [-]
 MAX_WALL_BINS = 1e6  # wall-stress bins [-]
 MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
 
@@ -116,22 +117,27 @@ MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
 def check_sizes(cfg: Config) -> None:
     """InputError when a length, valid by itself, is so small against the silo that the
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
-    wall bins (``measure.wall_bin``), the neighbour search's cells (2 r_max + skin)."""
-    from silodem.measure.regions import bin_length, grid_cell
+    density and stress fields (``measure.field_cell``), the wall bins (``measure.wall_bin``),
+    the neighbour search's cells (2 r_max + skin)."""
+    from silodem.measure.regions import bin_length, field_cell, grid_cell
     from silodem.silo.geometry import silo_shape
     from silodem.silo.procedure import neighbour_skin
 
     shape = silo_shape(cfg)
     width, height = shape.width, shape.wall_top
     size = f"the silo ({width:.3g} m x {height:.3g} m)"
-    cell = grid_cell(cfg)
-    # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
-    cells = max(1.0, width / cell) * max(1.0, height / cell)
-    if not cells <= MAX_GRID_CELLS:
-        key = "measure.grid_cell" if cfg.measure.grid_cell else \
-            "measure.grid_cell (unset: one mean grain diameter)"
-        raise InputError(f"{key} = {cell:.3g} m cuts {size} into {cells:.3g} velocity cells, "
-                         f"more than {MAX_GRID_CELLS:.0e}; give a larger measure.grid_cell")
+    grids = [("grid_cell", grid_cell(cfg), "one mean grain diameter", "velocity",
+              MAX_GRID_CELLS),
+             ("field_cell", field_cell(cfg), "four mean grain diameters", "field",
+              MAX_FIELD_CELLS)]
+    for name, cell, default, what, limit in grids:
+        # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
+        cells = max(1.0, width / cell) * max(1.0, height / cell)
+        if not cells <= limit:
+            key = f"measure.{name}" if getattr(cfg.measure, name) else \
+                f"measure.{name} (unset: {default})"
+            raise InputError(f"{key} = {cell:.3g} m cuts {size} into {cells:.3g} {what} "
+                             f"cells, more than {limit:.0e}; give a larger measure.{name}")
     bins = 2.0 * (width + height) / bin_length(cfg)
     if not bins <= MAX_WALL_BINS:
         key = "measure.wall_bin" if cfg.measure.wall_bin else \

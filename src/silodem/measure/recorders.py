@@ -8,6 +8,8 @@ sample reads the run once (:mod:`silodem.measure.frame`) and feeds three parts:
             the coordination number of the band across the junction (Fig. 2);
 * profiles: normal and shear stress in bins along every wall; Love-Weber stress in near-wall
             strips along both edges of the silo and in full-width slices, binned in z;
+* fields:   bulk density and Love-Weber stress on a grid, of the settled packing and over
+            the discharge window (:mod:`silodem.measure.fields`);
 * flow:     from the gate opening on: when each grain leaves, how far it moved (dead zones),
             the mean velocity field on a grid over the discharge window, the velocities near the
             walls and on the axis above the junction (mass flow index), and a snapshot of the
@@ -25,6 +27,7 @@ import numpy as np
 
 from silodem.config import Config
 from silodem.measure import regions
+from silodem.measure.fields import FieldsPart
 from silodem.measure.frame import Frame, frame_from_sim
 from silodem.measure.stress import circle_measure, region_stress
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
@@ -225,11 +228,16 @@ class _FlowPart:
             self.max_disp[present] = np.maximum(self.max_disp[present], disp)
         if fr.n == 0:
             return
-        if self.delay <= t <= self.delay + self.window:
+        if self.in_window(fr):
             self._grid(fr)
             if self.snapshot is None and t >= self.delay + 0.5 * self.window:
                 self.snapshot = take_snapshot(run)
         self._mfi(fr, t)
+
+    def in_window(self, fr: Frame) -> bool:
+        """Whether the sample ``fr`` is in the discharge window (and holds grains)."""
+        t = fr.time - self.t_open
+        return fr.n > 0 and bool(self.delay <= t <= self.delay + self.window)
 
     def _grid(self, fr: Frame) -> None:
         ix = np.searchsorted(self.x_edges, fr.x, side="right") - 1
@@ -338,6 +346,7 @@ class MeasureRecorder(Recorder):
         self.circles = _CirclesPart(cfg, shape)
         self.profiles = _ProfilesPart(cfg, shape, walls)
         self.flow = _FlowPart(cfg, shape)
+        self.fields = FieldsPart(cfg, shape)
         self.rows: list[tuple[float, float, float]] = []  # time, step, phase
 
     def record(self, run: SiloRun) -> None:
@@ -348,16 +357,21 @@ class MeasureRecorder(Recorder):
         self.profiles.record(fr)
         if phase == DISCHARGE:
             self.flow.record(run, fr)
+            if self.flow.in_window(fr):
+                self.fields.add("discharge", fr)
 
     def phase_ended(self, run: SiloRun, phase: str) -> None:
-        if phase == "settle" and run.cfg.discharge.enabled:
-            self.flow.start(run)
+        if phase == "settle":
+            self.fields.add("settled", frame_from_sim(run.sim))
+            if run.cfg.discharge.enabled:
+                self.flow.start(run)
 
     def state(self) -> dict[str, Any]:
         out: dict[str, Any] = {"rows": _stack(self.rows, (3,))}
         out.update({f"circles.{k}": v for k, v in self.circles.arrays().items()})
         out.update({f"profiles.{k}": v for k, v in self.profiles.arrays().items()})
         out.update(self.flow.state())
+        out.update(self.fields.state())
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -365,6 +379,7 @@ class MeasureRecorder(Recorder):
         self.circles.restore(state)
         self.profiles.restore(state)
         self.flow.restore(state)
+        self.fields.restore(state)
 
     def write(self, group: h5py.Group) -> None:
         rows = _stack(self.rows, (3,))
@@ -376,6 +391,7 @@ class MeasureRecorder(Recorder):
         self.circles.write(group)
         self.profiles.write(group)
         self.flow.write(group)
+        self.fields.write(group, _dataset)
 
 
 def recorders_for(cfg: Config) -> list[Recorder]:

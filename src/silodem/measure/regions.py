@@ -121,6 +121,11 @@ def grid_cell(cfg: Config) -> float:
     return cfg.measure.grid_cell or mean_diameter(cfg)
 
 
+def field_cell(cfg: Config) -> float:
+    """Cell size of the density and stress fields [m] (default four mean diameters)."""
+    return cfg.measure.field_cell or 4.0 * mean_diameter(cfg)
+
+
 def bin_length(cfg: Config) -> float:
     """Bin length along the walls and bin height of the profiles [m] (default two mean
     diameters)."""

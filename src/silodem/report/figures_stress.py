@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 
 from silodem import theory as th
 from silodem.report.analysis import Analysis
-from silodem.report.draw import rolling_mean, shade_phases
+from silodem.report.draw import draw_walls, rolling_mean, shade_phases, silo_axes
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
 
@@ -244,5 +244,37 @@ def fig_change(a: Analysis) -> Figure | None:
     ax.set_ylabel("change, discharge vs end of filling [%]")
     ax.set_title("Change of the switch-zone stresses from filling to discharge", fontsize=10)
     ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def fig_fields(a: Analysis) -> Figure | None:
+    """Bulk density and the Love-Weber stresses sigma_xx, sigma_zz on the field grid, of the
+    settled packing and averaged over the discharge window (one row each)."""
+    f = a.res.group("measure", "fields")
+    if f is None:
+        return None
+    rows = [(w, f[w]) for w in ("settled", "discharge")
+            if w in f and f[w]["@attrs"].get("samples", 0) > 0]
+    if not rows:
+        return None
+    xe, ze = f["x_edges"], f["z_edges"]
+    fig = Figure(figsize=(12, 5.6 * len(rows)), dpi=90)
+    axes = np.atleast_2d(fig.subplots(len(rows), 3))
+    # one colour scale per quantity, shared by the two rows
+    quantities = [("bulk density [kg/m^3]", lambda g: g["density"], "cividis"),
+                  ("sigma_xx [Pa]", lambda g: g["stress"][..., 0], "magma"),
+                  ("sigma_zz [Pa]", lambda g: g["stress"][..., 1], "magma")]
+    for col, (label, get, cmap) in enumerate(quantities):
+        values = [get(g) for _, g in rows]
+        finite = np.concatenate([v[np.isfinite(v)] for v in values])
+        top = float(np.percentile(finite, 99)) if finite.size else 1.0
+        for row, ((window, _), v) in enumerate(zip(rows, values)):
+            ax = axes[row, col]
+            pm = ax.pcolormesh(xe, ze, v.T, cmap=cmap, vmin=0.0, vmax=top, shading="flat")
+            draw_walls(ax, a.res.group("walls"))
+            silo_axes(ax, a.geom)
+            ax.set_title(f"{label.split(' [')[0]}, {window}", fontsize=9)
+            fig.colorbar(pm, ax=ax, shrink=0.7, label=label)
     fig.tight_layout()
     return fig

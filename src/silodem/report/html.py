@@ -63,6 +63,12 @@ FIGURES = [
     FigureSpec("fig8_change", "Fig. 8",
                "Percentage change of the switch-zone stresses from the end of filling to the "
                "discharge window.", fs.fig_change),
+    FigureSpec("stress_fields", "",
+               "Bulk density and Love-Weber stresses sigma_xx, sigma_zz (compression "
+               "positive) on a grid of measure.field_cell, grains counted by their centres: the "
+               "settled packing, and the mean over the discharge window. Arching shows as "
+               "sigma_zz that stops growing with depth and bends towards the walls.",
+               fs.fig_fields),
     FigureSpec("wall_shear", "",
                "Wall friction along the silo wall, against its fully mobilised value "
                "tan(phi_P) sigma_n: Janssen's theory assumes full mobilisation.",

@@ -1,0 +1,106 @@
+"""Coarse-grained fields (``silodem.measure.fields``): the cells' areas inside the silo, bulk
+density and Love-Weber stress per cell, against closed forms, exact sums and the recorder's
+own run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from measure_helpers import tiny_hopper_config
+
+from silodem.measure.fields import QUADRATURE, cell_area_inside, cell_sums, fields_of
+from silodem.measure.recorders import MeasureRecorder, recorders_for
+from silodem.silo.geometry import silo_shape
+from silodem.silo.procedure import SiloRun
+
+
+def test_cell_areas_inside_a_flat_silo_and_a_hopper():
+    """Flat silo: every cell wholly inside, its area exactly. Hopper: the cells' areas add up
+    to the silo's area (trapezoid (b + B)/2 z_j + rectangle B (H - z_j), by hand) within the
+    midpoint rule's error, at most one row of QUADRATURE^2 sub-cells per cell the walls cut."""
+    flat = silo_shape(tiny_hopper_config().model_copy(update={
+        "silo": tiny_hopper_config().silo.model_copy(update={"kind": "flat"})}))
+    xe, ze = np.linspace(0, flat.width, 4), np.linspace(0, flat.wall_top, 7)
+    np.testing.assert_allclose(cell_area_inside(flat, xe, ze),
+                               np.outer(np.diff(xe), np.diff(ze)), rtol=1e-12)
+    cfg = tiny_hopper_config()
+    s = cfg.silo
+    shape = silo_shape(cfg)
+    zj = 0.5 * (s.cell_width - s.outlet_width) * math.tan(
+        math.radians(s.hopper_angle_from_horizontal_deg))
+    exact = 0.5 * (s.outlet_width + s.cell_width) * zj + s.cell_width * (s.wall_height - zj)
+    xe, ze = np.linspace(0, s.cell_width, 7), np.linspace(0, s.wall_height, 13)
+    area = cell_area_inside(shape, xe, ze)
+    cell = np.outer(np.diff(xe), np.diff(ze))
+    cut = (area > 0) & (area < cell * (1 - 1e-12))
+    assert cut.sum() >= 4
+    bound = (cell[cut] / QUADRATURE).sum()  # one row of sub-cells per cut cell
+    assert abs(area.sum() - exact) < bound
+    assert np.all((area[~cut] == 0) | (area[~cut] == cell[~cut]))  # wholly out or in
+
+
+def test_density_of_a_triangular_lattice_is_its_packing_fraction():
+    """Equal disks of radius r on a triangular lattice (rows 2r apart along x, sqrt(3) r apart
+    in z) fill pi / (2 sqrt 3) of the plane; cells of 2 periods (4r x 4 sqrt(3) r), offset so no
+    centre lies on an edge, each hold exactly 2 x 2 x 2 centres: density pi/(2 sqrt 3) rho."""
+    r, rho, t = 0.05, 2500.0, 1.0
+    rows, cols = 24, 24
+    x = np.array([2 * r * c + (r if k % 2 else 0.0) for k in range(rows) for c in range(cols)])
+    z = np.array([math.sqrt(3) * r * k for k in range(rows) for c in range(cols)])
+    mass = np.full(x.size, rho * math.pi * r * r * t)
+    xe = np.arange(0, 2 * r * cols, 4 * r) - 0.5 * r
+    ze = np.arange(0, math.sqrt(3) * r * rows, 4 * math.sqrt(3) * r) - 0.5 * r
+    msum, mom = cell_sums(x, z, mass, np.zeros((x.size, 2, 2)), xe, ze)
+    area = np.outer(np.diff(xe), np.diff(ze))
+    density, stress = fields_of(msum, mom, area, t, 1)
+    np.testing.assert_allclose(density, math.pi / (2 * math.sqrt(3)) * rho, rtol=1e-12)
+    assert np.all(stress == 0)
+    # two samples of the same state: the same mean
+    density2, _ = fields_of(2 * msum, 2 * mom, area, t, 2)
+    np.testing.assert_allclose(density2, density, rtol=1e-15)
+
+
+def test_cells_outside_the_silo_or_without_samples_are_nan():
+    msum, mom = np.ones((2, 2)), np.ones((2, 2, 3))
+    area = np.array([[1.0, 0.0], [1.0, 1.0]])
+    density, stress = fields_of(msum, mom, area, 1.0, 1)
+    assert np.isnan(density[0, 1]) and np.all(np.isnan(stress[0, 1]))
+    assert density[0, 0] == 1.0 and np.all(stress[0, 0] == -1.0)  # compression positive
+    assert np.all(np.isnan(fields_of(msum, mom, area, 1.0, 0)[0]))
+
+
+@pytest.fixture(scope="module")
+def recorded():
+    cfg = tiny_hopper_config()
+    run = SiloRun(cfg, recorders=recorders_for(cfg))
+    run.run()
+    return cfg, run, next(r for r in run.recorders if isinstance(r, MeasureRecorder))
+
+
+def test_settled_field_holds_every_grain_of_the_settled_packing(recorded):
+    """Mass conservation: the settled field's density times each cell's volume adds up to the
+    mass of the grains in the silo when the gate opened (the flow record's radii, rho pi r^2 t
+    each)."""
+    cfg, _, rec = recorded
+    f = rec.fields
+    density, _ = fields_of(f.mass["settled"], f.moments["settled"], f.area_inside,
+                           f.thickness, f.samples["settled"])
+    t = cfg.material.thickness
+    held = np.nansum(density * f.area_inside * t)
+    grains = np.sum(cfg.material.density * np.pi * rec.flow.r0**2 * t)
+    assert f.samples["settled"] == 1 and rec.flow.r0.size > 100
+    assert held == pytest.approx(grains, rel=1e-12)
+
+
+def test_discharge_field_averages_the_samples_of_the_discharge_window(recorded):
+    """The discharge field has one sample per recorder row of the discharge window, counted
+    here from the rows: delay <= t - t_open <= delay + window."""
+    cfg, _, rec = recorded
+    rows = np.array(rec.rows)
+    t = rows[:, 0] - rec.flow.t_open
+    m = cfg.measure
+    in_window = (rows[:, 2] == 2) & (t >= m.discharge_delay) & (
+        t <= m.discharge_delay + m.window)
+    assert rec.fields.samples["discharge"] == in_window.sum() > 5
