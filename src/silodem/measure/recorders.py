@@ -2,7 +2,7 @@
 
 ``recorders_for(cfg)`` gives the recorders ``SiloRun`` samples; here one ``MeasureRecorder``
 (group ``/measure`` of results.h5) every ``measure.interval`` seconds of simulated time.  Each
-sample reads the run once (:mod:`silodem.measure.frame`) and feeds three parts:
+sample reads the run once (:mod:`silodem.measure.frame`) and feeds four parts:
 
 * circles:  Love-Weber stress, porosity, coordination number in each measurement circle, and
             the coordination number of the band across the junction (Fig. 2);

@@ -268,7 +268,7 @@ def fig_fields(a: Analysis) -> Figure | None:
     for col, (label, get, cmap) in enumerate(quantities):
         values = [get(g) for _, g in rows]
         finite = np.concatenate([v[np.isfinite(v)] for v in values])
-        top = float(np.percentile(finite, 99)) if finite.size else 1.0
+        top = (float(np.percentile(finite, 99)) if finite.size else 0.0) or 1.0
         for row, ((window, _), v) in enumerate(zip(rows, values)):
             ax = axes[row, col]
             pm = ax.pcolormesh(xe, ze, v.T, cmap=cmap, vmin=0.0, vmax=top, shading="flat")
