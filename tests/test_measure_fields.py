@@ -104,3 +104,38 @@ def test_discharge_field_averages_the_samples_of_the_discharge_window(recorded):
     in_window = (rows[:, 2] == 2) & (t >= m.discharge_delay) & (
         t <= m.discharge_delay + m.window)
     assert rec.fields.samples["discharge"] == in_window.sum() > 5
+
+
+def test_fields_are_written_for_paraview_and_read_back(tmp_path):
+    """With VTK output on, a run writes vtk/fields_settled.vtu and fields_discharge.vtu; read
+    back with meshio, each quad spans its cell of results.h5's grid and carries that cell's
+    density and stress (the same numbers, cell (i, k) at i * nz + k)."""
+    import h5py
+    import meshio
+
+    from silodem.config import Output
+    from silodem.run import run_simulation
+
+    cfg = tiny_hopper_config(report=False)
+    cfg = cfg.model_copy(update={"output": Output(png=False, vtk_interval=1.0)})
+    out = tmp_path / "run"
+    run_simulation(cfg, out, progress=False)
+    with h5py.File(out / "results.h5") as h5:
+        f = h5["measure/fields"]
+        xe, ze = f["x_edges"][()], f["z_edges"][()]
+        nx, nz = xe.size - 1, ze.size - 1
+        for window in ("settled", "discharge"):
+            mesh = meshio.read(out / "vtk" / f"fields_{window}.vtu")
+            quads = mesh.cells_dict["quad"]
+            assert quads.shape == (nx * nz, 4)
+            corners = mesh.points[quads]  # (cells, 4, 3)
+            i, k = np.divmod(np.arange(nx * nz), nz)
+            np.testing.assert_array_equal(corners[:, :, 0].min(axis=1), xe[i])
+            np.testing.assert_array_equal(corners[:, :, 0].max(axis=1), xe[i + 1])
+            np.testing.assert_array_equal(corners[:, :, 1].min(axis=1), ze[k])
+            np.testing.assert_array_equal(corners[:, :, 1].max(axis=1), ze[k + 1])
+            g = f[window]
+            np.testing.assert_array_equal(mesh.cell_data["density"][0], g["density"][()].ravel())
+            for c, name in enumerate(("stress_xx", "stress_zz", "stress_xz")):
+                np.testing.assert_array_equal(mesh.cell_data[name][0],
+                                              g["stress"][()][..., c].ravel())

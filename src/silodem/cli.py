@@ -267,7 +267,7 @@ def plot(
     """Re-draw every figure of a run from DIR/results.h5 (nothing is re-run) and write
     DIR/report.html: one page with the figures, the key numbers and the config, to open in a
     browser. Figures also go to DIR/figures/*.png, and settled.png and final.png are drawn
-    again. Example:
+    again (and DIR/vtk/fields_*.vtu, where the run wrote VTK files). Example:
 
       silodem plot runs/paper-case2
     """
@@ -276,6 +276,10 @@ def plot(
 
     path = write_report(run_dir)
     draw_pictures(run_dir)
+    if (run_dir / "vtk").is_dir():
+        from silodem.viz.vtk import write_fields
+
+        write_fields(run_dir / "results.h5", run_dir / "vtk")
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 

@@ -102,6 +102,10 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     write_results(run, out / "results.h5", toml_text)
     guard.completed()
     try:
+        if cfg.output.vtk_interval is not None:
+            from silodem.viz.vtk import write_fields
+
+            write_fields(out / "results.h5", out / "vtk")
         draw_pictures(out)
         if cfg.measure.report:
             _write_report(out, run.warnings)

@@ -15,6 +15,11 @@ Per output time k (``DIR/vtk/``):
 
 ``particles.pvd``, ``contacts.pvd`` and ``walls.pvd`` list the files with their times, so
 ParaView plays them as time series (docs/visualisation.md).
+
+At the end of the run, ``fields_settled.vtu`` and ``fields_discharge.vtu``: the density and
+stress fields of results.h5 ``/measure/fields`` (``silodem.measure.fields``), one quad per
+cell, cell data ``density`` [kg/m^3], ``stress_xx``, ``stress_zz``, ``stress_xz`` [Pa]
+(compression positive; NaN outside the silo).
 """
 
 from __future__ import annotations
@@ -30,7 +35,8 @@ import numpy as np
 from silodem.silo.frames import Frame, WallGeometry
 
 KINDS = ("particles", "contacts", "walls")
-_STALE = re.compile(r"^(particles|contacts|walls)(_\d+\.vtu|\.pvd)$")
+_STALE = re.compile(r"^(particles|contacts|walls)(_\d+\.vtu|\.pvd)$"
+                    r"|^fields_(settled|discharge)\.vtu$")
 
 
 def file_name(kind: str, k: int) -> str:
@@ -83,6 +89,41 @@ def walls_mesh(walls: WallGeometry, active: np.ndarray) -> meshio.Mesh:
     cell_data = {"wall_id": [np.arange(nw, dtype=np.int32)],
                  "active": [np.asarray(active, dtype=np.int32)]}
     return meshio.Mesh(_points(x, y), [("line", lines)], cell_data=cell_data)
+
+
+def fields_mesh(x_edges, z_edges, density, stress) -> meshio.Mesh:
+    """The grid of a density and stress field as quads (cell (i, k) spans x_edges[i:i+2] x
+    z_edges[k:k+2]), its values as cell data, in the order i * nz + k."""
+    nx, nz = x_edges.size - 1, z_edges.size - 1
+    gx, gz = np.meshgrid(x_edges, z_edges, indexing="ij")
+    node = np.arange((nx + 1) * (nz + 1), dtype=np.int32).reshape(nx + 1, nz + 1)
+    quads = np.stack([node[:-1, :-1], node[1:, :-1], node[1:, 1:], node[:-1, 1:]],
+                     axis=-1).reshape(-1, 4)
+    cell_data = {"density": [np.asarray(density, float).ravel()]}
+    for c, name in enumerate(("stress_xx", "stress_zz", "stress_xz")):
+        cell_data[name] = [np.asarray(stress, float)[..., c].ravel()]
+    return meshio.Mesh(_points(gx.ravel(), gz.ravel()), [("quad", quads)], cell_data=cell_data)
+
+
+def write_fields(results: Path | str, directory: Path | str) -> list[Path]:
+    """``fields_<window>.vtu`` in ``directory`` for each field of ``results`` (a results.h5)
+    that has samples; returns the files written."""
+    import h5py
+
+    out = []
+    with h5py.File(results, "r") as h5:
+        f = h5.get("measure/fields")
+        if f is None:
+            return out
+        xe, ze = f["x_edges"][()], f["z_edges"][()]
+        for window in ("settled", "discharge"):
+            g = f.get(window)
+            if g is None or g.attrs.get("samples", 0) == 0:
+                continue
+            path = Path(directory) / f"fields_{window}.vtu"
+            _write_mesh(path, fields_mesh(xe, ze, g["density"][()], g["stress"][()]))
+            out.append(path)
+    return out
 
 
 def _write_mesh(path: Path, mesh: meshio.Mesh) -> None:
