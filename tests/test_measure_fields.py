@@ -109,10 +109,12 @@ def test_discharge_field_averages_the_samples_of_the_discharge_window(recorded):
 def test_fields_are_written_for_paraview_and_read_back(tmp_path):
     """With VTK output on, a run writes vtk/fields_settled.vtu and fields_discharge.vtu; read
     back with meshio, each quad spans its cell of results.h5's grid and carries that cell's
-    density and stress (the same numbers, cell (i, k) at i * nz + k)."""
+    density and stress (the same numbers, cell (i, k) at i * nz + k); 'silodem plot' writes
+    the same files again."""
     import h5py
     import meshio
 
+    from silodem.cli import main
     from silodem.config import Output
     from silodem.run import run_simulation
 
@@ -139,3 +141,11 @@ def test_fields_are_written_for_paraview_and_read_back(tmp_path):
             for c, name in enumerate(("stress_xx", "stress_zz", "stress_xz")):
                 np.testing.assert_array_equal(mesh.cell_data[name][0],
                                               g["stress"][()][..., c].ravel())
+    # 'silodem plot' writes them again, the same bytes
+    written = {p.name: p.read_bytes() for p in (out / "vtk").glob("fields_*.vtu")}
+    for name in written:
+        (out / "vtk" / name).unlink()
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(out)])
+    assert exc.value.code == 0
+    assert {p.name: p.read_bytes() for p in (out / "vtk").glob("fields_*.vtu")} == written
