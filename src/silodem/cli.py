@@ -271,15 +271,11 @@ def plot(
 
       silodem plot runs/paper-case2
     """
-    from silodem.output import draw_pictures  # matplotlib, scipy: only when plotting
+    from silodem.output import write_views  # matplotlib, scipy: only when plotting
     from silodem.report import write_report
 
     path = write_report(run_dir)
-    draw_pictures(run_dir)
-    if (run_dir / "vtk").is_dir():
-        from silodem.viz.vtk import write_fields
-
-        write_fields(run_dir / "results.h5", run_dir / "vtk")
+    write_views(run_dir)
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 

@@ -72,6 +72,19 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
 PICTURES = {"settled": "end of settling", "final": "end of run"}  # file stem: caption
 
 
+def write_views(folder: Path | str) -> list[Path]:
+    """What a run's folder shows besides results.h5, all derived from it, by ``silodem run``
+    and again by ``silodem plot``: settled.png and final.png (``draw_pictures``) and, where the
+    run wrote VTK files (a ``vtk/`` folder), the fields' ``vtk/fields_*.vtu``."""
+    from silodem.viz.vtk import write_fields
+
+    folder = Path(folder)
+    out = draw_pictures(folder)
+    if (folder / "vtk").is_dir():
+        out += write_fields(folder / "results.h5", folder / "vtk")
+    return out
+
+
 def draw_pictures(folder: Path | str) -> list[Path]:
     """settled.png and final.png of the run in ``folder`` (if its config's ``output.png``),
     drawn from the snapshots /settled and /final of its results.h5: by ``silodem run``, and

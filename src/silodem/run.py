@@ -15,7 +15,7 @@ from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
 from silodem.errors import RunInterrupted
 from silodem.measure.recorders import recorders_for
-from silodem.output import draw_pictures, write_results, write_text
+from silodem.output import write_results, write_text, write_views
 from silodem.safety import RunGuard, check_numbers
 from silodem.silo.frames import FramesRecorder
 from silodem.silo.procedure import PHASES, Progress, SiloRun
@@ -102,11 +102,7 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     write_results(run, out / "results.h5", toml_text)
     guard.completed()
     try:
-        if cfg.output.vtk_interval is not None:
-            from silodem.viz.vtk import write_fields
-
-            write_fields(out / "results.h5", out / "vtk")
-        draw_pictures(out)
+        write_views(out)
         if cfg.measure.report:
             _write_report(out, run.warnings)
     except KeyboardInterrupt:

@@ -55,10 +55,7 @@ def cell_sums(x, z, mass, moments, x_edges, z_edges) -> tuple[np.ndarray, np.nda
     (xx, zz, xz) components [N m], shape (nx, nz, 3), xz symmetrised.  Grains outside the grid
     are left out."""
     nx, nz = x_edges.size - 1, z_edges.size - 1
-    ix = np.searchsorted(x_edges, x, side="right") - 1
-    iz = np.searchsorted(z_edges, z, side="right") - 1
-    ok = (ix >= 0) & (ix < nx) & (iz >= 0) & (iz < nz)
-    flat = ix[ok] * nz + iz[ok]
+    flat, ok = regions.grid_cell_index(x, z, x_edges, z_edges)
     m = moments[ok]
     parts = (m[:, 0, 0], m[:, 1, 1], 0.5 * (m[:, 0, 1] + m[:, 1, 0]))
     mass_sum = np.bincount(flat, weights=mass[ok], minlength=nx * nz).reshape(nx, nz)
@@ -86,8 +83,7 @@ class FieldsPart:
 
     def __init__(self, cfg: Config, shape: SiloShape) -> None:
         cell = regions.field_cell(cfg)
-        self.x_edges = np.linspace(0.0, shape.width, max(1, round(shape.width / cell)) + 1)
-        self.z_edges = np.linspace(0.0, shape.wall_top, max(1, round(shape.wall_top / cell)) + 1)
+        self.x_edges, self.z_edges = regions.grid_edges(shape, cell)
         self.area_inside = cell_area_inside(shape, self.x_edges, self.z_edges)
         self.thickness = cfg.material.thickness
         size = (self.x_edges.size - 1, self.z_edges.size - 1)

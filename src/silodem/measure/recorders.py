@@ -183,8 +183,7 @@ class _FlowPart:
         self.delay, self.window = m.discharge_delay, m.window
         self.d = regions.mean_diameter(cfg)
         cell = regions.grid_cell(cfg)
-        self.x_edges = np.linspace(0.0, shape.width, max(1, round(shape.width / cell)) + 1)
-        self.z_edges = np.linspace(0.0, shape.wall_top, max(1, round(shape.wall_top / cell)) + 1)
+        self.x_edges, self.z_edges = regions.grid_edges(shape, cell)
         self.mfi_band = (np.nan, np.nan)  # set when the gate opens, from the fill level
         self.t_open = np.nan
         self.uid0 = np.zeros(0, dtype=np.int64)
@@ -240,10 +239,7 @@ class _FlowPart:
         return fr.n > 0 and bool(self.delay <= t <= self.delay + self.window)
 
     def _grid(self, fr: Frame) -> None:
-        ix = np.searchsorted(self.x_edges, fr.x, side="right") - 1
-        iz = np.searchsorted(self.z_edges, fr.z, side="right") - 1
-        ok = (ix >= 0) & (ix < self.grid.shape[1]) & (iz >= 0) & (iz < self.grid.shape[2])
-        flat = ix[ok] * self.grid.shape[2] + iz[ok]
+        flat, ok = regions.grid_cell_index(fr.x, fr.z, self.x_edges, self.z_edges)
         size = self.grid.shape[1] * self.grid.shape[2]
         for c, w in enumerate((fr.vx[ok], fr.vz[ok], np.ones(int(ok.sum())))):
             self.grid[c] += np.bincount(flat, weights=w, minlength=size).reshape(

@@ -132,13 +132,32 @@ def bin_length(cfg: Config) -> float:
     return cfg.measure.wall_bin or 2.0 * mean_diameter(cfg)
 
 
+def even_edges(lo: float, hi: float, step: float) -> np.ndarray:
+    """Edges of round((hi - lo) / step) (at least 1) equal bins from lo to hi [m]."""
+    return np.linspace(lo, hi, max(1, round((hi - lo) / step)) + 1)
+
+
+def grid_edges(shape: SiloShape, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """(x_edges, z_edges) [m] of a grid of cells about ``cell`` wide over the silo, from the
+    left wall to the right and from the outlet to the wall top."""
+    return even_edges(0.0, shape.width, cell), even_edges(0.0, shape.wall_top, cell)
+
+
+def grid_cell_index(x, z, x_edges, z_edges) -> tuple[np.ndarray, np.ndarray]:
+    """(flat cell index ix * nz + iz of the points inside the grid, mask of those points)."""
+    nx, nz = x_edges.size - 1, z_edges.size - 1
+    ix = np.searchsorted(x_edges, x, side="right") - 1
+    iz = np.searchsorted(z_edges, z, side="right") - 1
+    ok = (ix >= 0) & (ix < nx) & (iz >= 0) & (iz < nz)
+    return ix[ok] * nz + iz[ok], ok
+
+
 def profile_edges(cfg: Config, shape: SiloShape) -> np.ndarray:
     """Bin edges in z for the profiles through the grains [m]: from the outlet to the wall top
     in steps of about the bin length, with an edge at the junction."""
     dz = bin_length(cfg)
     if shape.kind == "hopper" and shape.junction > 0:
-        lower = np.linspace(0.0, shape.junction, max(1, round(shape.junction / dz)) + 1)
-        rest = shape.wall_top - shape.junction
-        upper = np.linspace(shape.junction, shape.wall_top, max(1, round(rest / dz)) + 1)
+        lower = even_edges(0.0, shape.junction, dz)
+        upper = even_edges(shape.junction, shape.wall_top, dz)
         return np.concatenate([lower, upper[1:]])
-    return np.linspace(0.0, shape.wall_top, max(1, round(shape.wall_top / dz)) + 1)
+    return even_edges(0.0, shape.wall_top, dz)
