@@ -9,8 +9,18 @@ import math
 import numpy as np
 
 
-def _law(overlap, vn, vt, fs_old, kn, ks, cn, mu, tension, dt):
-    fn = kn * overlap - cn * vn
+def _stiffness(overlap, r_eff, kn, ks, hertz):
+    """(elastic normal force [N], normal and shear stiffness [N/m]).  Linear: kn delta, kn,
+    ks.  Hertz-Mindlin with kn = 2 E*, ks = 8 G*: Hertz's 4/3 E* sqrt(R*) delta^(3/2) and
+    Mindlin's 2 E* a, 8 G* a with a = sqrt(R* delta) (Johnson, Contact Mechanics, 1985)."""
+    if not hertz:
+        return kn * overlap, kn, ks
+    e_star, g_star, a = kn / 2, ks / 8, math.sqrt(r_eff * overlap)
+    return 4 / 3 * e_star * math.sqrt(r_eff) * overlap**1.5, 2 * e_star * a, 8 * g_star * a
+
+
+def _law(f_elastic, vn, vt, fs_old, ks, cn, mu, tension, dt):
+    fn = f_elastic - cn * vn
     if fn < 0.0 and not tension:
         fn = 0.0
     fs = fs_old - ks * vt * dt
@@ -22,13 +32,13 @@ class ReferenceDEM:
     """Grains (x, y, vx, vy, w, r, m) and two-sided wall segments; gravity along -y."""
 
     def __init__(self, x, y, vx, vy, w, r, m, uid, walls, kn, ks, mu, zeta, dt, g,
-                 tension=False):
+                 tension=False, hertz=False):
         self.x, self.y, self.vx, self.vy, self.w = (np.array(a, float) for a in (x, y, vx, vy, w))
         self.r, self.m = np.array(r, float), np.array(m, float)
         self.uid = list(uid)
         self.walls = walls  # list of (ax, ay, bx, by, kn, ks, mu)
         self.kn, self.ks, self.mu, self.zeta, self.dt, self.g = kn, ks, mu, zeta, dt, g
-        self.tension = tension
+        self.tension, self.hertz = tension, hertz
         self.hist: dict[tuple, float] = {}
 
     def forces(self):
@@ -49,10 +59,13 @@ class ReferenceDEM:
                 vn = rv[0] * nx + rv[1] * ny
                 vt = -rv[0] * ny + rv[1] * nx
                 meff = self.m[i] * self.m[j] / (self.m[i] + self.m[j])
-                cn = 2 * self.zeta * math.sqrt(self.kn * meff)
+                r_eff = self.r[i] * self.r[j] / (self.r[i] + self.r[j])
+                f_el, sn, ss = _stiffness(self.r[i] + self.r[j] - d, r_eff, self.kn, self.ks,
+                                          self.hertz)
+                cn = 2 * self.zeta * math.sqrt(sn * meff)
                 key = (min(self.uid[i], self.uid[j]), max(self.uid[i], self.uid[j]))
-                fn, fs = _law(self.r[i] + self.r[j] - d, vn, vt, self.hist.get(key, 0.0),
-                              self.kn, self.ks, cn, self.mu, self.tension, self.dt)
+                fn, fs = _law(f_el, vn, vt, self.hist.get(key, 0.0), ss, cn, self.mu,
+                              self.tension, self.dt)
                 if fn != 0.0 or fs != 0.0:
                     new_hist[key] = fs
                 Fx, Fy = fn * nx - fs * ny, fn * ny + fs * nx
@@ -75,10 +88,11 @@ class ReferenceDEM:
                 vc = (self.vx[i] + self.w[i] * self.r[i] * ny, self.vy[i] - self.w[i] * self.r[i] * nx)
                 vn = vc[0] * nx + vc[1] * ny
                 vt = -vc[0] * ny + vc[1] * nx
-                cn = 2 * self.zeta * math.sqrt(kn * self.m[i])
+                f_el, sn, ss = _stiffness(self.r[i] - d, self.r[i], kn, ks, self.hertz)
+                cn = 2 * self.zeta * math.sqrt(sn * self.m[i])
                 key = ("wall", self.uid[i], w)
-                fn, fs = _law(self.r[i] - d, vn, vt, self.hist.get(key, 0.0), kn, ks, cn, mu,
-                              self.tension, self.dt)
+                fn, fs = _law(f_el, vn, vt, self.hist.get(key, 0.0), ss, cn, mu, self.tension,
+                              self.dt)
                 if fn != 0.0 or fs != 0.0:
                     new_hist[key] = fs
                 fx[i] += fn * nx - fs * ny

@@ -199,4 +199,4 @@ def test_branch_free_law_equals_the_reference_law_exactly(tension):
         vn, vt = rng.normal(0.0, 2.0, 2)
         fs_old = rng.normal(0.0, 50.0)
         got = linear_law(overlap, vn, vt, fs_old, kn, ks, cn, mu, tension, dt)
-        assert got == _law(overlap, vn, vt, fs_old, kn, ks, cn, mu, tension, dt)
+        assert got == _law(kn * overlap, vn, vt, fs_old, ks, cn, mu, tension, dt)

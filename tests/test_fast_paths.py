@@ -14,6 +14,9 @@ from silodem.engine.simulation import Simulation
 from silodem.engine.walls import Walls
 
 K, KS, MU, ZETA, DT, G = 1e5, 8e4, 0.4, 0.15, 1e-4, 9.81
+# Hertz-Mindlin: 2 E* and 8 G* [Pa] that give tangent stiffnesses near K, KS at the overlaps
+# of the random states below (about 5 mm)
+HERTZ_K, HERTZ_KS = 7e6, 5.6e6
 BOX = 2.0
 CORNERS = [(0.0, 0.0), (BOX, 0.0), (BOX, BOX), (0.0, BOX)]
 
@@ -30,30 +33,33 @@ def _random_state(seed, n=150):
     return x, y, r, v
 
 
-def _engine(x, y, r, v, density=1000.0):
+def _engine(x, y, r, v, density=1000.0, hertz=False):
+    k, ks = (HERTZ_K, HERTZ_KS) if hertz else (K, KS)
     p = Particles(8)
     p.add(x, y, r, density, vx=v[0], vy=v[1], omega=v[2] * 5)
     w = Walls()
     for a, b, name in zip(CORNERS, CORNERS[1:] + CORNERS[:1], "abcd"):
-        w.add(name, a, b, K, KS, MU)
-    law = GrainLaw(kn=K, ks=KS, mu=MU, zeta=ZETA)
+        w.add(name, a, b, k, ks, MU)
+    law = GrainLaw(kn=k, ks=ks, mu=MU, zeta=ZETA, hertz=hertz)
     return Simulation(p, w, law, dt=DT, gravity=G, skin=0.01)
 
 
-def _reference(x, y, r, v, density=1000.0):
+def _reference(x, y, r, v, density=1000.0, hertz=False):
+    k, ks = (HERTZ_K, HERTZ_KS) if hertz else (K, KS)
     m = density * np.pi * r**2
-    walls = [(*a, *b, K, KS, MU) for a, b in zip(CORNERS, CORNERS[1:] + CORNERS[:1])]
-    return ReferenceDEM(x, y, v[0], v[1], v[2] * 5, r, m, range(len(x)), walls, K, KS, MU,
-                        ZETA, DT, G)
+    walls = [(*a, *b, k, ks, MU) for a, b in zip(CORNERS, CORNERS[1:] + CORNERS[:1])]
+    return ReferenceDEM(x, y, v[0], v[1], v[2] * 5, r, m, range(len(x)), walls, k, ks, MU,
+                        ZETA, DT, G, hertz=hertz)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed, hertz", [(0, False), (1, False), (2, True)])
 @pytest.mark.parametrize("parallel", [False, True])
-def test_forces_torques_and_history_equal_brute_force(seed, parallel, monkeypatch):
+def test_forces_torques_and_history_equal_brute_force(seed, hertz, parallel, monkeypatch):
+    """Either contact law (``hertz``: Hertz-Mindlin)."""
     if parallel:
         monkeypatch.setattr(silodem.jit, "PARALLEL_MIN_GRAINS", 1)
     x, y, r, v = _random_state(seed)
-    sim, ref = _engine(x, y, r, v), _reference(x, y, r, v)
+    sim, ref = _engine(x, y, r, v, hertz=hertz), _reference(x, y, r, v, hertz=hertz)
     p = sim.particles
     most = 0  # the largest number of contacts carrying shear history at once
     for _ in range(300):

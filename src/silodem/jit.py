@@ -40,11 +40,19 @@ def _renamed(fn: types.FunctionType, suffix: str, names=None) -> types.FunctionT
 class Kernel:
     """A kernel compiled serial (``.serial``) and parallel (``.parallel``), on first use."""
 
-    def __init__(self, fn: types.FunctionType) -> None:
+    def __init__(self, fn: types.FunctionType, suffix: str = "", **names) -> None:
         self.__doc__ = fn.__doc__
-        self.__name__ = fn.__name__
-        self.serial = numba.njit(**FLAGS)(_renamed(fn, "_serial"))
-        self.parallel = numba.njit(parallel=True, **FLAGS)(_renamed(fn, "_parallel"))
+        self.__name__ = fn.__name__ + suffix
+        self._fn = fn
+        self.serial = numba.njit(**FLAGS)(_renamed(fn, suffix + "_serial", names or None))
+        self.parallel = numba.njit(parallel=True, **FLAGS)(
+            _renamed(fn, suffix + "_parallel", names or None))
+
+    def variant(self, suffix: str, **names) -> Kernel:
+        """The same kernel compiled with the globals ``names`` bound to other values, which
+        numba takes as compile-time constants (a switch such as ``HERTZ = True`` costs nothing
+        in the loop, where a run-time flag let LLVM compute both sides of each branch)."""
+        return Kernel(self._fn, suffix, **names)
 
     def pick(self, n: int, threads: int | None = None):
         """The variant for ``n`` grains with ``threads`` threads (default: numba's current

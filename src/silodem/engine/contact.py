@@ -17,6 +17,12 @@ contact frame that PFC applies in 3D.  A contact that opens (delta <= 0) forgets
 Contact stiffnesses are the series values of the two bodies (PFC2D convention):
 k = k_a k_b / (k_a + k_b); they are resolved once at set-up, never in the loop.
 
+The Hertz-Mindlin law (engine/hertz.py) is this law at the tangent stiffnesses
+S_n = 2 E* sqrt(R* delta), S_s = 8 G* sqrt(R* delta), applied to 2/3 delta (``hertz_mindlin``).
+The kernels are compiled once per law: ``HERTZ``, a module constant that numba freezes at
+compilation, is True in their copies ``pair_forces_hertz`` (and
+``integrate.walls_and_leapfrog_hertz``).
+
 Sign conventions: for a pair (i, j), n points from i to j and the force computed is the force
 on j (the force on i is its opposite).  For a grain-wall contact n points from the wall to the
 grain and the force is the force on the grain.  The torque on each grain is -r * F_s.
@@ -52,14 +58,16 @@ def damping_ratio_from_restitution(e: float) -> float:
 
 @dataclass(frozen=True)
 class GrainLaw:
-    """Contact parameters between two grains, already combined (series stiffness)."""
+    """Contact parameters between two grains, already combined (series stiffness, or the
+    effective moduli of the Hertz-Mindlin law)."""
 
-    kn: float  # contact normal stiffness [N/m]
-    ks: float  # contact shear stiffness [N/m]
+    kn: float  # contact normal stiffness [N/m]; Hertz-Mindlin: 2 E* [Pa]
+    ks: float  # contact shear stiffness [N/m]; Hertz-Mindlin: 8 G* [Pa]
     mu: float  # friction coefficient tan(phi_G) [-]
     zeta: float  # normal critical-damping ratio [-], used for grain-grain and grain-wall
     allow_tension: bool = False
     local_damping: float = 0.0  # PFC local damping alpha [-], applied in the integrator
+    hertz: bool = False  # the Hertz-Mindlin law (``hertz_mindlin``, engine/hertz.py)
 
 
 def critical_time_step(m_min: float, law: GrainLaw, wall_kn: np.ndarray,
@@ -71,6 +79,9 @@ def critical_time_step(m_min: float, law: GrainLaw, wall_kn: np.ndarray,
     A single undamped contact is stable for dt < 2 sqrt(m_eff/k); dropping the factor 2 leaves
     room for a grain pressed by several contacts at once (Cundall & Strack 1979; PFC manual).
     """
+    if law.hertz:
+        raise ValueError("critical_time_step takes stiffnesses: give a Hertz-Mindlin law its "
+                         "tangent stiffnesses first (silo.materials.linearised)")
     # Python floats, not numpy scalars: a ratio of a very soft wall may overflow to inf,
     # which min() then passes over, without numpy's overflow warning
     m_min = float(m_min)
@@ -94,11 +105,23 @@ def linear_law(overlap, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt):
 
 
 @numba.njit(inline="always", cache=True)
-def pair_contact(d2, dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, zeta, allow_tension,
-                 dt):
+def hertz_mindlin(kn, ks, r_eff, overlap):
+    """The Hertz-Mindlin law as the linear law at its tangent stiffnesses (engine/hertz.py,
+    docs/physics.md): ``kn, ks`` hold 2 E* and 8 G* [Pa], ``r_eff`` is R* [m].  Returns
+    the normal and shear stiffness S_n = 2 E* a, S_s = 8 G* a [N/m], a = sqrt(R* delta) the
+    contact's half-width, and the overlap 2/3 delta [m] that ``linear_law`` multiplies by S_n
+    to give Hertz's elastic force 4/3 E* sqrt(R*) delta^(3/2)."""
+    a = math.sqrt(r_eff * max(overlap, 0.0))
+    return kn * a, ks * a, (2.0 / 3.0) * overlap
+
+
+@numba.njit(inline="always", cache=True)
+def pair_contact(d2, dx, dy, rsum, dvx, dvy, spin, m_eff, r_eff, fs_old, kn, ks, mu, zeta,
+                 allow_tension, hertz, dt):
     """One touching grain-grain pair (d2 < rsum^2) from scalars: squared distance [m^2] and
     centre offset j - i (dx, dy) [m], radius sum [m], velocity difference v_j - v_i [m/s], spin
-    sum w_i r_i + w_j r_j [m/s], effective mass [kg], shear force of the last step [N].
+    sum w_i r_i + w_j r_j [m/s], effective mass [kg], effective radius R* [m] (used by the
+    Hertz-Mindlin law only, ``hertz``), shear force of the last step [N].
     Returns (F_n, F_s, force on j x, y) [N]."""
     d = math.sqrt(d2)
     inv_d = 1.0 / d
@@ -109,8 +132,11 @@ def pair_contact(d2, dx, dy, rsum, dvx, dvy, spin, m_eff, fs_old, kn, ks, mu, ze
     rvy = dvy - spin * nx
     v_n = rvx * nx + rvy * ny
     v_t = -rvx * ny + rvy * nx
+    overlap = rsum - d
+    if hertz:  # a compile-time constant (``HERTZ``): no test in the loop
+        kn, ks, overlap = hertz_mindlin(kn, ks, r_eff, overlap)
     cn = 2.0 * zeta * math.sqrt(kn * m_eff)
-    fn, fs = linear_law(rsum - d, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt)
+    fn, fs = linear_law(overlap, v_n, v_t, fs_old, kn, ks, cn, mu, allow_tension, dt)
     return fn, fs, fn * nx - fs * ny, fn * ny + fs * nx
 
 
@@ -126,7 +152,7 @@ def pair_offset(i, j, x, y, radius):
 
 @numba.njit(inline="always", cache=True)
 def add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius, inv_mass,
-             fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension, dt, sx, sy, ss, branch):
+             fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension, hertz, dt, sx, sy, ss, branch):
     """Candidate ``k`` of grain ``i``: contact law, history, and its force added to grain j's
     sums and to grain i's running sums ``sx, sy, ss`` (returned).  A candidate that does not
     touch gets F_n = F_s = 0 (a contact that opens forgets its shear force) and adds nothing.
@@ -145,7 +171,8 @@ def add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius, inv_ma
     fn, fs, fkx, fky = pair_contact(
         d2, dx, dy, rsum, vx[j] - vx[i], vy[j] - vy[i],
         omega[j] * radius[j] + omega[i] * radius[i], 1.0 / (inv_mass[i] + inv_mass[j]),
-        pair_fs[k], kn, ks, mu, zeta, allow_tension, dt)
+        radius[i] * radius[j] / rsum if hertz else 1.0, pair_fs[k], kn, ks, mu, zeta,
+        allow_tension, hertz, dt)
     if not branch:  # selects, not branches
         fn = fn if touch else 0.0
         fs = fs if touch else 0.0
@@ -162,7 +189,7 @@ def add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius, inv_ma
 @numba.njit(inline="always", cache=True)
 def strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn,
                 x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
-                kn, ks, mu, zeta, allow_tension, dt):
+                kn, ks, mu, zeta, allow_tension, hertz, dt):
     """The candidates of the grains of strip ``s``, grain by grain in list order: contact law,
     and each force added to the sums of both grains (grain i's own pairs summed in
     registers).  Updates the shear history ``pair_fs[k]`` and writes the normal force
@@ -186,14 +213,17 @@ def strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn,
         for k in range(i_start[i_], i_apart[i_]):
             sx, sy, ss = add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius,
                                   inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension,
-                                  dt, sx, sy, ss, False)
+                                  hertz, dt, sx, sy, ss, False)
         for k in range(i_apart[i_], i_start[i_ + 1]):
             sx, sy, ss = add_pair(i, k, pair_j, pair_fs, pair_fn, x, y, vx, vy, omega, radius,
                                   inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta, allow_tension,
-                                  dt, sx, sy, ss, True)
+                                  hertz, dt, sx, sy, ss, True)
         fx[i] = sx
         fy[i] = sy
         fs_sum[i] = ss
+
+
+HERTZ = False  # compile-time constant of the kernels: True in their Hertz-Mindlin copies
 
 
 @kernel
@@ -229,12 +259,12 @@ def pair_forces(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
                 fs_sum[g] = 0.0
             strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn, x, y,
                         vx, vy, omega, radius, inv_mass, fx, fy, fs_sum, kn, ks, mu, zeta,
-                        allow_tension, dt)
+                        allow_tension, HERTZ, dt)
     for b in prange(blocks.shape[0] - 1):
         for s in range(blocks[b] + 1 - (blocks[b] & 1), blocks[b + 1], 2):  # odd strips
             strip_pairs(s, strip_start, i_start, i_apart, pair_j, pair_fs, pair_fn,
                         x, y, vx, vy, omega, radius, inv_mass, fx, fy, fs_sum,
-                        kn, ks, mu, zeta, allow_tension, dt)
+                        kn, ks, mu, zeta, allow_tension, HERTZ, dt)
 
 
 @numba.njit(inline="always", cache=True)
@@ -253,7 +283,7 @@ def closest_point(px, py, ax, ay, bx, by):
 @numba.njit(inline="always", cache=True)
 def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_kn, w_ks, w_mu,
                  active, cap_a, cap_b, gax, gay, gbx, gby, one_sided, fs_old, fn_old, zeta,
-                 allow_tension, dt):
+                 allow_tension, hertz, dt):
     """One grain-wall candidate from scalars: the grain at (px, py) [m] with velocity
     (pvx, pvy) [m/s], spin ``pomega`` [rad/s], radius ``r`` [m] and mass ``m`` [kg]; the wall
     from (ax, ay) to (bx, by) [m] with its velocity, stiffnesses, friction and flags (one
@@ -297,6 +327,14 @@ def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_k
     rvy = pvy - pomega * r * nx - w_vy
     v_n = rvx * nx + rvy * ny
     v_t = -rvx * ny + rvy * nx
+    overlap = r - d
+    if hertz:  # a compile-time constant (``HERTZ``); a flat wall: R* = r
+        w_kn, w_ks, overlap = hertz_mindlin(w_kn, w_ks, r, overlap)
     cn = 2.0 * zeta * math.sqrt(w_kn * m)
-    fn, fs = linear_law(r - d, v_n, v_t, fs_old, w_kn, w_ks, cn, w_mu, allow_tension, dt)
+    fn, fs = linear_law(overlap, v_n, v_t, fs_old, w_kn, w_ks, cn, w_mu, allow_tension, dt)
     return fn, fs, fn * nx - fs * ny, fn * ny + fs * nx
+
+
+# the same loop for the Hertz-Mindlin law (hertz_mindlin): HERTZ bound to True (last in the
+# module: the copy sees the module's names as they are when it is made)
+pair_forces_hertz = pair_forces.variant("_hertz", HERTZ=True)

@@ -31,6 +31,8 @@ import numpy as np
 from silodem.engine.contact import wall_contact
 from silodem.jit import kernel, njit, prange
 
+HERTZ = False  # compile-time constant of the kernel: True in its Hertz-Mindlin copy
+
 
 @kernel
 def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
@@ -85,7 +87,7 @@ def walls_and_leapfrog(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, 
                         x[p], y[p], vx[p], vy[p], omega[p], r, m, ax[w], ay[w], bx[w], by[w],
                         w_vx[w], w_vy[w], w_kn[w], w_ks[w], w_mu[w], w_active[w], w_cap_a[w],
                         w_cap_b[w], w_guard[w, 0], w_guard[w, 1], w_guard[w, 2], w_guard[w, 3],
-                        w_one_sided[w], wc_fs[k], wc_fn[k], zeta, allow_tension, dt)
+                        w_one_sided[w], wc_fs[k], wc_fn[k], zeta, allow_tension, HERTZ, dt)
                     wc_fs[k] = fs
                     wc_fn[k] = fn
                     wc_fx[k] = fwx
@@ -151,3 +153,8 @@ def _reduce(runs, n):
         loy = min(loy, runs[c, 3])
         hiy = max(hiy, runs[c, 4])
     return m2, lox, hix, loy, hiy
+
+
+# the same loop for the Hertz-Mindlin law (engine/hertz.py): HERTZ bound to True (last in the
+# module: the copy sees the module's names as they are when it is made, ``_reduce`` included)
+walls_and_leapfrog_hertz = walls_and_leapfrog.variant("_hertz", HERTZ=True)

@@ -21,8 +21,8 @@ import math
 import numba
 import numpy as np
 
-from silodem.engine.contact import GrainLaw, pair_forces
-from silodem.engine.integrate import walls_and_leapfrog
+from silodem.engine.contact import GrainLaw, pair_forces, pair_forces_hertz
+from silodem.engine.integrate import walls_and_leapfrog, walls_and_leapfrog_hertz
 from silodem.engine.list_validity import global_bound, list_expired, must_rebuild
 from silodem.engine.neighbors import NeighborList
 from silodem.engine.particles import Particles
@@ -105,7 +105,7 @@ class Simulation:
                 self._rebuild_list()
             threads = numba.get_num_threads()  # asked once: it takes a lock
             threaded = pair_forces.pick(p.n, threads) is pair_forces.parallel
-            done, time, max_d2, *self._spread = (threaded_steps if threaded else serial_steps)(
+            done, time, max_d2, *self._spread = STEPS[threaded, law.hertz](
                 1 if walls_move else left, nb.strip_start, nb.blocks(threads if threaded else 1),
                 nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs, nb.pair_fn,
                 nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx, nb.wc_fy,
@@ -172,8 +172,9 @@ def _steps(max_steps, strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pa
     (from ``drift`` and the box ``lox, hix, loy, hiy`` of the displacements [m], those of the
     step before this call at first) reached half the skin: before, the global test cannot
     fail unless a grain jumps by that much in one step, and then the list is rebuilt.
-    Compiled twice (``jit.specialised``): ``serial_steps`` calls the serial kernels,
-    ``threaded_steps`` the parallel ones (one thread per run of strips in ``blocks``).
+    Compiled four times (``jit.specialised``, ``STEPS``): ``serial_steps`` calls the serial
+    kernels, ``threaded_steps`` the parallel ones (one thread per run of strips in
+    ``blocks``), and ``*_hertz`` their Hertz-Mindlin copies.
     Returns the steps done, the clock [s] after them, the largest squared displacement since
     the build [m^2] (not finite: the last step attempted was unstable and is not counted) and
     the bounding box of the displacements [m]."""
@@ -207,3 +208,11 @@ serial_steps = specialised(_steps, "_serial", _pair_forces=pair_forces.serial,
                            _walls_and_leapfrog=walls_and_leapfrog.serial)
 threaded_steps = specialised(_steps, "_threaded", _pair_forces=pair_forces.parallel,
                              _walls_and_leapfrog=walls_and_leapfrog.parallel)
+serial_steps_hertz = specialised(_steps, "_serial_hertz", _pair_forces=pair_forces_hertz.serial,
+                                 _walls_and_leapfrog=walls_and_leapfrog_hertz.serial)
+threaded_steps_hertz = specialised(_steps, "_threaded_hertz",
+                                   _pair_forces=pair_forces_hertz.parallel,
+                                   _walls_and_leapfrog=walls_and_leapfrog_hertz.parallel)
+# the loop for (threaded, Hertz-Mindlin law); each is compiled on its first call only
+STEPS = {(False, False): serial_steps, (True, False): threaded_steps,
+         (False, True): serial_steps_hertz, (True, True): threaded_steps_hertz}
