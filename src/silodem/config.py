@@ -29,8 +29,24 @@ class Material(_Strict):
     radius_min: float = Field(gt=0, description="smallest grain radius [m]")
     radius_max: float = Field(gt=0, description="largest grain radius [m]; radii uniform in [min, max]")
     thickness: float = Field(1.0, gt=0, description="out-of-plane thickness t of a disk [m]")
-    kn: float = Field(gt=0, description="grain normal stiffness [N/m] (contact = springs in series)")
-    ks: float = Field(gt=0, description="grain shear stiffness [N/m] (contact = springs in series)")
+    contact_model: Literal["linear", "hertz_mindlin"] = Field(
+        "linear", description="'linear': the paper's springs kn, ks; 'hertz_mindlin': Hertz's "
+        "normal and Mindlin's no-slip shear stiffness from young_modulus and poisson_ratio"
+    )
+    kn: float | None = Field(
+        None, gt=0, description="grain normal stiffness [N/m] (contact = springs in series; "
+        "linear law)"
+    )
+    ks: float | None = Field(
+        None, gt=0, description="grain shear stiffness [N/m] (contact = springs in series; "
+        "linear law)"
+    )
+    young_modulus: float | None = Field(
+        None, gt=0, description="grain Young's modulus E [Pa] (Hertz-Mindlin law)"
+    )
+    poisson_ratio: float | None = Field(
+        None, ge=0, le=0.5, description="grain Poisson's ratio nu [-] (Hertz-Mindlin law)"
+    )
     friction_deg: float = Field(ge=0, lt=90, description="grain-grain friction angle phi_G [deg]")
     restitution: float | None = Field(
         0.5, gt=0, le=1, description="normal restitution coefficient e of a contact [-]"
@@ -52,25 +68,57 @@ class Material(_Strict):
                 f"material.radius_max ({self.radius_max}) must be >= material.radius_min "
                 f"({self.radius_min})"
             )
+        law_keys(self, "material", self.contact_model)
         return self
 
     @property
     def normal_damping_ratio(self) -> float:
-        """zeta from ``damping_ratio`` if set, else from ``restitution`` (see physics docs)."""
+        """zeta from ``damping_ratio`` if set, else from ``restitution`` (see physics docs):
+        -ln e / sqrt(pi^2 + ln^2 e) for the linear law, sqrt(5/6) times that for the
+        Hertz-Mindlin law (``engine.hertz``)."""
+        from silodem.engine import contact, hertz
+
         if self.damping_ratio is not None:
             return self.damping_ratio
         e = 1.0 if self.restitution is None else self.restitution
-        if e >= 1.0:
-            return 0.0
-        le = math.log(e)
-        return -le / math.sqrt(math.pi**2 + le**2)
+        law = hertz if self.contact_model == "hertz_mindlin" else contact
+        return law.damping_ratio_from_restitution(e)
+
+
+LAW_KEYS = {"linear": ("kn", "ks"), "hertz_mindlin": ("young_modulus", "poisson_ratio")}
+
+
+def law_keys(section: BaseModel, name: str, model: str) -> None:
+    """Raise ValueError unless ``section`` (``material`` or ``walls``) gives exactly the keys
+    of contact model ``model`` (``LAW_KEYS``): none missing, none of the other law's."""
+    for key in LAW_KEYS[model]:
+        if getattr(section, key) is None:
+            raise ValueError(f"{name}.{key} is required by material.contact_model = '{model}'")
+    for other, keys in LAW_KEYS.items():
+        for key in keys:
+            if other != model and getattr(section, key) is not None:
+                raise ValueError(
+                    f"{name}.{key} belongs to the '{other}' law, but material.contact_model is "
+                    f"'{model}' (which takes {name}.{' and '.join(LAW_KEYS[model])}); remove it")
 
 
 class WallMaterial(_Strict):
     """Wall properties (Tables 1-2, column "Grain-Wall")."""
 
-    kn: float = Field(gt=0, description="wall normal stiffness [N/m] (contact = springs in series)")
-    ks: float = Field(gt=0, description="wall shear stiffness [N/m] (contact = springs in series)")
+    kn: float | None = Field(
+        None, gt=0, description="wall normal stiffness [N/m] (contact = springs in series; "
+        "linear law)"
+    )
+    ks: float | None = Field(
+        None, gt=0, description="wall shear stiffness [N/m] (contact = springs in series; "
+        "linear law)"
+    )
+    young_modulus: float | None = Field(
+        None, gt=0, description="wall Young's modulus E [Pa] (Hertz-Mindlin law)"
+    )
+    poisson_ratio: float | None = Field(
+        None, ge=0, le=0.5, description="wall Poisson's ratio nu [-] (Hertz-Mindlin law)"
+    )
     friction_deg: float = Field(ge=0, lt=90, description="grain-wall friction angle phi_P [deg]")
 
 
@@ -305,6 +353,7 @@ class Config(_Strict):
 
     @model_validator(mode="after")
     def _check(self) -> Config:
+        law_keys(self.walls, "walls", self.material.contact_model)
         if self.silo.outlet_width <= 2.0 * self.material.radius_max:
             raise ValueError(
                 f"silo.outlet_width ({self.silo.outlet_width}) must exceed the largest grain "

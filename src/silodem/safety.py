@@ -61,6 +61,14 @@ _STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
 # --- before the run ------------------------------------------------------------------------
 
 
+def law_key_names(cfg: Config) -> str:
+    """The keys of ``cfg``'s contact law, for messages: "material.kn, material.ks, ..." """
+    from silodem.config import LAW_KEYS
+
+    names = LAW_KEYS[cfg.material.contact_model]
+    return ", ".join(f"{section}.{key}" for section in ("material", "walls") for key in names)
+
+
 def check_numbers(cfg: Config) -> tuple[float, float]:
     """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
     run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, or a
@@ -68,8 +76,11 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
     from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
     from silodem.silo.geometry import build_walls
 
-    keys = ("material.kn, material.ks, walls.kn, walls.ks, material.density, "
-            "material.radius_min, material.thickness and time.dt")
+    law_keys = law_key_names(cfg)
+    keys = f"{law_keys}, material.density, material.radius_min, material.thickness and time.dt"
+    hertz = cfg.material.contact_model == "hertz_mindlin"
+    what, unit = (("contact moduli 2 E*, 8 G*", "Pa") if hertz
+                  else ("contact stiffnesses", "N/m"))
     try:
         with np.errstate(all="ignore"):
             law = grain_law(cfg)
@@ -77,10 +88,9 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             stiffness = [law.kn, law.ks, *walls.kn.tolist(), *walls.ks.tolist()]
             if not all(STIFFNESS_RANGE[0] <= k <= STIFFNESS_RANGE[1] for k in stiffness):
                 raise InputError(
-                    "the contact stiffnesses (material.kn, material.ks, walls.kn, walls.ks "
-                    f"combined in series) come out as {min(stiffness):.3g} to "
-                    f"{max(stiffness):.3g} N/m; they must lie in {STIFFNESS_RANGE[0]:.0e} to "
-                    f"{STIFFNESS_RANGE[1]:.0e} N/m")
+                    f"the {what} ({law_keys} combined) come out as {min(stiffness):.3g} to "
+                    f"{max(stiffness):.3g} {unit}; they must lie in {STIFFNESS_RANGE[0]:.0e} to "
+                    f"{STIFFNESS_RANGE[1]:.0e} {unit}")
             dt, dt_crit = choose_time_step(cfg, law, walls.kn, walls.ks)
             estimate_overlap(cfg)
     except InputError:
@@ -445,8 +455,8 @@ class RunGuard:
             "notes": notes,
             "hints": [
                 f"reduce time.safety (now {cfg.time.safety:g}) or set a smaller time.dt",
-                ("check the stiffnesses (material.kn, material.ks, walls.kn, walls.ks) and the "
-                 "grain sizes and density against each other"),
+                (f"check the contact law's values ({law_key_names(cfg)}) and the grain sizes "
+                 "and density against each other"),
                 "look at the grain named here in failure.h5 (same layout as checkpoint.h5)",
             ],
         }

@@ -7,7 +7,11 @@
       sigma_v = rho_b g B / (2 K mu_w) * (1 - exp(-2 K mu_w h / B)),
   with K = 0.4 (the paper's value during filling) and rho_b = 0.82 rho (a random packing of
   disks covers about 82 % of the plane).  A grain of diameter 2r and thickness t carries about
-  F = sigma_v 2r t, and its contacts overlap about F / k_n,contact.
+  F = sigma_v 2r t, and its contacts overlap about F / k_n,contact (linear law), or
+  (3 F / (4 E* sqrt(R*)))^(2/3) (Hertz-Mindlin law).
+* Hertz-Mindlin time step: dt_crit of the tangent stiffnesses at the larger of that overlap
+  and the overlap of an impact after a fall from the top of the walls
+  (``materials.linearised``).
 """
 
 from __future__ import annotations
@@ -16,9 +20,11 @@ import math
 from dataclasses import dataclass
 
 from silodem.config import Config
-from silodem.engine.contact import GrainLaw, critical_time_step, series
+from silodem.engine import hertz
+from silodem.engine.contact import GrainLaw, critical_time_step
 from silodem.errors import InputError
 from silodem.silo.geometry import silo_shape
+from silodem.silo.materials import contact_constants, linearised
 
 PACKING_FRACTION = 0.82  # area fraction of a random packing of disks [-]
 JANSSEN_K = 0.4  # lateral pressure ratio during filling (the paper, section 4.2) [-]
@@ -28,20 +34,26 @@ TARGET_OVERLAP = 0.01  # the stiffness recommended keeps the overlap under 1 % o
 
 def grain_law(cfg: Config) -> GrainLaw:
     m = cfg.material
+    c = contact_constants(cfg)
     return GrainLaw(
-        kn=series(m.kn, m.kn),
-        ks=series(m.ks, m.ks),
+        kn=c.grain_kn,
+        ks=c.grain_ks,
         mu=math.tan(math.radians(m.friction_deg)),
         zeta=m.normal_damping_ratio,
         allow_tension=m.allow_tension,
         local_damping=m.local_damping,
+        hertz=c.hertz,
     )
 
 
 def choose_time_step(cfg: Config, law: GrainLaw, wall_kn, wall_ks) -> tuple[float, float]:
-    """(dt, dt_crit) [s]; raises InputError if the user's dt exceeds dt_crit."""
+    """(dt, dt_crit) [s]; raises InputError if the user's dt exceeds dt_crit.  A Hertz-Mindlin
+    law is judged by its stiffest expected contacts (``materials.linearised``)."""
     m = cfg.material
     m_min = m.density * math.pi * m.radius_min**2 * m.thickness
+    if law.hertz:
+        force = estimate_overlap(cfg).contact_force
+        law, wall_kn, wall_ks = linearised(cfg, law, wall_kn, wall_ks, force)
     dt_crit = critical_time_step(m_min, law, wall_kn, wall_ks)
     if cfg.time.dt is None:
         return cfg.time.safety * dt_crit, dt_crit
@@ -60,19 +72,25 @@ class OverlapEstimate:
     contact_force: float  # typical contact force there [N]
     overlap: float  # expected overlap [m]
     overlap_fraction: float  # overlap / mean radius [-]
-    recommended_kn: float  # grain stiffness for an overlap of 1 % of the radius [N/m]
+    # for an overlap of 1 % of the radius: grain stiffness [N/m] (linear law) or Young's
+    # modulus [Pa] (Hertz-Mindlin law)
+    recommended_kn: float
+    hertz: bool = False
 
     @property
     def too_soft(self) -> bool:
         return self.overlap_fraction > WARN_OVERLAP
 
     def warning(self) -> str:
+        advice = (f"a grain Young's modulus material.young_modulus >= "
+                  f"{self.recommended_kn:.2g} Pa (and a wall modulus as large)" if self.hertz
+                  else f"a grain stiffness material.kn >= {self.recommended_kn:.2g} N/m (and a "
+                  "wall stiffness as large)")
         return (
             f"soft contacts: under the expected {self.fill_height:.2f} m of grains the vertical "
             f"stress reaches ~{self.sigma_v:.3g} Pa, contact forces ~{self.contact_force:.3g} N and "
             f"overlaps ~{self.overlap:.3g} m = {100 * self.overlap_fraction:.0f}% of the mean "
-            f"radius; a grain stiffness material.kn >= {self.recommended_kn:.2g} N/m (and a wall "
-            f"stiffness as large) keeps them under {100 * TARGET_OVERLAP:.0f}%"
+            f"radius; {advice} keeps them under {100 * TARGET_OVERLAP:.0f}%"
         )
 
 
@@ -93,8 +111,17 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
     else:
         sigma_v = rho_b * cfg.gravity * depth
     force = sigma_v * 2.0 * r_mean * m.thickness
-    k_contact = min(series(m.kn, m.kn), series(m.kn, cfg.walls.kn))
-    overlap = force / k_contact
-    # grain stiffness k with contact stiffness k/2 >= F / (0.01 r)
-    recommended = 2.0 * force / (TARGET_OVERLAP * r_mean)
-    return OverlapEstimate(fill_height, sigma_v, force, overlap, overlap / r_mean, recommended)
+    c = contact_constants(cfg)
+    if c.hertz:
+        overlap = max(hertz.overlap_under_force(force, c.grain_kn, 0.5 * r_mean),
+                      hertz.overlap_under_force(force, c.wall_kn, r_mean))
+        # E* = E / (2 (1 - nu^2)) between equal grains, 2 E* = kn: F = 2/3 kn sqrt(r/2)
+        # (0.01 r)^(3/2)
+        kn = 1.5 * force / (math.sqrt(0.5 * r_mean) * (TARGET_OVERLAP * r_mean) ** 1.5)
+        recommended = kn * (1.0 - m.poisson_ratio**2)
+    else:
+        overlap = force / min(c.grain_kn, c.wall_kn)
+        # grain stiffness k with contact stiffness k/2 >= F / (0.01 r)
+        recommended = 2.0 * force / (TARGET_OVERLAP * r_mean)
+    return OverlapEstimate(fill_height, sigma_v, force, overlap, overlap / r_mean, recommended,
+                           c.hertz)

@@ -18,8 +18,8 @@ import math
 from dataclasses import dataclass
 
 from silodem.config import Config
-from silodem.engine.contact import series
 from silodem.engine.walls import Walls
+from silodem.silo.materials import contact_constants
 
 GATE = "gate"
 
@@ -72,12 +72,12 @@ def silo_shape(cfg: Config) -> SiloShape:
 
 
 def build_walls(cfg: Config) -> Walls:
-    """The silo's wall segments with their contact parameters (series with the grains')."""
+    """The silo's wall segments with their contact parameters (with the grains', combined by
+    ``materials.contact_constants``)."""
     shape = silo_shape(cfg)
-    m, wm = cfg.material, cfg.walls
-    kn = series(m.kn, wm.kn)
-    ks = series(m.ks, wm.ks)
-    mu = math.tan(math.radians(wm.friction_deg))
+    c = contact_constants(cfg)
+    kn, ks = c.wall_kn, c.wall_ks
+    mu = math.tan(math.radians(cfg.walls.friction_deg))
     walls = Walls()
     B, top, zj = shape.width, shape.wall_top, shape.junction
     xl, xr = shape.outlet_left, shape.outlet_right

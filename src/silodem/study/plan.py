@@ -109,10 +109,21 @@ def label_of(point: dict[str, Any], seed: int | None = None) -> str:
     return text + (f", seed {seed}" if seed is not None else "")
 
 
+# keys added to the schema after studies were first planned, left out of the hash while they
+# hold these values (the behaviour from before they existed): a study planned earlier keeps
+# its run ids, so that its finished runs are not run again
+LATER_KEYS = {("material", "contact_model"): "linear", ("material", "young_modulus"): None,
+              ("material", "poisson_ratio"): None, ("walls", "young_modulus"): None,
+              ("walls", "poisson_ratio"): None}
+
+
 def config_hash(cfg: Config) -> str:
     """First ``HASH_DIGITS`` hex digits of the SHA-256 of the canonical JSON of ``cfg``
-    without ``name`` and ``description``."""
+    without ``name`` and ``description``, nor the ``LATER_KEYS`` at their old values."""
     data = cfg.model_dump(mode="json", exclude={"name", "description"})
+    for (section, key), old in LATER_KEYS.items():
+        if data[section][key] == old:
+            del data[section][key]
     text = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:HASH_DIGITS]
 

@@ -1,0 +1,297 @@
+"""The Hertz-Mindlin contact law against Hertz's and Mindlin's analytic solutions, and a
+dimensionless impact integrated here by scipy (engine/hertz.py, docs/physics.md)."""
+
+from __future__ import annotations
+
+import functools
+import math
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from physics_helpers import MASS, RHO, R, pair_impact, run_until_separated
+from pydantic import ValidationError
+from scipy.integrate import solve_ivp
+from scipy.special import beta
+
+from silodem.cli import main
+from silodem.config import Config
+from silodem.engine import hertz
+from silodem.engine.contact import GrainLaw
+from silodem.engine.particles import Particles
+from silodem.engine.simulation import Simulation
+from silodem.engine.walls import Walls
+from silodem.errors import InputError
+from silodem.safety import check_numbers
+from silodem.scenario_files import config_to_toml, load_config, quick_variant
+from silodem.silo.checks import estimate_overlap
+from silodem.silo.materials import design_overlaps
+from silodem.silo.procedure import SiloRun
+
+E, NU = 1e8, 0.3  # grain Young's modulus [Pa] and Poisson's ratio [-]
+E_WALL, NU_WALL = 2e11, 0.25
+
+
+def textbook_moduli(e_a, nu_a, e_b, nu_b):
+    """E* and G* of two bodies (Johnson, Contact Mechanics, 1985, eqs. 4.22 and 7.36), written
+    here from the book, not taken from silodem."""
+    e_star = 1.0 / ((1 - nu_a**2) / e_a + (1 - nu_b**2) / e_b)
+    g_star = 1.0 / ((2 - nu_a) * (1 + nu_a) * 2 / e_a + (2 - nu_b) * (1 + nu_b) * 2 / e_b)
+    return e_star, g_star
+
+
+def hertz_law(zeta=0.0, tension=False, mu=0.5):
+    e_star, g_star = textbook_moduli(E, NU, E, NU)
+    return GrainLaw(kn=2 * e_star, ks=8 * g_star, mu=mu, zeta=zeta, allow_tension=tension,
+                    hertz=True)
+
+
+def hertz_floor(mu=0.5):
+    e_star, g_star = textbook_moduli(E, NU, E_WALL, NU_WALL)
+    w = Walls()
+    w.add("floor", (-10.0, 0.0), (10.0, 0.0), 2 * e_star, 8 * g_star, mu, one_sided=True)
+    return w, e_star, g_star
+
+
+def impact_reference(v_rel, m_eff, e_star, r_eff):
+    """Hertz's undamped impact at relative speed v_rel (Johnson, section 11.4): the largest
+    overlap from 1/2 m v^2 = 8/15 E* sqrt(R*) delta^(5/2), and the duration
+    t_c = 2 delta_max / v int_0^1 (1 - x^(5/2))^(-1/2) dx = 2 delta_max / v * 2/5 B(2/5, 1/2)."""
+    d_max = (15 * m_eff * v_rel**2 / (16 * e_star * math.sqrt(r_eff))) ** 0.4
+    return d_max, 2 * d_max / v_rel * 0.4 * beta(0.4, 0.5)
+
+
+def dimensionless_rebound(zeta, tension):
+    """Restitution of xi'' = -xi^(3/2) - 2 sqrt(3/2) zeta xi^(1/4) xi', xi(0) = 0, xi'(0) = 1
+    (the Hertz impact in units of its own size and time), by scipy: the contact ends when xi
+    returns to 0, or without tension when the force first vanishes."""
+    c = 2 * math.sqrt(1.5) * zeta
+
+    def force(s):
+        xi = max(s[0], 0.0)
+        return xi**1.5 + c * xi**0.25 * s[1]
+
+    def rhs(_t, s):
+        return [s[1], -force(s)]
+
+    def ended(_t, s):
+        return s[0] if tension else force(s)
+
+    ended.terminal, ended.direction = True, -1
+    sol = solve_ivp(rhs, (0, 50), [1e-12, 1.0], events=ended, rtol=1e-11, atol=1e-14,
+                    method="DOP853", first_step=1e-7)
+    return -sol.y_events[0][0][1]
+
+
+@pytest.mark.parametrize("e", [0.001, 0.1, 0.5, 0.9, 0.99])
+def test_damping_ratio_gives_the_integrated_restitution(e):
+    """zeta_H(e) = sqrt(5/6) (-ln e)/sqrt(pi^2 + ln^2 e) against the impact integrated here."""
+    zeta = hertz.damping_ratio_from_restitution(e)
+    assert dimensionless_rebound(zeta, tension=True) == pytest.approx(e, rel=1e-7, abs=1e-9)
+
+
+def test_elastic_pair_impact_matches_hertz():
+    """Two equal disks (R* = R/2, m* = m/2) meeting head-on: the largest overlap, the contact
+    duration and the rebound speed of Hertz's solution."""
+    v = 1.0  # each grain; relative speed 2v
+    e_star, _ = textbook_moduli(E, NU, E, NU)
+    d_max, t_c = impact_reference(2 * v, MASS / 2, e_star, R / 2)
+    sim = pair_impact(hertz_law(), v=v, dt=t_c / 2000)
+    p = sim.particles
+    deepest = [0.0]
+
+    def touching():
+        deepest[0] = max(deepest[0], 2 * R - abs(p.x[1] - p.x[0]))
+        return sim.neighbors.pair_fn[0] != 0.0
+
+    t0, t1 = run_until_separated(sim, touching)
+    assert deepest[0] == pytest.approx(d_max, rel=1e-5)
+    assert t1 - t0 == pytest.approx(t_c, rel=1e-3)  # measured to one step, t_c / 2000
+    assert (p.vx[1] - p.vx[0]) / (2 * v) == pytest.approx(1.0, abs=1e-5)
+
+
+@pytest.mark.parametrize("v", [0.02, 0.2, 2.0])
+@pytest.mark.parametrize("tension", [True, False])
+def test_restitution_is_the_same_at_every_speed(v, tension):
+    """Tsuji's dashpot (delta^(1/4)) gives one restitution at every speed: the requested e with
+    tension allowed, and without tension the e* of the integrated impact whose force must
+    stay >= 0, over two decades of impact speed."""
+    e = 0.5
+    zeta = hertz.damping_ratio_from_restitution(e)
+    expected = e if tension else dimensionless_rebound(zeta, tension=False)
+    e_star, _ = textbook_moduli(E, NU, E, NU)
+    _, t_c = impact_reference(2 * v, MASS / 2, e_star, R / 2)
+    sim = pair_impact(hertz_law(zeta=zeta, tension=tension), v=v, dt=t_c / 2000)
+    run_until_separated(sim, lambda: sim.neighbors.pair_fn[0] != 0.0)
+    p = sim.particles
+    assert (p.vx[1] - p.vx[0]) / (2 * v) == pytest.approx(expected, rel=2e-3)
+    if not tension:
+        assert expected > e + 0.02  # the no-tension contact loses less, as for the linear law
+
+
+def _resting_grain(mu=0.5):
+    walls, e_star, g_star = hertz_floor(mu)
+    p = Particles()
+    p.add(np.array([0.0]), np.array([R]), R, RHO)
+    law = hertz_law(zeta=hertz.damping_ratio_from_restitution(0.3), mu=mu)
+    sim = Simulation(p, walls, law, dt=2e-5, gravity=9.81, skin=0.02)
+    sim.run(50_000)  # 1 s: the dashpot's decay time is about 5 ms
+    return sim, e_star, g_star
+
+
+def test_grain_at_rest_on_a_floor_has_hertz_overlap():
+    """m g = 4/3 E* sqrt(R) delta^(3/2) (grain on a flat wall, R* = R): the static overlap, and
+    the wall force equal to the weight."""
+    sim, e_star, _ = _resting_grain()
+    delta = (3 * MASS * 9.81 / (4 * e_star * math.sqrt(R))) ** (2 / 3)
+    assert R - sim.particles.y[0] == pytest.approx(delta, rel=1e-9)
+    assert sim.neighbors.wc_fn[0] == pytest.approx(MASS * 9.81, rel=1e-9)
+
+
+def test_mindlin_shear_stiffness_sets_the_rocking_frequency():
+    """A grain at rest on the floor, nudged sideways, rocks on its contact without slipping:
+    the contact point's displacement u obeys u'' = -(1/m + R^2/I) S_s u = -3 S_s u / m, with
+    Mindlin's S_s = 8 G* sqrt(R delta) at the static overlap.  The period is read from the
+    zero crossings of the shear force over ten cycles."""
+    sim, _, g_star = _resting_grain(mu=0.9)
+    delta = R - sim.particles.y[0]
+    omega_t = math.sqrt(3 * 8 * g_star * math.sqrt(R * delta) / MASS)
+    sim.particles.vx[0] = 1e-4  # contact displacement ~ 3e-7 m: far below Coulomb's limit
+    times, forces = [], []
+    for _ in range(int(10 * 2 * math.pi / omega_t / sim.dt) + 10):
+        sim.step()
+        times.append(sim.time)
+        forces.append(sim.neighbors.wc_fs[0])
+    f, t = np.array(forces), np.array(times)
+    k = np.flatnonzero(np.sign(f[:-1]) != np.sign(f[1:]))
+    crossings = t[k] + (t[k + 1] - t[k]) * f[k] / (f[k] - f[k + 1])
+    period = 2 * np.mean(np.diff(crossings))
+    assert period == pytest.approx(2 * math.pi / omega_t, rel=1e-3)
+    assert np.abs(f).max() < 1e-2 * 0.9 * sim.neighbors.wc_fn[0]  # far from Coulomb's limit
+
+
+def test_mindlin_over_hertz_stiffness_ratio_is_2_1_nu_over_2_nu():
+    """For a grain on a rigid wall S_s / S_n = 4 G*/E* = 2 (1 - nu)/(2 - nu) (Mindlin 1949; the
+    wall here is 2000 times stiffer than the grain, so the ratio holds to 1e-3)."""
+    _, e_star, g_star = hertz_floor()
+    assert 4 * g_star / e_star == pytest.approx(2 * (1 - NU) / (2 - NU), rel=1e-3)
+    kn, ks = hertz.kernel_constants(E, NU, E_WALL, NU_WALL)
+    assert (kn, ks) == pytest.approx((2 * e_star, 8 * g_star), rel=1e-14)
+
+
+# --- configuration and a whole run ----------------------------------------------------------
+
+
+def hertz_config(**material) -> Config:
+    """The quick hopper of paper case 2 (120 grains) with the Hertz-Mindlin law."""
+    data = quick_variant(load_config("paper-case2")).model_dump()
+    for section in ("material", "walls"):
+        data[section].update(kn=None, ks=None, young_modulus=1e9, poisson_ratio=0.3)
+    data["material"].update(contact_model="hertz_mindlin", **material)
+    data["walls"]["young_modulus"] = 2e11
+    data["fill"]["n_particles"] = 120
+    data["discharge"]["max_time"] = 4.0
+    return Config.model_validate(data)
+
+
+@pytest.fixture(scope="module")
+def hertz_run():
+    run = SiloRun(hertz_config())
+    run.run()
+    return run
+
+
+def test_the_walls_carry_the_settled_hertz_fill(hertz_run):
+    """At the end of settling the wall forces add up to the weight of the grains (force
+    balance; the settling criterion leaves an unbalanced force of 1e-3 of the mean contact
+    force), and the run then discharges."""
+    snap = hertz_run.snapshots["settled"]
+    m = hertz_run.cfg.material
+    r = snap.particles["radius"]
+    weight = np.sum(m.density * np.pi * r**2 * m.thickness) * hertz_run.cfg.gravity
+    assert np.sum(snap.wall_contacts["fy"]) == pytest.approx(weight, rel=1e-2)
+    assert hertz_run.discharged_count > 0
+
+
+def test_hertz_overlaps_stay_within_those_the_time_step_was_set_for(hertz_run):
+    """dt comes from the tangent stiffness at the design overlaps (``materials.linearised``):
+    every overlap of the settled packing must be smaller, or the stiffest contact would be
+    stiffer than dt allows for."""
+    cfg = hertz_run.cfg
+    d_grain, d_wall = design_overlaps(cfg, estimate_overlap(cfg).contact_force)
+    snap = hertz_run.snapshots["settled"]
+    p, c, wc = snap.particles, snap.contacts, snap.wall_contacts
+    e_star, _ = textbook_moduli(1e9, 0.3, 1e9, 0.3)
+    r_eff = p["radius"][c["i"]] * p["radius"][c["j"]] / (p["radius"][c["i"]] + p["radius"][c["j"]])
+    # overlaps from the contact forces by Hertz's law (static packing: F_n is elastic)
+    overlap = (3 * c["fn"] / (4 * e_star * np.sqrt(r_eff))) ** (2 / 3)
+    assert 0 < overlap.max() < d_grain
+    e_wall, _ = textbook_moduli(1e9, 0.3, 2e11, 0.3)
+    wall_overlap = (3 * wc["fn"] / (4 * e_wall * np.sqrt(p["radius"][wc["grain"]]))) ** (2 / 3)
+    assert 0 < wall_overlap.max() < d_wall
+    # and the time step is the stated fraction of the limit at those overlaps
+    m_min = cfg.material.density * math.pi * cfg.material.radius_min**2
+    r = cfg.material.radius_max
+    s_n = 2 * e_star * math.sqrt(r / 2 * d_grain)
+    assert hertz_run.dt <= cfg.time.safety * math.sqrt(m_min / 2 / s_n) * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("sets, needles", [
+    (["material.contact_model=hertz_mindlin"], ["material.young_modulus", "required"]),
+    (["material.contact_model=hertz_mindlin", "material.young_modulus=1e9",
+      "material.poisson_ratio=0.3"], ["material.kn", "remove it"]),
+    (["material.young_modulus=1e9"], ["material.young_modulus", "'linear'"]),
+    (["material.poisson_ratio=0.7"], ["material.poisson_ratio", "0.5"]),
+])
+def test_law_keys_that_do_not_fit_the_model_are_refused_in_one_line(capsys, sets, needles):
+    args = ["show", "paper-case2"]
+    for item in sets:
+        args += ["--set", item]
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    for needle in needles:
+        assert needle in err, err
+
+
+def test_walls_need_the_hertz_keys_too():
+    data = hertz_config().model_dump()
+    data["walls"]["poisson_ratio"] = None
+    with pytest.raises(ValidationError, match="walls.poisson_ratio is required"):
+        Config.model_validate(data)
+    data["walls"].update(poisson_ratio=0.3, kn=1e6)
+    with pytest.raises(ValidationError, match="walls.kn belongs to the 'linear' law"):
+        Config.model_validate(data)
+
+
+@functools.cache
+def _hertz_toml() -> str:
+    path = Path(tempfile.mkdtemp()) / "hertz.toml"
+    path.write_text(config_to_toml(hertz_config()), encoding="utf-8")
+    return str(path)
+
+
+_extremes = st.sampled_from([5e-324, 1e-300, 1e-30, 1e-6, 0.0, 0.25, 0.5, 1.0, 1e6, 1e30,
+                             1e300, 1.7e308]) | st.floats(min_value=0, max_value=1e308)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sets=st.lists(st.tuples(st.sampled_from([
+    "material.young_modulus", "material.poisson_ratio", "walls.young_modulus",
+    "walls.poisson_ratio", "material.density", "material.radius_min", "material.radius_max",
+    "material.restitution", "silo.wall_height", "fill.initial_speed", "time.safety",
+    "gravity"]), _extremes), max_size=3))
+def test_extreme_hertz_numbers_build_a_run_or_are_refused_in_one_line(sets):
+    items = [f"{key}={value!r}" for key, value in sets]
+    try:
+        cfg = load_config(_hertz_toml(), items)
+        check_numbers(cfg)
+    except InputError as exc:
+        assert "\n" not in str(exc)
+        return
+    run = SiloRun(cfg)
+    assert math.isfinite(run.dt) and run.dt > 0
