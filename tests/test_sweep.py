@@ -290,3 +290,20 @@ def test_a_failing_run_is_reported_kept_aside_and_retried(tmp_path, monkeypatch)
     assert again.computed == 1 and again.skipped == 1 and not again.failed
     assert _run_folders(study_dir) == sorted(r.id for r in plan.runs)
     assert not (study_dir / "failed" / bad.id).exists()
+
+
+def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
+    """The Hertz-Mindlin law added keys to the schema (``plan.LATER_KEYS``); a study planned
+    before keeps its run ids, so that its finished runs are found and not run again.  The
+    hashes are those the commit before the law (4e5e4d3) gave."""
+    from silodem.config import Config
+    from silodem.scenario_files import load_config
+    from silodem.study.plan import config_hash
+
+    assert config_hash(load_config("paper-case1")) == "3460381cd7"
+    assert config_hash(load_config("paper-case2")) == "e62e6c9ea6"
+    hertz = load_config("paper-case2").model_dump()
+    for section in ("material", "walls"):
+        hertz[section].update(kn=None, ks=None, young_modulus=1e9, poisson_ratio=0.3)
+    hertz["material"]["contact_model"] = "hertz_mindlin"
+    assert config_hash(Config.model_validate(hertz)) != "e62e6c9ea6"
