@@ -1,5 +1,6 @@
-"""The Hertz-Mindlin contact law against Hertz's and Mindlin's analytic solutions, and a
-dimensionless impact integrated here by scipy (engine/hertz.py, docs/physics.md)."""
+"""The Hertz-Mindlin contact law against Hertz's and Mindlin's analytic solutions, and its
+dimensionless impact integrated by scipy (``validate.hertz_mindlin.dimensionless_rebound``;
+engine/hertz.py, docs/physics.md)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from physics_helpers import MASS, RHO, R, pair_impact, run_until_separated
 from pydantic import ValidationError
-from scipy.integrate import solve_ivp
-from scipy.special import beta
 
 from silodem.cli import main
 from silodem.config import Config
@@ -30,6 +29,7 @@ from silodem.scenario_files import config_to_toml, load_config, quick_variant
 from silodem.silo.checks import estimate_overlap
 from silodem.silo.materials import design_overlaps
 from silodem.silo.procedure import SiloRun
+from silodem.validate.hertz_mindlin import dimensionless_rebound, hertz_impact
 
 E, NU = 1e8, 0.3  # grain Young's modulus [Pa] and Poisson's ratio [-]
 E_WALL, NU_WALL = 2e11, 0.25
@@ -56,36 +56,6 @@ def hertz_floor(mu=0.5):
     return w, e_star, g_star
 
 
-def impact_reference(v_rel, m_eff, e_star, r_eff):
-    """Hertz's undamped impact at relative speed v_rel (Johnson, section 11.4): the largest
-    overlap from 1/2 m v^2 = 8/15 E* sqrt(R*) delta^(5/2), and the duration
-    t_c = 2 delta_max / v int_0^1 (1 - x^(5/2))^(-1/2) dx = 2 delta_max / v * 2/5 B(2/5, 1/2)."""
-    d_max = (15 * m_eff * v_rel**2 / (16 * e_star * math.sqrt(r_eff))) ** 0.4
-    return d_max, 2 * d_max / v_rel * 0.4 * beta(0.4, 0.5)
-
-
-def dimensionless_rebound(zeta, tension):
-    """Restitution of xi'' = -xi^(3/2) - 2 sqrt(3/2) zeta xi^(1/4) xi', xi(0) = 0, xi'(0) = 1
-    (the Hertz impact in units of its own size and time), by scipy: the contact ends when xi
-    returns to 0, or without tension when the force first vanishes."""
-    c = 2 * math.sqrt(1.5) * zeta
-
-    def force(s):
-        xi = max(s[0], 0.0)
-        return xi**1.5 + c * xi**0.25 * s[1]
-
-    def rhs(_t, s):
-        return [s[1], -force(s)]
-
-    def ended(_t, s):
-        return s[0] if tension else force(s)
-
-    ended.terminal, ended.direction = True, -1
-    sol = solve_ivp(rhs, (0, 50), [1e-12, 1.0], events=ended, rtol=1e-11, atol=1e-14,
-                    method="DOP853", first_step=1e-7)
-    return -sol.y_events[0][0][1]
-
-
 @pytest.mark.parametrize("e", [0.001, 0.1, 0.5, 0.9, 0.99])
 def test_damping_ratio_gives_the_integrated_restitution(e):
     """zeta_H(e) = sqrt(5/6) (-ln e)/sqrt(pi^2 + ln^2 e) against the impact integrated here."""
@@ -98,7 +68,7 @@ def test_elastic_pair_impact_matches_hertz():
     duration and the rebound speed of Hertz's solution."""
     v = 1.0  # each grain; relative speed 2v
     e_star, _ = textbook_moduli(E, NU, E, NU)
-    d_max, t_c = impact_reference(2 * v, MASS / 2, e_star, R / 2)
+    d_max, t_c = hertz_impact(2 * v, MASS / 2, e_star, R / 2)
     sim = pair_impact(hertz_law(), v=v, dt=t_c / 2000)
     p = sim.particles
     deepest = [0.0]
@@ -123,7 +93,7 @@ def test_restitution_is_the_same_at_every_speed(v, tension):
     zeta = hertz.damping_ratio_from_restitution(e)
     expected = e if tension else dimensionless_rebound(zeta, tension=False)
     e_star, _ = textbook_moduli(E, NU, E, NU)
-    _, t_c = impact_reference(2 * v, MASS / 2, e_star, R / 2)
+    _, t_c = hertz_impact(2 * v, MASS / 2, e_star, R / 2)
     sim = pair_impact(hertz_law(zeta=zeta, tension=tension), v=v, dt=t_c / 2000)
     run_until_separated(sim, lambda: sim.neighbors.pair_fn[0] != 0.0)
     p = sim.particles

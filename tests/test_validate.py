@@ -43,7 +43,7 @@ def test_quick_validation_exits_0_and_every_record_passes(quick_run):
     for r in records:
         assert FIELDS <= set(r), r
         assert r["pass"] is True, r
-    for name in ("impacts", "chung_ooi", "statics"):
+    for name in ("impacts", "chung_ooi", "hertz_mindlin", "statics"):
         assert (out / f"{name}.png").stat().st_size > 1000
 
 

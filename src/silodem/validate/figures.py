@@ -149,6 +149,34 @@ def chung_ooi(data, path: Path) -> Path:
     return _save(fig, path)
 
 
+def hertz_mindlin(data, path: Path) -> Path:
+    """F_n against the overlap of the undamped impacts with Hertz's law; restitution against
+    impact speed."""
+    plt = _plt()
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    for (geometry, (overlap, fn, k_hertz)), col in zip(data["law"].items(), ("C0", "C3")):
+        d = np.linspace(0.0, overlap.max(), 200)
+        ax[0].plot(d * 1e6, k_hertz * d**1.5, "-", color="k", lw=0.8)
+        ax[0].plot(overlap[::20] * 1e6, fn[::20], "o", color=col, mfc="none", ms=4,
+                   label=f"DEM, {geometry}")
+    ax[0].plot([], [], "k-", lw=0.8, label="4/3 E* sqrt(R*) delta^(3/2)")
+    ax[0].set(xlabel="overlap [um]", ylabel="normal force [N]",
+              title="Hertz's force, undamped impact at 1 m/s")
+    ax[0].legend(fontsize=8)
+    for e, tension, v, got, expected in data["restitution"]:
+        col = "C0" if tension else "C3"
+        ax[1].plot(v, got, "o", color=col, mfc="none", ms=6)
+        ax[1].plot(v, expected, "_", color="k", ms=14)
+    ax[1].plot([], [], "o", color="C0", mfc="none", label="DEM, tension (e = 0.1, 0.5, 0.9)")
+    ax[1].plot([], [], "o", color="C3", mfc="none", label="DEM, no tension")
+    ax[1].plot([], [], "_", color="k", ms=14, label="e asked / e* integrated")
+    ax[1].set(xscale="log", xlabel="impact speed [m/s]", ylabel="restitution",
+              title="Tsuji's dashpot: one restitution at every speed")
+    ax[1].legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.86))
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def statics(data, path: Path) -> Path:
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(8, 5), gridspec_kw={"width_ratios": [1, 2]})

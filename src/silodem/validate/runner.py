@@ -5,13 +5,15 @@ Families (one module each; a family returns its records and the data of its figu
 * impacts    linear normal impacts against the analytic spring-dashpot solution
               (Chung & Ooi tests 1-3; Schwager & Poeschel 2007), with the order of convergence;
 * chung_ooi  Chung & Ooi (2011) tests 4-8 adapted to disks, against rigid-body theory;
+* hertz_mindlin  the Hertz-Mindlin law against Hertz's impact and static overlap, Mindlin's
+              shear stiffness, and the restitution of Tsuji's dashpot at three speeds;
 * statics    a settled column: floor + walls carry the weight;
 * lammps     grain-by-grain trajectories against LAMMPS on the benchmark's outlet (when ``lmp``
               is installed);
 * janssen    a tall flat-bottomed slot silo against the 2D Janssen solution   (full mode only);
 * beverloo   steady discharge rates against the 2D Beverloo law                (full mode only).
 
-``--quick`` runs the first four (the particle-impact level, one small packing, LAMMPS), the subset
+``--quick`` runs the first five (the particle-impact level, one small packing, LAMMPS), the subset
 CI runs; the full mode adds the silo-scale cases.
 """
 
@@ -37,12 +39,23 @@ class Family:
 
 
 def families() -> list[Family]:
-    from silodem.validate import beverloo, chung_ooi, figures, impacts, janssen, lammps, statics
+    from silodem.validate import (
+        beverloo,
+        chung_ooi,
+        figures,
+        hertz_mindlin,
+        impacts,
+        janssen,
+        lammps,
+        statics,
+    )
 
     return [
         Family("impacts", "linear normal impacts", True, impacts.run, figures.impacts),
         Family("chung_ooi", "Chung & Ooi tests 4-8 (disks)", True, chung_ooi.run,
                figures.chung_ooi),
+        Family("hertz_mindlin", "Hertz-Mindlin law", True, hertz_mindlin.run,
+               figures.hertz_mindlin),
         Family("statics", "settled column", True, statics.run, figures.statics),
         Family("lammps", "trajectories against LAMMPS", True, lammps.run, figures.lammps),
         Family("janssen", "Janssen slot silo", False, janssen.run, figures.janssen),
