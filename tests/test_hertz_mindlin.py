@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from physics_helpers import MASS, RHO, R, pair_impact, run_until_separated
 from pydantic import ValidationError
 
+from silodem.checkpoint import read_checkpoint, save_checkpoint
 from silodem.cli import main
 from silodem.config import Config
 from silodem.engine import hertz
@@ -265,3 +266,32 @@ def test_extreme_hertz_numbers_build_a_run_or_are_refused_in_one_line(sets):
         return
     run = SiloRun(cfg)
     assert math.isfinite(run.dt) and run.dt > 0
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_a_hertz_run_resumes_from_a_checkpoint_bit_identical(hertz_run, tmp_path):
+    """The Hertz-Mindlin law is rebuilt from the checkpoint's config: a run saved in the middle
+    of its discharge and continued ends with the bits of the uninterrupted run."""
+    cfg, path = hertz_config(), tmp_path / "checkpoint.h5"
+    first, seen = SiloRun(cfg), []
+
+    def save_on_third_chunk(run: SiloRun) -> None:
+        seen.append(run.state.phase)
+        if seen.count("discharge") == 3:
+            save_checkpoint(run, path, config_toml=config_to_toml(cfg), reason="test")
+            raise _Stop
+
+    first.chunk_hooks.append(save_on_third_chunk)
+    with pytest.raises(_Stop):
+        first.run()
+    loaded = read_checkpoint(path)
+    second = SiloRun(loaded.config)
+    loaded.restore(second)
+    assert second.law == hertz_run.law and second.law.hertz
+    second.run()
+    assert np.array(second.series.rows).tobytes() == np.array(hertz_run.series.rows).tobytes()
+    for key, arr in hertz_run.snapshots["final"].particles.items():
+        assert arr.tobytes() == second.snapshots["final"].particles[key].tobytes(), key
