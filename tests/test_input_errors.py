@@ -129,6 +129,7 @@ def test_a_results_folder_name_the_system_refuses_is_one_line(capsys, tmp_path, 
     (["measure.grid_cell=1e-5"], "measure.grid_cell"),
     (["measure.field_cell=1e-3"], "measure.field_cell"),
     (["measure.wall_bin=1e-7"], "measure.wall_bin"),
+    (["measure.field_kernel=\"gaussian\"", "measure.field_width=50.0"], "measure.field_width"),
     (["material.radius_min=2e-5", "material.radius_max=2e-5", "fill.band_height=0.5",
       "measure.grid_cell=0.1", "measure.field_cell=0.1", "measure.wall_bin=0.1"],
      "material.radius_max"),
@@ -136,7 +137,8 @@ def test_a_results_folder_name_the_system_refuses_is_one_line(capsys, tmp_path, 
 def test_lengths_too_small_for_the_memory_are_refused_naming_the_key(capsys, tmp_path, sets,
                                                                        key):
     """Each value is valid, but the arrays it sizes would not fit (a 7e10-cell velocity grid,
-    a 7e7-cell field grid, 1e8 wall bins, 5e9 search cells; a MemoryError traceback before)."""
+    a 7e7-cell field grid, 1e8 wall bins, 5e9 search cells; a MemoryError traceback before),
+    or a Gaussian kernel would be summed over 4e5 field cells per grain and contact."""
     args = [arg for item in sets for arg in ("--set", item)]
     line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"), *args)
     assert_names(line, key, "more than")

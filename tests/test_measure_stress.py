@@ -131,3 +131,25 @@ def test_lens_area_against_quadrature():
         brute = np.sum(in_c & ((gx - d) ** 2 + gz**2 <= r * r)) * h * h
         assert lens_area(np.array([d]), np.array([r]), R)[0] == pytest.approx(brute, abs=5e-3)
     assert lens_area(np.array([0.0]), np.array([0.3]), R)[0] == pytest.approx(math.pi * 0.09)
+
+
+def test_gaussian_stress_of_the_compressed_box_integrates_to_the_wall_stress(compressed_box):
+    """The Gaussian coarse-grained stress (width w = 2 grain diameters) summed over a fine grid
+    (h = w/3) that holds every kernel, divided by the box's area, is the box's Love-Weber
+    stress (to the kernel's cut, 4e-6) and so the applied wall stress (to the 2 % above)."""
+    from silodem.measure.gaussian import gaussian_sums
+
+    sim = compressed_box
+    w = sim.walls
+    width, height = w.ax[1], w.ay[2]
+    f = q.force_on_walls(sim)
+    applied = np.array([f[1, 0] / height, f[2, 1] / width])
+    fr = frame_from_sim(sim)
+    kernel = 0.2
+    h = kernel / 3
+    edges = np.arange(-6 * kernel, max(width, height) + 6 * kernel, h)
+    _, stress = gaussian_sums(fr, edges, edges, kernel)  # thickness 1 m: sigma = the sums
+    mean = stress.sum(axis=(0, 1)) * h * h / (width * height)
+    whole = region_stress(fr.moments, np.ones(fr.n, bool), width * height, 1.0)
+    np.testing.assert_allclose(mean, whole, rtol=0, atol=1e-5 * abs(whole).max())
+    np.testing.assert_allclose(mean[:2], applied, rtol=0.02)

@@ -302,6 +302,14 @@ class Measure(_Strict):
         None, gt=0, description="cell size of the grid of the bulk density and stress fields "
         "[m]; unset: four mean grain diameters"
     )
+    field_kernel: Literal["box", "gaussian"] = Field(
+        "box", description="coarse-graining of the density and stress fields: 'box' (grains "
+        "counted in the cell of their centre) or 'gaussian' (smooth, at the cell centres)"
+    )
+    field_width: float | None = Field(
+        None, gt=0, description="width w (standard deviation) of the Gaussian of "
+        "field_kernel = 'gaussian' [m]; unset: half the field cell"
+    )
     mass_flow_index_threshold: float = Field(
         0.3, gt=0, le=1, description="flow is mass flow when v_wall / v_centre above the "
         "junction exceeds this [-] (Johanson's mass flow index)"
@@ -310,6 +318,9 @@ class Measure(_Strict):
 
     @model_validator(mode="after")
     def _check(self) -> Measure:
+        if self.field_width is not None and self.field_kernel != "gaussian":
+            raise ValueError("measure.field_width is the width of field_kernel = 'gaussian'; "
+                             "set that too, or remove measure.field_width")
         lists = {"circle_names": self.circle_names, "circle_x": self.circle_x,
                  "circle_z": self.circle_z, "circle_radius": self.circle_radius}
         given = [k for k, v in lists.items() if v is not None]

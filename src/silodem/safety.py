@@ -121,6 +121,7 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
 MAX_GRID_CELLS = 1e7  # velocity-field cells (3 sums each) [-]
 MAX_FIELD_CELLS = 1e6  # density and stress field cells (2 x 4 sums, 256 quadrature points) [-]
 MAX_WALL_BINS = 1e6  # wall-stress bins [-]
+MAX_KERNEL_CELLS = 1e4  # field cells a grain's or contact's Gaussian is summed over [-]
 MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
 
 
@@ -129,7 +130,8 @@ def check_sizes(cfg: Config) -> None:
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
     density and stress fields (``measure.field_cell``), the wall bins (``measure.wall_bin``),
     the neighbour search's cells (2 r_max + skin)."""
-    from silodem.measure.regions import bin_length, field_cell, grid_cell
+    from silodem.measure.gaussian import CUTOFF
+    from silodem.measure.regions import bin_length, field_cell, field_width, grid_cell
     from silodem.silo.geometry import silo_shape
     from silodem.silo.procedure import neighbour_skin
 
@@ -155,6 +157,14 @@ def check_sizes(cfg: Config) -> None:
         raise InputError(f"{key} = {bin_length(cfg):.3g} m cuts the walls of {size} into "
                          f"{bins:.3g} bins, more than {MAX_WALL_BINS:.0e}; give a larger "
                          "measure.wall_bin")
+    if cfg.measure.field_kernel == "gaussian":
+        reach = 2.0 * CUTOFF * field_width(cfg) / field_cell(cfg)  # cells across one kernel
+        if not reach**2 <= MAX_KERNEL_CELLS:
+            raise InputError(
+                f"measure.field_width = {field_width(cfg):.3g} m spreads each grain and contact "
+                f"over {reach**2:.3g} field cells of {field_cell(cfg):.3g} m, more than "
+                f"{MAX_KERNEL_CELLS:.0e} (a slow measurement); give a smaller "
+                "measure.field_width or a larger measure.field_cell")
     search = 2.0 * cfg.material.radius_max + neighbour_skin(cfg)  # as NeighborList.rebuild
     cells = (width / search + 1) * (height / search + 1)
     if not cells <= MAX_SEARCH_CELLS:

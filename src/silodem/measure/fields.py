@@ -16,6 +16,10 @@ four mean diameters (``regions.field_cell``).
 
 Two fields per run: the settled packing (one sample at the end of settling: it is at rest) and
 the mean over the discharge window (every sample in it, as the velocity grid).
+
+``measure.field_kernel = "gaussian"`` replaces the box by a Gaussian of width
+``measure.field_width`` (``measure.gaussian``): smooth fields at the cell centres, NaN at
+centres outside the silo.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import numpy as np
 
 from silodem.measure import regions
 from silodem.measure.frame import Frame
+from silodem.measure.gaussian import gaussian_sums
 
 if TYPE_CHECKING:
     import h5py
@@ -66,7 +71,8 @@ def cell_sums(x, z, mass, moments, x_edges, z_edges) -> tuple[np.ndarray, np.nda
 
 def fields_of(mass_sum, moment_sum, area_inside, thickness: float, samples: int):
     """(bulk density [kg/m^3], stress (xx, zz, xz) [Pa], compression positive) per cell from
-    sums over ``samples`` samples; NaN in cells without area inside the silo or samples."""
+    sums over ``samples`` samples; NaN in cells without area inside the silo or samples.
+    (Gaussian sums are already per unit area: ``area_inside`` is then 1 inside, 0 outside.)"""
     volume = area_inside * thickness * samples
     with np.errstate(invalid="ignore", divide="ignore"):
         ok = volume > 0
@@ -86,6 +92,14 @@ class FieldsPart:
         self.x_edges, self.z_edges = regions.grid_edges(shape, cell)
         self.area_inside = cell_area_inside(shape, self.x_edges, self.z_edges)
         self.thickness = cfg.material.thickness
+        self.kernel = cfg.measure.field_kernel
+        self.width = regions.field_width(cfg)
+        if self.kernel == "gaussian":  # point values: 1 where the centre is inside, else 0
+            xc, zc = np.meshgrid(0.5 * (self.x_edges[1:] + self.x_edges[:-1]),
+                                 0.5 * (self.z_edges[1:] + self.z_edges[:-1]), indexing="ij")
+            self.volume_of = regions.inside_silo(shape, xc, zc).astype(float)
+        else:  # sums over each cell, divided by its area inside the silo
+            self.volume_of = self.area_inside
         size = (self.x_edges.size - 1, self.z_edges.size - 1)
         self.mass = {w: np.zeros(size) for w in self.WINDOWS}
         self.moments = {w: np.zeros((*size, 3)) for w in self.WINDOWS}
@@ -93,7 +107,12 @@ class FieldsPart:
 
     def add(self, window: str, fr: Frame) -> None:
         """Add one sample (a frame) to ``window``."""
-        mass, moments = cell_sums(fr.x, fr.z, fr.mass, fr.moments, self.x_edges, self.z_edges)
+        if self.kernel == "gaussian":
+            mass, stress = gaussian_sums(fr, self.x_edges, self.z_edges, self.width)
+            moments = -stress  # as the box's sums: stress = -moments / volume
+        else:
+            mass, moments = cell_sums(fr.x, fr.z, fr.mass, fr.moments, self.x_edges,
+                                      self.z_edges)
         self.mass[window] += mass
         self.moments[window] += moments
         self.samples[window] += 1
@@ -120,12 +139,16 @@ class FieldsPart:
         dataset(f, "x_edges", self.x_edges, "m")
         dataset(f, "z_edges", self.z_edges, "m")
         dataset(f, "area_inside", self.area_inside, "m^2")
+        f.attrs["kernel"] = self.kernel
+        if self.kernel == "gaussian":
+            f.attrs["width"] = self.width
+        meaning = ("at the cell centre, Gaussian coarse-graining of width attrs['width']"
+                   if self.kernel == "gaussian" else "grains centred in the cell / its volume")
         for w in self.WINDOWS:
             h = f.create_group(w)
             h.attrs["samples"] = self.samples[w]
-            density, stress = fields_of(self.mass[w], self.moments[w], self.area_inside,
+            density, stress = fields_of(self.mass[w], self.moments[w], self.volume_of,
                                         self.thickness, self.samples[w])
-            dataset(h, "density", density, "kg/m^3",
-                    meaning="bulk density: mass of the grains centred in the cell / its volume")
+            dataset(h, "density", density, "kg/m^3", meaning=f"bulk density: {meaning}")
             dataset(h, "stress", stress, "Pa",
-                    components="xx,zz,xz; compression positive (Love-Weber, grains by centre)")
+                    components=f"xx,zz,xz; compression positive (Love-Weber, {meaning})")

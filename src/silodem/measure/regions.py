@@ -126,6 +126,11 @@ def field_cell(cfg: Config) -> float:
     return cfg.measure.field_cell or 4.0 * mean_diameter(cfg)
 
 
+def field_width(cfg: Config) -> float:
+    """Width w of the Gaussian coarse-graining of the fields [m] (default half the cell)."""
+    return cfg.measure.field_width or 0.5 * field_cell(cfg)
+
+
 def bin_length(cfg: Config) -> float:
     """Bin length along the walls and bin height of the profiles [m] (default two mean
     diameters)."""

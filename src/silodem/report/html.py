@@ -65,8 +65,10 @@ FIGURES = [
                "discharge window.", fs.fig_change),
     FigureSpec("stress_fields", "",
                "Bulk density and Love-Weber stresses sigma_xx, sigma_zz (compression "
-               "positive) on a grid of measure.field_cell, grains counted by their centres: the "
-               "settled packing, and the mean over the discharge window. Arching shows as "
+               "positive) on a grid of measure.field_cell, grains counted by their centres "
+               "(or, with measure.field_kernel = 'gaussian', a Gaussian of width "
+               "measure.field_width at the cell centres): the settled packing, and the mean "
+               "over the discharge window. Arching shows as "
                "sigma_zz that stops growing with depth and bends towards the walls.",
                fs.fig_fields),
     FigureSpec("wall_shear", "",

@@ -114,7 +114,8 @@ def label_of(point: dict[str, Any], seed: int | None = None) -> str:
 # its run ids, so that its finished runs are not run again
 LATER_KEYS = {("material", "contact_model"): "linear", ("material", "young_modulus"): None,
               ("material", "poisson_ratio"): None, ("walls", "young_modulus"): None,
-              ("walls", "poisson_ratio"): None}
+              ("walls", "poisson_ratio"): None, ("measure", "field_kernel"): "box",
+              ("measure", "field_width"): None}
 
 
 def config_hash(cfg: Config) -> str:
