@@ -99,3 +99,49 @@ def assert_bit_identical(a: Path, b: Path, group: str) -> None:
             assert x.tobytes() == y.tobytes(), f"{group}/{key} differs"
         else:
             assert np.array_equal(x, y), f"{group}/{key} differs"
+
+
+class _Stop(Exception):
+    pass
+
+
+def stop_and_restore(cfg: Config, phase: str, path: Path):
+    """Run ``cfg`` until the third chunk of ``phase``, save a checkpoint to ``path`` there and
+    stop; return (the stopped run, a new run restored from the checkpoint, not yet run on)."""
+    from silodem.checkpoint import read_checkpoint, save_checkpoint
+    from silodem.scenario_files import config_to_toml
+    from silodem.silo.procedure import SiloRun
+
+    first, seen = SiloRun(cfg), []
+
+    def save_on_third_chunk(run: SiloRun) -> None:
+        seen.append(run.state.phase)
+        if seen.count(phase) == 3:
+            save_checkpoint(run, path, config_toml=config_to_toml(cfg), reason="test")
+            raise _Stop
+
+    first.chunk_hooks.append(save_on_third_chunk)
+    try:
+        first.run()
+    except _Stop:
+        pass
+    else:
+        raise AssertionError(f"the run ended before a third chunk of {phase}")
+    loaded = read_checkpoint(path)
+    assert loaded.config == cfg
+    second = SiloRun(loaded.config)
+    loaded.restore(second)
+    return first, second
+
+
+def hertz_config() -> Config:
+    """The quick hopper of paper case 2 (120 grains, a 4 s discharge) with the Hertz-Mindlin
+    law: grains of E = 1 GPa, nu = 0.3, steel walls of 200 GPa."""
+    data = quick_variant(load_config("paper-case2")).model_dump()
+    for section in ("material", "walls"):
+        data[section].update(kn=None, ks=None, young_modulus=1e9, poisson_ratio=0.3)
+    data["material"]["contact_model"] = "hertz_mindlin"
+    data["walls"]["young_modulus"] = 2e11
+    data["fill"]["n_particles"] = 120
+    data["discharge"]["max_time"] = 4.0
+    return Config.model_validate(data)

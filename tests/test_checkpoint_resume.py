@@ -25,10 +25,11 @@ from reliability_helpers import (
     quick_config,
     run_args,
     start,
+    stop_and_restore,
     wait_for_file,
 )
 
-from silodem.checkpoint import read_checkpoint, save_checkpoint
+from silodem.checkpoint import save_checkpoint
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
 from silodem.silo.procedure import SiloRun
@@ -159,10 +160,6 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
 # --- in process: a checkpoint in each phase -----------------------------------------------
 
 
-class _Stop(Exception):
-    pass
-
-
 @pytest.fixture(scope="module")
 def uninterrupted() -> SiloRun:
     run = SiloRun(quick_config())
@@ -186,25 +183,7 @@ def _assert_same_attributes(a: object, b: object, skip: tuple[str, ...] = ()) ->
 @pytest.mark.parametrize("phase", ["fill", "settle", "discharge"])
 def test_a_checkpoint_in_each_phase_restores_every_array_and_continues_bit_identical(
         phase, uninterrupted, tmp_path):
-    cfg = quick_config()
-    path = tmp_path / "checkpoint.h5"
-    first = SiloRun(cfg)
-    seen = []
-
-    def save_on_third_chunk(run: SiloRun) -> None:
-        seen.append(run.state.phase)
-        if seen.count(phase) == 3:
-            save_checkpoint(run, path, config_toml=config_to_toml(cfg), reason="test")
-            raise _Stop
-
-    first.chunk_hooks.append(save_on_third_chunk)
-    with pytest.raises(_Stop):
-        first.run()
-
-    loaded = read_checkpoint(path)
-    assert loaded.config == cfg
-    second = SiloRun(loaded.config)
-    loaded.restore(second)
+    first, second = stop_and_restore(quick_config(), phase, tmp_path / "checkpoint.h5")
     sim_a, sim_b = first.sim, second.sim
     _assert_same_attributes(sim_a.particles, sim_b.particles)
     _assert_same_attributes(sim_a.neighbors, sim_b.neighbors)

@@ -22,6 +22,18 @@ class _Strict(BaseModel):
                               strict=True)
 
 
+def _law_field(body: str, key: str):
+    """The field of one contact-law key of a ``body`` ("grain" or "wall"): unset by default,
+    required or refused by ``law_keys`` according to ``material.contact_model``."""
+    text = {"kn": ("normal stiffness [N/m] (contact = springs in series; linear law)", 0),
+            "ks": ("shear stiffness [N/m] (contact = springs in series; linear law)", 0),
+            "young_modulus": ("Young's modulus E [Pa] (Hertz-Mindlin law)", 0),
+            "poisson_ratio": ("Poisson's ratio nu [-] (Hertz-Mindlin law)", 1)}
+    meaning, is_ratio = text[key]
+    limits = {"ge": 0, "le": 0.5} if is_ratio else {"gt": 0}
+    return Field(None, description=f"{body} {meaning}", **limits)
+
+
 class Material(_Strict):
     """Grain properties (the paper's Tables 1-2, column "Grain-Grain")."""
 
@@ -33,20 +45,10 @@ class Material(_Strict):
         "linear", description="'linear': the paper's springs kn, ks; 'hertz_mindlin': Hertz's "
         "normal and Mindlin's no-slip shear stiffness from young_modulus and poisson_ratio"
     )
-    kn: float | None = Field(
-        None, gt=0, description="grain normal stiffness [N/m] (contact = springs in series; "
-        "linear law)"
-    )
-    ks: float | None = Field(
-        None, gt=0, description="grain shear stiffness [N/m] (contact = springs in series; "
-        "linear law)"
-    )
-    young_modulus: float | None = Field(
-        None, gt=0, description="grain Young's modulus E [Pa] (Hertz-Mindlin law)"
-    )
-    poisson_ratio: float | None = Field(
-        None, ge=0, le=0.5, description="grain Poisson's ratio nu [-] (Hertz-Mindlin law)"
-    )
+    kn: float | None = _law_field("grain", "kn")
+    ks: float | None = _law_field("grain", "ks")
+    young_modulus: float | None = _law_field("grain", "young_modulus")
+    poisson_ratio: float | None = _law_field("grain", "poisson_ratio")
     friction_deg: float = Field(ge=0, lt=90, description="grain-grain friction angle phi_G [deg]")
     restitution: float | None = Field(
         0.5, gt=0, le=1, description="normal restitution coefficient e of a contact [-]"
@@ -105,20 +107,10 @@ def law_keys(section: BaseModel, name: str, model: str) -> None:
 class WallMaterial(_Strict):
     """Wall properties (Tables 1-2, column "Grain-Wall")."""
 
-    kn: float | None = Field(
-        None, gt=0, description="wall normal stiffness [N/m] (contact = springs in series; "
-        "linear law)"
-    )
-    ks: float | None = Field(
-        None, gt=0, description="wall shear stiffness [N/m] (contact = springs in series; "
-        "linear law)"
-    )
-    young_modulus: float | None = Field(
-        None, gt=0, description="wall Young's modulus E [Pa] (Hertz-Mindlin law)"
-    )
-    poisson_ratio: float | None = Field(
-        None, ge=0, le=0.5, description="wall Poisson's ratio nu [-] (Hertz-Mindlin law)"
-    )
+    kn: float | None = _law_field("wall", "kn")
+    ks: float | None = _law_field("wall", "ks")
+    young_modulus: float | None = _law_field("wall", "young_modulus")
+    poisson_ratio: float | None = _law_field("wall", "poisson_ratio")
     friction_deg: float = Field(ge=0, lt=90, description="grain-wall friction angle phi_P [deg]")
 
 
