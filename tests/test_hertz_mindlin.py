@@ -219,3 +219,18 @@ def test_a_hertz_run_resumes_from_a_checkpoint_bit_identical(hertz_run, tmp_path
     assert np.array(second.series.rows).tobytes() == np.array(hertz_run.series.rows).tobytes()
     for key, arr in hertz_run.snapshots["final"].particles.items():
         assert arr.tobytes() == second.snapshots["final"].particles[key].tobytes(), key
+
+
+def test_hertz_parallel_kernels_give_the_same_bits_as_serial(hertz_run, monkeypatch):
+    """The Hertz-Mindlin copies of the threaded kernels sum in the serial order too: the run on
+    two threads ends with the serial run's bits."""
+    import numba
+
+    import silodem.jit
+
+    monkeypatch.setattr(silodem.jit, "PARALLEL_MIN_GRAINS", 1)
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    parallel = SiloRun(hertz_config())
+    parallel.run()
+    for key, arr in hertz_run.snapshots["final"].particles.items():
+        assert arr.tobytes() == parallel.snapshots["final"].particles[key].tobytes(), key
