@@ -156,7 +156,7 @@ def test_paper_case1_stiffness_warns_with_the_numbers():
     assert est.sigma_v == pytest.approx(sigma, rel=1e-12)
     assert est.overlap == pytest.approx(sigma * 0.2 / 2.5e4, rel=1e-12)
     assert est.overlap_fraction > 1.0  # overlaps of the order of the radius, and more
-    assert est.recommended_kn == pytest.approx(2 * sigma * 0.2 / (0.01 * 0.1), rel=1e-12)
+    assert est.recommended == pytest.approx(2 * sigma * 0.2 / (0.01 * 0.1), rel=1e-12)
     run = SiloRun(cfg)
     assert any("soft contacts" in w and "material.kn >=" in w for w in run.warnings)
     assert not SiloRun(load_config("paper-case2")).warnings

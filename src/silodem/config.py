@@ -6,7 +6,9 @@ Unknown keys are errors (``extra="forbid"``), so a typo never silently falls bac
 Stiffness convention (PFC2D's, Itasca manual "Contact models"): ``material.kn`` and
 ``walls.kn`` are the stiffnesses of the *bodies*; the stiffness of a contact between two
 bodies a and b is the series value ``k = k_a k_b / (k_a + k_b)``.  Two equal grains of
-stiffness k therefore touch with stiffness k/2.
+stiffness k therefore touch with stiffness k/2.  ``material.contact_model = "hertz_mindlin"``
+takes Young's moduli and Poisson's ratios of grains and walls instead (docs/physics.md); the
+keys of the law not chosen are refused, not ignored (``law_keys``).
 """
 
 from __future__ import annotations

@@ -9,9 +9,9 @@
   disks covers about 82 % of the plane).  A grain of diameter 2r and thickness t carries about
   F = sigma_v 2r t, and its contacts overlap about F / k_n,contact (linear law), or
   (3 F / (4 E* sqrt(R*)))^(2/3) (Hertz-Mindlin law).
-* Hertz-Mindlin time step: dt_crit of the tangent stiffnesses at the larger of that overlap
-  and the overlap of an impact after a fall from the top of the walls
-  (``materials.linearised``).
+* Hertz-Mindlin time step: dt_crit of the tangent stiffnesses at the largest of that overlap,
+  the overlap of an impact after a fall from the top of the walls, and 1 % of r_max
+  (``materials.design_overlaps``, ``materials.linearised``).
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ class OverlapEstimate:
     overlap_fraction: float  # overlap / mean radius [-]
     # for an overlap of 1 % of the radius: grain stiffness [N/m] (linear law) or Young's
     # modulus [Pa] (Hertz-Mindlin law)
-    recommended_kn: float
+    recommended: float
     hertz: bool = False
 
     @property
@@ -83,8 +83,8 @@ class OverlapEstimate:
 
     def warning(self) -> str:
         advice = (f"a grain Young's modulus material.young_modulus >= "
-                  f"{self.recommended_kn:.2g} Pa (and a wall modulus as large)" if self.hertz
-                  else f"a grain stiffness material.kn >= {self.recommended_kn:.2g} N/m (and a "
+                  f"{self.recommended:.2g} Pa (and a wall modulus as large)" if self.hertz
+                  else f"a grain stiffness material.kn >= {self.recommended:.2g} N/m (and a "
                   "wall stiffness as large)")
         return (
             f"soft contacts: under the expected {self.fill_height:.2f} m of grains the vertical "
