@@ -234,3 +234,22 @@ def test_hertz_parallel_kernels_give_the_same_bits_as_serial(hertz_run, monkeypa
     parallel.run()
     for key, arr in hertz_run.snapshots["final"].particles.items():
         assert arr.tobytes() == parallel.snapshots["final"].particles[key].tobytes(), key
+
+
+def test_soft_hertz_grains_warn_and_the_advised_modulus_gives_one_percent():
+    """E = 1 MPa under the quick hopper's fill: the overlap check warns naming
+    material.young_modulus, and the modulus it advises, put back into Hertz's law with the
+    same force, gives a grain-grain overlap of 1 % of the mean radius (E* = E / (2 (1 - nu^2))
+    between equal grains, R* = r/2; Johnson 1985)."""
+    data = hertz_config().model_dump()
+    data["material"]["young_modulus"] = 1e6
+    cfg = Config.model_validate(data)
+    est = estimate_overlap(cfg)
+    assert est.too_soft
+    assert any("material.young_modulus >=" in w for w in SiloRun(cfg).warnings)
+    m = cfg.material
+    r = 0.5 * (m.radius_min + m.radius_max)
+    e_star = est.recommended / (2 * (1 - m.poisson_ratio**2))
+    overlap = (3 * est.contact_force / (4 * e_star * math.sqrt(r / 2))) ** (2 / 3)
+    assert overlap == pytest.approx(0.01 * r, rel=1e-12)
+    assert not estimate_overlap(hertz_config()).too_soft
