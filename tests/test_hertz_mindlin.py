@@ -19,6 +19,7 @@ from silodem.engine.contact import GrainLaw
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.engine.walls import Walls
+from silodem.scenario_files import config_to_toml
 from silodem.silo.checks import estimate_overlap
 from silodem.silo.materials import design_overlaps
 from silodem.silo.procedure import SiloRun
@@ -253,3 +254,13 @@ def test_soft_hertz_grains_warn_and_the_advised_modulus_gives_one_percent():
     overlap = (3 * est.contact_force / (4 * e_star * math.sqrt(r / 2))) ** (2 / 3)
     assert overlap == pytest.approx(0.01 * r, rel=1e-12)
     assert not estimate_overlap(hertz_config()).too_soft
+
+
+def test_a_hertz_time_step_above_its_limit_is_refused_saying_why(capsys, tmp_path):
+    path = tmp_path / "hertz.toml"
+    path.write_text(config_to_toml(hertz_config()), encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", str(path), "--set", "time.dt=0.01", "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1
+    assert "time.dt" in err and "Hertz stiffness" in err

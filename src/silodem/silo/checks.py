@@ -51,16 +51,18 @@ def choose_time_step(cfg: Config, law: GrainLaw, wall_kn, wall_ks) -> tuple[floa
     law is judged by its stiffest expected contacts (``materials.linearised``)."""
     m = cfg.material
     m_min = m.density * math.pi * m.radius_min**2 * m.thickness
+    stiffest = "stiffest contact"
     if law.hertz:
         force = estimate_overlap(cfg).contact_force
         law, wall_kn, wall_ks = linearised(cfg, law, wall_kn, wall_ks, force)
+        stiffest = "Hertz stiffness at the overlap of a fall from the wall top"
     dt_crit = critical_time_step(m_min, law, wall_kn, wall_ks)
     if cfg.time.dt is None:
         return cfg.time.safety * dt_crit, dt_crit
     if cfg.time.dt > dt_crit:
         raise InputError(
             f"time.dt = {cfg.time.dt:.4g} s exceeds the stability limit dt_crit = {dt_crit:.4g} s "
-            f"(lightest grain, stiffest contact); use time.dt <= {dt_crit:.4g} or leave it unset"
+            f"(lightest grain, {stiffest}); use time.dt <= {dt_crit:.4g} or leave it unset"
         )
     return cfg.time.dt, dt_crit
 
