@@ -4,6 +4,7 @@ end in one line with exit code 2."""
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import signal
@@ -307,3 +308,49 @@ def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
         hertz[section].update(kn=None, ks=None, young_modulus=1e9, poisson_ratio=0.3)
     hertz["material"]["contact_model"] = "hertz_mindlin"
     assert config_hash(Config.model_validate(hertz)) != "e62e6c9ea6"
+
+
+def test_a_grid_over_base_scenarios_compares_the_two_contact_laws(tmp_path):
+    """[grid] base = [...] runs each grid point from its own base scenario: here the paper's
+    linear case and a Hertz-Mindlin file, which differ in keys a value grid could not switch
+    (the other law's keys are refused).  Each run has its base's law, the table names the base
+    of each row, and a run's config is the one its base file gives."""
+    from reliability_helpers import hertz_config
+
+    from silodem.scenario_files import config_to_toml, quick_variant
+
+    (tmp_path / "hertz.toml").write_text(config_to_toml(hertz_config()), encoding="utf-8")
+    study = tmp_path / "laws.toml"
+    study.write_text('seeds = [3]\n[set]\n"fill.n_particles" = 60\n"discharge.max_time" = 1.0\n'
+                     '"measure.report" = false\n"output.png" = false\n'
+                     '[grid]\nbase = ["paper-case2", "hertz.toml"]\n', encoding="utf-8")
+    plan = expand(load_study(str(study)), quick=True)
+    laws = {run.point["base"]: run.cfg.material.contact_model for run in plan.runs}
+    assert laws == {"paper-case2": "linear", "hertz.toml": "hertz_mindlin"}
+    hertz_run = next(r for r in plan.runs if r.point["base"] == "hertz.toml")
+    expected = quick_variant(hertz_config().model_copy(update={"seed": 3}))
+    assert hertz_run.cfg.material == expected.material and hertz_run.cfg.walls == expected.walls
+    outcome = run_study(plan, tmp_path / "out", serial=True)
+    assert outcome.computed == 2 and not outcome.failed
+    with open(outcome.table_path, encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert sorted(r["base"] for r in rows) == ["hertz.toml", "paper-case2"]
+
+
+@pytest.mark.parametrize("text, needles", [
+    ('base = "paper-case2"\nseeds = [1]\n[grid]\nbase = ["paper-case1"]\n',
+     ["'base' is both at the top and in [grid]"]),
+    ('seeds = [1]\n[grid]\n"material.friction_deg" = [20.0]\n', ["missing required key 'base'"]),
+    ('seeds = [1]\n[grid]\nbase = [3]\n', ["[grid] 'base' lists base scenarios"]),
+    ('seeds = [1]\n[grid]\nbase = ["paper-case9"]\n', ["base 'paper-case9'", "paper-case2"]),
+])
+def test_bad_grid_bases_give_one_line_and_exit_2(tmp_path, capsys, text, needles):
+    path = tmp_path / "bad.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(path), "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err

@@ -1,7 +1,8 @@
 """From a study to its runs: the grid product, the resolved config of each run and its id.
 
-A run's config is built as: the base scenario -> the study's ``[set]`` values -> the values of
-its grid point -> its seed -> validation -> ``quick_variant`` (with ``--quick``).  Its id is
+A run's config is built as: the base scenario (the study's ``base``, or the grid point's value of
+the grid key ``base``) -> the study's ``[set]`` values -> the values of its grid point -> its
+seed -> validation -> ``quick_variant`` (with ``--quick``).  Its id is
 ``<slug>-<hash>``: the slug names the grid point for people (``theta35_phiG20_phiP10_seed2``),
 the hash is the first 10 hex digits of the SHA-256 of the resolved config (every value except
 ``name`` and ``description``, as canonical JSON), so the same physics always has the same id
@@ -24,7 +25,7 @@ from pydantic import ValidationError
 from silodem.config import Config
 from silodem.errors import InputError, format_validation_error
 from silodem.scenario_files import load_config, quick_variant
-from silodem.study.spec import LoadedStudy
+from silodem.study.spec import GRID_BASE, LoadedStudy
 
 HASH_DIGITS = 10
 # short names of the paper's parameters, for run slugs and report labels
@@ -139,8 +140,9 @@ def _put(data: dict[str, Any], dotted: str, value: Any) -> None:
     node[parts[-1]] = value
 
 
-def _base_config(study: LoadedStudy) -> Config:
-    base = study.spec.base
+def _base_config(study: LoadedStudy, name: str) -> Config:
+    """The base scenario ``name`` (a relative path: from the study file's folder first)."""
+    base = name
     if study.folder is not None and not Path(base).is_absolute():
         candidate = study.folder / base
         if candidate.is_file():
@@ -148,7 +150,7 @@ def _base_config(study: LoadedStudy) -> Config:
     try:
         return load_config(base)
     except InputError as exc:
-        raise InputError(f"study {study.source}: base '{study.spec.base}': {exc}") from None
+        raise InputError(f"study {study.source}: base '{name}': {exc}") from None
 
 
 def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> StudyPlan:
@@ -157,7 +159,8 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
     give no usable run together (``silodem.safety.check_numbers``).  InputError, one line,
     naming the grid point, for a run that is not valid."""
     spec = study.spec
-    base = _base_config(study).model_dump()
+    names = spec.grid.get(GRID_BASE, [spec.base])
+    bases = {name: _base_config(study, name).model_dump() for name in names}
     keys = list(spec.grid)
     runs: list[PlannedRun] = []
     seen: dict[str, str] = {}
@@ -165,9 +168,11 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
         for values in itertools.product(*(spec.grid[k] for k in keys)):
             point = dict(zip(keys, values))
             where = f"study {study.source}, run {label_of(point, seed)}"
-            data = json.loads(json.dumps(base))  # deep copy of plain data
+            # a deep copy of plain data
+            data = json.loads(json.dumps(bases[point.get(GRID_BASE, spec.base)]))
             for key, value in {**spec.set, **point}.items():
-                _put(data, key, value)
+                if key != GRID_BASE:
+                    _put(data, key, value)
             data["seed"] = seed
             try:
                 cfg = Config.model_validate(data)

@@ -324,7 +324,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
              f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"),
              f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(spec.description)}</p>"]
     n_done = len(rows)
-    meta = [("base", spec.base, ""), ("seeds", ", ".join(map(str, spec.seeds)), ""),
+    meta = [("base", spec.base or "the grid's", ""), ("seeds", ", ".join(map(str, spec.seeds)), ""),
             *((f"set {k}", format_value(v), "") for k, v in spec.set.items()),
             *((f"grid {k} ({nicknames(list(spec.grid))[k]})",
                ", ".join(format_value(v) for v in vals), "") for k, vals in spec.grid.items()),

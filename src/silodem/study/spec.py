@@ -12,6 +12,9 @@ seeds = [1, 2]                    # every grid point is run once per seed
 "material.friction_deg" = [20, 30]
 ```
 
+The grid key ``base`` (``GRID_BASE``), instead of the top-level ``base``, lists base scenarios:
+each grid point then starts from its own.
+
 Dotted keys may be written quoted (one key) or bare (TOML then nests them as tables: ``[grid]
 material.friction_deg = [20, 30]`` is the same as the quoted form).  The embedded studies are
 the TOML files of the package folder ``silodem/studies/``.  Every problem is an
@@ -38,6 +41,7 @@ from silodem.errors import (
     unknown_key_message,
 )
 
+GRID_BASE = "base"  # a [grid] key whose values are base scenarios, not a config key
 RESERVED_KEYS = {"seed": "give the seeds in the study's 'seeds' list",
                  "name": "the runs are named by the study",
                  "description": "the runs are described by the study"}
@@ -87,8 +91,9 @@ class StudySpec(BaseModel):
 
     name: str = Field("", description="study name (default: the study file's name)")
     description: str = Field("", description="free text")
-    base: str = Field(min_length=1, description="embedded scenario name or .toml file of the "
-                      "base configuration (a relative path is taken from the study file's folder)")
+    base: str | None = Field(None, min_length=1, description="embedded scenario name or .toml "
+                             "file of the base configuration (a relative path is taken from the "
+                             "study file's folder); or a list of them as the [grid] key 'base'")
     seeds: list[int] = Field(min_length=1, description="seeds; every grid point runs once per seed")
     set: dict[str, Any] = Field(default_factory=dict,
                                 description="dotted config keys -> values every run gets")
@@ -126,7 +131,12 @@ class StudySpec(BaseModel):
     @classmethod
     def _grid_keys(cls, table: dict[str, list[Any]]) -> dict[str, list[Any]]:
         for key, values in table.items():
-            check_config_key(key)
+            if key == GRID_BASE:  # base scenarios: compare cases that differ in many keys
+                if not all(isinstance(v, str) and v.strip() for v in values):
+                    raise ValueError("[grid] 'base' lists base scenarios: embedded scenario "
+                                     "names or .toml files, as strings")
+            else:
+                check_config_key(key)
             if not values:
                 raise ValueError(f"'{key}' has no values; give a list of one or more")
             seen: list[Any] = []
@@ -141,6 +151,11 @@ class StudySpec(BaseModel):
         both = sorted(set(self.set) & set(self.grid))
         if both:
             raise ValueError(f"'{both[0]}' is both in [set] and in [grid]; keep it in one")
+        if self.base is None and GRID_BASE not in self.grid:
+            raise ValueError("missing required key 'base' (the base scenario; or a list of them "
+                             "as [grid] base = [...])")
+        if self.base is not None and GRID_BASE in self.grid:
+            raise ValueError("'base' is both at the top and in [grid]; keep it in one")
         return self
 
     @property
