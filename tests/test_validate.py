@@ -79,7 +79,7 @@ def test_quick_validation_uses_the_stated_tolerances(quick_run):
 def test_quick_validation_follows_lammps_grain_by_grain(quick_run):
     records = [r for r in json.loads(quick_run[0].stdout)
                if r["case"].startswith("LAMMPS trajectories")]
-    assert len(records) == 2
+    assert len(records) == 3  # two clouds of the linear law, one of the Hertz law
     assert {(r["tolerance_kind"], r["tolerance"]) for r in records} == {("abs", 1e-6)}
     assert all(r["pass"] for r in records)
 
@@ -93,6 +93,20 @@ def test_lammps_comparison_sees_a_difference_of_law():
 
     dev = divergence(cloud(60, 0.3), 500, 500, tension=True)
     assert dev[-1] > 100 * TOLERANCE
+
+
+@pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
+def test_lammps_hertz_comparison_sees_a_one_percent_stiffer_law(monkeypatch):
+    """The Hertz check has teeth: a LAMMPS law 1 % stiffer than silodem's parts the cloud by
+    far more than the tolerance within 1,000 steps (measured 8e-5 m), so the grains collide
+    and the comparison sees their law."""
+    import silodem.validate.lammps as lm
+
+    state = lm.cloud(60, 0.3)
+    ours = lm.run_silodem(state, 1000, 1000, hertz=True)
+    monkeypatch.setattr(lm, "HERTZ_KN", 1.01 * lm.HERTZ_KN)
+    theirs = lm.run_lammps(state, 1000, 1000, hertz=True)
+    assert np.abs(ours[-1] - theirs[-1]).max() > 10 * lm.TOLERANCE
 
 
 def test_validate_refuses_an_out_that_is_a_file(tmp_path):

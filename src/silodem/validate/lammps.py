@@ -29,6 +29,13 @@ step before chaos has grown it: 20 grains apart (walls only: the floor, both out
 faces, the fall below) after 1,500 steps, and 60 grains that collide with each other and the
 walls after 1,000 steps; tolerance 1e-6 m (1e-5 of a radius), below every law difference
 above by 30 times or more.  Without ``lmp`` the family reports that and checks nothing.
+
+The Hertz-Mindlin law (twenty-first session): the colliding cloud again with LAMMPS's
+gran/hertz/history and wall/gran hertz/history, frictionless and undamped.  LAMMPS's normal
+force sqrt(R* delta) K_n delta is silodem's 2/3 (2 E*) sqrt(R*) delta^(3/2) with
+K_n = 4/3 E* (``HERTZ_KN``); its dashpot (as delta^(1/2)) and its shear law (a shear
+displacement times the current stiffness, where silodem adds increments of the force) are
+other models than silodem's, so only the elastic normal law is compared, grain by grain.
 """
 
 from __future__ import annotations
@@ -54,9 +61,11 @@ K = bench.K_CONTACT  # [N/m]
 MU_GRAIN, MU_WALL = bench.MU_GRAIN, bench.MU_WALL  # the bench's law
 ZETA = damping_ratio_from_restitution(bench.RESTITUTION)
 TOLERANCE = 1e-6  # [m]
+HERTZ_KN = 1e8  # LAMMPS's K_n = 4/3 E* of the Hertz cloud [Pa]; silodem's 2 E* is 3/2 of it
 # (name, grains, lattice spacing [m], steps)
 CLOUDS = (("walls only, 20 grains apart", 20, 0.42, 1500),
           ("colliding cloud, 60 grains", 60, 0.30, 1000))
+HERTZ_CLOUD = ("Hertz law, colliding cloud, 60 grains", 60, 0.30, 1000, True)
 
 
 def cloud(n: int, spacing: float, seed: int = 1, mixed: bool = False) -> dict[str, np.ndarray]:
@@ -75,10 +84,17 @@ def cloud(n: int, spacing: float, seed: int = 1, mixed: bool = False) -> dict[st
 
 
 def run_silodem(state: dict[str, np.ndarray], steps: int, every: int,
-                tension: bool = False) -> list[np.ndarray]:
-    """Positions (n, 2) [m] in the order of ``state``, every ``every`` steps from step 0."""
+                tension: bool = False, hertz: bool = False) -> list[np.ndarray]:
+    """Positions (n, 2) [m] in the order of ``state``, every ``every`` steps from step 0;
+    ``hertz``: the frictionless, undamped Hertz law of ``HERTZ_KN`` instead of the bench's."""
     silo, _, _ = bench.build(NX, 4)  # the bench's walls and law (zeta = ZETA); not its grains
     law = dataclasses.replace(silo.law, allow_tension=tension)
+    if hertz:
+        kn = 1.5 * HERTZ_KN  # 2 E*
+        law = dataclasses.replace(law, kn=kn, ks=kn, mu=0.0, zeta=0.0, hertz=True)
+        for name in ("kn", "ks"):
+            getattr(silo.walls, name)[:] = kn
+        silo.walls.mu[:] = 0.0
     p = Particles(len(state["x"]))
     p.add(state["x"], state["y"], state["radius"], DENSITY, vx=state["vx"],
           vy=state["vy"] + 0.5 * bench.DT * 9.81, omega=state["omega"])
@@ -98,7 +114,7 @@ def _f(v) -> str:
 
 
 def lammps_input(state: dict[str, np.ndarray], steps: int, every: int,
-                 tension: bool = False) -> tuple[str, str]:
+                 tension: bool = False, hertz: bool = False) -> tuple[str, str]:
     """(data file, input deck) of the same grains, walls and law."""
     width = NX * bench.SPACING
     n = len(state["x"])
@@ -116,6 +132,10 @@ def lammps_input(state: dict[str, np.ndarray], steps: int, every: int,
     xl, xr = width / 2 - bench.SLOT / 2, width / 2 + bench.SLOT / 2
     limit = "" if tension else " limit_damping"
     wall = f"hooke/history {K} {K} {_f(gamma_wall)} 0.0 {_f(MU_WALL)} 0{limit}"
+    pair = f"gran/hooke/history {K} {K} {_f(gamma_grain)} 0.0 {_f(MU_GRAIN)} 0{limit}"
+    if hertz:  # frictionless and undamped: the elastic normal law alone
+        wall = f"hertz/history {_f(HERTZ_KN)} {_f(HERTZ_KN)} 0.0 0.0 0.0 0"
+        pair = f"gran/{wall}"
     deck = f"""units si
 dimension 2
 atom_style sphere
@@ -125,7 +145,7 @@ read_data data.txt
 set group all density/disc {DENSITY}
 neighbor 0.05 bin
 neigh_modify delay 0 every 1 check yes
-pair_style gran/hooke/history {K} {K} {_f(gamma_grain)} 0.0 {_f(MU_GRAIN)} 0{limit}
+pair_style {pair}
 pair_coeff * *
 timestep {bench.DT}
 fix 1 all nve/sphere disc
@@ -145,11 +165,11 @@ run {steps}
 
 
 def run_lammps(state: dict[str, np.ndarray], steps: int, every: int,
-               tension: bool = False) -> list[np.ndarray]:
+               tension: bool = False, hertz: bool = False) -> list[np.ndarray]:
     """As :func:`run_silodem`, by ``lmp`` (unwrapped positions)."""
     n = len(state["x"])
     with tempfile.TemporaryDirectory() as tmp:
-        data, deck = lammps_input(state, steps, every, tension)
+        data, deck = lammps_input(state, steps, every, tension, hertz)
         (Path(tmp) / "data.txt").write_text(data)
         (Path(tmp) / "deck.in").write_text(deck)
         lmp = bench.lammps_executable() or "lmp"
@@ -164,10 +184,10 @@ def run_lammps(state: dict[str, np.ndarray], steps: int, every: int,
 
 
 def divergence(state: dict[str, np.ndarray], steps: int, every: int,
-               tension: bool = False) -> np.ndarray:
+               tension: bool = False, hertz: bool = False) -> np.ndarray:
     """The largest position difference between the two codes [m], every ``every`` steps."""
-    ours = run_silodem(state, steps, every, tension)
-    theirs = run_lammps(state, steps, every, tension)
+    ours = run_silodem(state, steps, every, tension, hertz)
+    theirs = run_lammps(state, steps, every, tension, hertz)
     return np.array([np.abs(a - b).max() for a, b in zip(ours, theirs)])
 
 
@@ -178,9 +198,9 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
                        note="LAMMPS (Debian package lammps) absent: not compared")], {}
     records, curves = [], {}
     every = 50  # steps between the compared frames
-    for name, n, spacing, steps in CLOUDS:
+    for name, n, spacing, steps, hertz in [*((*c, False) for c in CLOUDS), HERTZ_CLOUD]:
         try:
-            dev = divergence(cloud(n, spacing), 2 * steps, every)
+            dev = divergence(cloud(n, spacing), 2 * steps, every, hertz=hertz)
         except (OSError, subprocess.CalledProcessError) as err:  # a failed lmp fails the check
             detail = getattr(err, "stderr", "") or str(err)
             records.append(Record(f"LAMMPS trajectories, {name}", "lmp ran", 1.0, 0.0, 0.0,
@@ -190,5 +210,6 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
         records.append(Record(
             f"LAMMPS trajectories, {name}", f"largest position difference after {steps} steps",
             0.0, float(dev[steps // every]), TOLERANCE, kind="abs", unit="m",
-            note="same grains, law and walls in LAMMPS (gran/hooke/history, wall/gran)"))
+            note=("frictionless, undamped Hertz: gran/hertz/history, wall/gran" if hertz else
+                  "same grains, law and walls in LAMMPS (gran/hooke/history, wall/gran)")))
     return records, curves
