@@ -185,6 +185,12 @@ def test_a_worker_killed_mid_run_loses_no_grid_point(serial, tmp_path):
     (TINY.replace('base = "paper-case2"', 'base = "paper-case9"'),
      ["paper-case9", "did you mean 'paper-case2'"]),
     (TINY + "[grid\n", ["malformed TOML"]),
+    # a grid over base scenarios
+    ('base = "paper-case2"\nseeds = [1]\n[grid]\nbase = ["paper-case1"]\n',
+     ["'base' is both at the top and in [grid]"]),
+    ('seeds = [1]\n[grid]\n"material.friction_deg" = [20.0]\n', ["missing required key 'base'"]),
+    ('seeds = [1]\n[grid]\nbase = [3]\n', ["[grid] 'base' lists base scenarios"]),
+    ('seeds = [1]\n[grid]\nbase = ["paper-case9"]\n', ["base 'paper-case9'", "paper-case2"]),
 ])
 def test_bad_study_files_give_one_line_and_exit_2(tmp_path, capsys, text, needles):
     path = tmp_path / "bad.toml"
@@ -335,22 +341,3 @@ def test_a_grid_over_base_scenarios_compares_the_two_contact_laws(tmp_path):
     with open(outcome.table_path, encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
     assert sorted(r["base"] for r in rows) == ["hertz.toml", "paper-case2"]
-
-
-@pytest.mark.parametrize("text, needles", [
-    ('base = "paper-case2"\nseeds = [1]\n[grid]\nbase = ["paper-case1"]\n',
-     ["'base' is both at the top and in [grid]"]),
-    ('seeds = [1]\n[grid]\n"material.friction_deg" = [20.0]\n', ["missing required key 'base'"]),
-    ('seeds = [1]\n[grid]\nbase = [3]\n', ["[grid] 'base' lists base scenarios"]),
-    ('seeds = [1]\n[grid]\nbase = ["paper-case9"]\n', ["base 'paper-case9'", "paper-case2"]),
-])
-def test_bad_grid_bases_give_one_line_and_exit_2(tmp_path, capsys, text, needles):
-    path = tmp_path / "bad.toml"
-    path.write_text(text, encoding="utf-8")
-    with pytest.raises(SystemExit) as exc:
-        main(["sweep", str(path), "--out", str(tmp_path / "out")])
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for needle in needles:
-        assert needle in err, err
