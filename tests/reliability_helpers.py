@@ -135,13 +135,10 @@ def stop_and_restore(cfg: Config, phase: str, path: Path):
 
 
 def hertz_config() -> Config:
-    """The quick hopper of paper case 2 (120 grains, a 4 s discharge) with the Hertz-Mindlin
-    law: grains of E = 1 GPa, nu = 0.3, steel walls of 200 GPa."""
-    data = quick_variant(load_config("paper-case2")).model_dump()
-    for section in ("material", "walls"):
-        data[section].update(kn=None, ks=None, young_modulus=1e9, poisson_ratio=0.3)
-    data["material"]["contact_model"] = "hertz_mindlin"
-    data["walls"]["young_modulus"] = 2e11
+    """The quick hopper of the embedded scenario paper-case2-hertz (the Hertz-Mindlin law:
+    grains of E = 1 GPa, nu = 0.3, steel walls of 200 GPa) with 120 grains and a 4 s
+    discharge."""
+    data = quick_variant(load_config("paper-case2-hertz")).model_dump()
     data["fill"]["n_particles"] = 120
     data["discharge"]["max_time"] = 4.0
     return Config.model_validate(data)
