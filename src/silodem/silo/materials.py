@@ -82,7 +82,6 @@ def linearised(cfg: Config, law: GrainLaw, wall_kn: np.ndarray, wall_ks: np.ndar
         return law, wall_kn, wall_ks
     r = cfg.material.radius_max
     d_grain, d_wall = design_overlaps(cfg, static_force)
-    gg = math.sqrt(0.5 * r * d_grain)
-    gw = math.sqrt(r * d_wall)
-    return (replace(law, kn=law.kn * gg, ks=law.ks * gg, hertz=False),
-            np.asarray(wall_kn) * gw, np.asarray(wall_ks) * gw)
+    grain = [hertz.tangent_stiffness(k, 0.5 * r, d_grain) for k in (law.kn, law.ks)]
+    wall = [hertz.tangent_stiffness(np.asarray(k), r, d_wall) for k in (wall_kn, wall_ks)]
+    return replace(law, kn=grain[0], ks=grain[1], hertz=False), wall[0], wall[1]
