@@ -53,7 +53,8 @@ SEEDS = (1, 2)  # independent fills per outlet width; their rates are averaged
 EXPONENT_TOL = 0.1
 HEIGHT_TOL = 0.05
 HEIGHT_NOTE = ("with this contact law the rate grows with H (+7 to +10 % for 2 x H), in LAMMPS "
-               "too and with 100 x stiffer grains: docs/validation.md, section 5")
+               "too, with 100 x stiffer grains and under the Hertz-Mindlin law: "
+               "docs/validation.md, section 5")
 G = 9.81
 
 
