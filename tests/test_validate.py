@@ -119,6 +119,34 @@ def test_validate_refuses_an_out_that_is_a_file(tmp_path):
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
+
+def test_validate_case_runs_only_the_named_family(tmp_path):
+    """``--case statics``: the settled column's records and figure, nothing of the others;
+    its check is a conservation law (floor + walls carry the weight)."""
+    proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--case", "statics",
+                           "--json", "--out", str(tmp_path)], capture_output=True, text=True,
+                          timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    records = json.loads(proc.stdout)
+    assert records and all(r["pass"] is True for r in records)
+    assert {r["case"].split(",")[0] for r in records} == {"settled column"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["statics.png"]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--case", "nosuch"], ["--case", "nosuch", "janssen"]),
+    (["--case", "janssen", "--quick"], ["--quick", "--case"]),
+])
+def test_validate_case_refuses_bad_names_in_one_line(tmp_path, args, words):
+    proc = subprocess.run([sys.executable, "-m", "silodem", "validate", *args, "--out",
+                           str(tmp_path)], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert "Traceback" not in proc.stderr and len(lines) == 1
+    assert all(w in lines[0] for w in words), lines[0]
+    assert not any(tmp_path.iterdir())  # refused before any work
+
 # --- pure functions ------------------------------------------------------------------------------
 
 
@@ -236,3 +264,12 @@ def test_a_failed_check_is_named_with_its_miss_and_note():
     assert "expected 1.445 kg/s, got 1.548 kg/s (+7.1 % against 5 %); see section 5" in line
     line = failure_line(Record("c", "offset", 0.0, -0.25, 0.1, "abs", "m"))
     assert "(-0.25 m against +- 0.1)" in line and line.startswith("FAILED c: offset:")
+
+
+def test_run_validation_refuses_an_unknown_case_before_running_any():
+    from silodem.validate.runner import run_validation
+
+    said = []
+    with pytest.raises(ValueError, match="unknown validation case nosuch.*statics"):
+        run_validation(only=["statics", "nosuch"], progress=said.append)
+    assert said == []

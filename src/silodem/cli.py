@@ -467,10 +467,17 @@ def animate(
 def validate(
     quick: Annotated[
         bool,
-        typer.Option("--quick", help="Only the particle-impact cases and the settled column "
+        typer.Option("--quick", help="Only the particle-impact cases (linear and "
+                     "Hertz-Mindlin), the settled column and the trajectories against LAMMPS "
                      "(the subset CI runs; well under a minute). The full suite adds the "
-                     "Janssen and Beverloo silos (7-16 minutes on two cores)."),
+                     "Janssen and Beverloo silos (15-20 minutes on two cores)."),
     ] = False,
+    cases: Annotated[
+        list[str] | None,
+        typer.Option("--case", metavar="NAME", help="Run only this family of cases "
+                     "(repeatable): impacts, chung_ooi, hertz_mindlin, statics, lammps, "
+                     "janssen (about 4 minutes), beverloo (about 15)."),
+    ] = None,
     as_json: Annotated[
         bool,
         typer.Option("--json", help="Print the records as one JSON list (case, quantity, "
@@ -484,21 +491,31 @@ def validate(
 ) -> None:
     """Check the physics against analytic solutions and published results: normal impacts
     (spring-dashpot solution, Schwager & Poeschel 2007), Chung & Ooi (2011) benchmark tests
-    4-8 adapted to disks, a settled column (walls carry the weight), and with the full suite
-    Janssen's wall pressures and Beverloo's discharge rates (docs/validation.md).
+    4-8 adapted to disks, the Hertz-Mindlin law against Hertz and Mindlin, a settled column
+    (walls carry the weight), grain trajectories against LAMMPS (where lmp is installed),
+    and with the full suite Janssen's wall pressures and Beverloo's discharge rates
+    (docs/validation.md).
 
     Prints a table (case, quantity, expected, got, tolerance, pass) and writes figures into
     DIR. Exit code 0 when every check passes, 1 when one fails. Examples:
 
       silodem validate --quick
 
+      silodem validate --case janssen --case hertz_mindlin
+
       silodem validate --out validation --json > validation.json
     """
     _check_out(out)
-    from silodem.validate.runner import print_table, run_validation  # imports numba
+    from silodem.validate.runner import NAMES, print_table, run_validation
 
+    if cases and quick:
+        _error("give --quick or --case, not both (--case runs the named families whole)")
+    unknown = sorted(set(cases or ()) - set(NAMES))
+    if unknown:
+        _error(f"--case: unknown validation case {', '.join(unknown)}; "
+               f"the cases are {', '.join(NAMES)}")
     err = Console(stderr=True)
-    result = run_validation(quick=quick, out=out,
+    result = run_validation(quick=quick, out=out, only=cases or None,  # imports numba
                             progress=lambda msg: err.print(msg, markup=False, highlight=False))
     if as_json:
         sys.stdout.write(result.to_json() + "\n")

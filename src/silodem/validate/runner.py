@@ -14,7 +14,8 @@ Families (one module each; a family returns its records and the data of its figu
 * beverloo   steady discharge rates against the 2D Beverloo law                (full mode only).
 
 ``--quick`` runs the first five (the particle-impact level, one small packing, LAMMPS), the subset
-CI runs; the full mode adds the silo-scale cases.
+CI runs; the full mode adds the silo-scale cases; ``--case NAME`` (repeatable) runs only the
+named families, e.g. the Janssen silo alone.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import import_module
 from pathlib import Path
 
 from silodem.validate.records import Record
@@ -38,29 +40,26 @@ class Family:
     figure: Callable[[object, Path], Path] | None
 
 
-def families() -> list[Family]:
-    from silodem.validate import (
-        beverloo,
-        chung_ooi,
-        figures,
-        hertz_mindlin,
-        impacts,
-        janssen,
-        lammps,
-        statics,
-    )
+# (name, title, part of --quick): each name is a module of this package with ``run(quick)``
+# and a function of ``figures`` that draws its figure
+FAMILIES = (
+    ("impacts", "linear normal impacts", True),
+    ("chung_ooi", "Chung & Ooi tests 4-8 (disks)", True),
+    ("hertz_mindlin", "Hertz-Mindlin law", True),
+    ("statics", "settled column", True),
+    ("lammps", "trajectories against LAMMPS", True),
+    ("janssen", "Janssen slot silo", False),
+    ("beverloo", "Beverloo discharge", False),
+)
+NAMES = tuple(name for name, _title, _quick in FAMILIES)
 
-    return [
-        Family("impacts", "linear normal impacts", True, impacts.run, figures.impacts),
-        Family("chung_ooi", "Chung & Ooi tests 4-8 (disks)", True, chung_ooi.run,
-               figures.chung_ooi),
-        Family("hertz_mindlin", "Hertz-Mindlin law", True, hertz_mindlin.run,
-               figures.hertz_mindlin),
-        Family("statics", "settled column", True, statics.run, figures.statics),
-        Family("lammps", "trajectories against LAMMPS", True, lammps.run, figures.lammps),
-        Family("janssen", "Janssen slot silo", False, janssen.run, figures.janssen),
-        Family("beverloo", "Beverloo discharge", False, beverloo.run, figures.beverloo),
-    ]
+
+def families() -> list[Family]:
+    """The families in the order they run (their modules are imported here: numba)."""
+    from silodem.validate import figures
+
+    return [Family(name, title, quick, import_module(f"silodem.validate.{name}").run,
+                   getattr(figures, name)) for name, title, quick in FAMILIES]
 
 
 @dataclass
@@ -84,8 +83,12 @@ class Validation:
 def run_validation(quick: bool = False, out: Path | None = None,
                    progress: Callable[[str], None] | None = None,
                    only: list[str] | None = None) -> Validation:
-    """Run the families (``quick``: those marked quick; ``only``: these names), write their
-    figures into ``out`` (none if None) and return every record."""
+    """Run the families (``quick``: those marked quick; ``only``: these names, of ``NAMES``),
+    write their figures into ``out`` (none if None) and return every record."""
+    unknown = sorted(set(only or ()) - set(NAMES))
+    if unknown:
+        raise ValueError(f"unknown validation case {', '.join(unknown)}; "
+                         f"the cases are {', '.join(NAMES)}")
     say = progress or (lambda _msg: None)
     result = Validation()
     for fam in families():
