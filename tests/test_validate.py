@@ -119,7 +119,6 @@ def test_validate_refuses_an_out_that_is_a_file(tmp_path):
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
-
 def test_validate_case_runs_only_the_named_family(tmp_path):
     """``--case statics``: the settled column's records and figure, nothing of the others;
     its check is a conservation law (floor + walls carry the weight)."""
@@ -146,6 +145,7 @@ def test_validate_case_refuses_bad_names_in_one_line(tmp_path, args, words):
     assert "Traceback" not in proc.stderr and len(lines) == 1
     assert all(w in lines[0] for w in words), lines[0]
     assert not any(tmp_path.iterdir())  # refused before any work
+
 
 # --- pure functions ------------------------------------------------------------------------------
 
