@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -39,6 +40,9 @@ def test_bench_json_smoke():
     assert out["particle_steps_per_s"] > 0 and out["peak_memory_bytes"] > 0
     assert 0 <= out["list_builds"] <= out["steps"]  # at most one build per step
     assert 0 <= out["build_seconds"] <= out["seconds"]  # a part of the timed steps
+    # the machine the figures belong to: the CPUs this process may use, as the OS says
+    assert out["machine"]["cpus"] == len(os.sched_getaffinity(0))
+    assert isinstance(out["machine"]["cpu"], str) and out["machine"]["cpu"]
 
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")

@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import platform
 import re
 import resource
 import shutil
@@ -252,9 +253,27 @@ def bench(n: int, threads: int, steps: int, settle: int, lammps: bool) -> list[B
     return results
 
 
+def machine() -> dict:
+    """What the figures were measured on: the CPU's model name (Linux's /proc/cpuinfo, else
+    ``platform.processor()``) and the CPUs this process may use.  Throughput moves with the
+    machine (docs/performance.md), so a figure is read with its machine."""
+    cpu = ""
+    try:
+        for row in Path("/proc/cpuinfo").read_text().splitlines():
+            if row.startswith("model name"):
+                cpu = row.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    usable = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else range(
+        os.cpu_count() or 1)
+    return {"cpu": cpu or platform.processor() or platform.machine(), "cpus": len(usable)}
+
+
 def as_json(results: list[BenchResult]) -> str:
     first = asdict(results[0])
     if len(results) > 1:
         first["lammps"] = asdict(results[1])
         first["ratio_vs_lammps"] = results[0].particle_steps_per_s / results[1].particle_steps_per_s
+    first["machine"] = machine()
     return json.dumps(first)

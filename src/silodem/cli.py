@@ -399,6 +399,8 @@ def bench(
     console.print(f"peak memory {results[0].peak_memory_bytes / 1e6:.0f} MB "
                   f"({results[0].peak_memory_bytes / results[0].n:.0f} bytes per grain, "
                   "whole process)", markup=False, highlight=False)
+    on = benchmark.machine()
+    console.print(f"machine: {on['cpu']}, {on['cpus']} CPUs", markup=False, highlight=False)
     if len(results) > 1:
         ratio = results[0].particle_steps_per_s / results[1].particle_steps_per_s
         console.print(f"silodem / LAMMPS = {ratio:.2f}", markup=False, highlight=False)
