@@ -34,6 +34,7 @@ the free fit.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,20 @@ def rate_of(t: np.ndarray, m: np.ndarray):
     """The steady rate of a discharge curve: the slope from 20 % to 95 % of the mass that left
     (``measure.discharge.steady_rate``; ``.rate``, ``.err`` in kg/s)."""
     return steady_rate(t, m, lo=0.2, hi=0.95)
+
+
+def variant_rate(cfg: Config) -> dict:
+    """Run a variant of the case's config (the experiments of docs/validation.md, section 5:
+    ``docs/validation/stiffness.py``, ``hertz_height.py``) and return what they print: the
+    time step ``dt`` [s], the steady rate ``W`` and its error ``err`` [kg/s], the grains that
+    ``passed`` and the run's ``wall_s`` [s]."""
+    start = time.perf_counter()
+    run = SiloRun(cfg)
+    run.run()
+    rate = rate_of(*discharge_curve(run))
+    return {"dt": run.sim.dt, "W": rate.rate, "err": rate.err,
+            "passed": int(run.state.discharged_count),
+            "wall_s": round(time.perf_counter() - start, 1)}
 
 
 def discharge(D_over_d: float, H_over_B: float = FILL, seed: int = 1) -> Discharge:
