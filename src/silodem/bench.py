@@ -265,9 +265,9 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    usable = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else range(
-        os.cpu_count() or 1)
-    return {"cpu": cpu or platform.processor() or platform.machine(), "cpus": len(usable)}
+    from silodem.study.execute import default_workers  # the cores this process may use
+
+    return {"cpu": cpu or platform.processor() or platform.machine(), "cpus": default_workers()}
 
 
 def as_json(results: list[BenchResult]) -> str:

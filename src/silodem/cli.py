@@ -508,14 +508,14 @@ def validate(
       silodem validate --out validation --json > validation.json
     """
     _check_out(out)
-    from silodem.validate.runner import NAMES, print_table, run_validation
+    from silodem.validate.runner import check_cases, print_table, run_validation
 
     if cases and quick:
         _error("give --quick or --case, not both (--case runs the named families whole)")
-    unknown = sorted(set(cases or ()) - set(NAMES))
-    if unknown:
-        _error(f"--case: unknown validation case {', '.join(unknown)}; "
-               f"the cases are {', '.join(NAMES)}")
+    try:
+        check_cases(cases or ())
+    except ValueError as err:
+        _error(f"--case: {err}")
     err = Console(stderr=True)
     result = run_validation(quick=quick, out=out, only=cases or None,  # imports numba
                             progress=lambda msg: err.print(msg, markup=False, highlight=False))

@@ -54,6 +54,14 @@ FAMILIES = (
 NAMES = tuple(name for name, _title, _quick in FAMILIES)
 
 
+def check_cases(names) -> None:
+    """Raise ValueError naming the names that are not families (of ``NAMES``)."""
+    unknown = sorted(set(names) - set(NAMES))
+    if unknown:
+        raise ValueError(f"unknown validation case {', '.join(unknown)}; "
+                         f"the cases are {', '.join(NAMES)}")
+
+
 def families() -> list[Family]:
     """The families in the order they run (their modules are imported here: numba)."""
     from silodem.validate import figures
@@ -85,10 +93,7 @@ def run_validation(quick: bool = False, out: Path | None = None,
                    only: list[str] | None = None) -> Validation:
     """Run the families (``quick``: those marked quick; ``only``: these names, of ``NAMES``),
     write their figures into ``out`` (none if None) and return every record."""
-    unknown = sorted(set(only or ()) - set(NAMES))
-    if unknown:
-        raise ValueError(f"unknown validation case {', '.join(unknown)}; "
-                         f"the cases are {', '.join(NAMES)}")
+    check_cases(only or ())
     say = progress or (lambda _msg: None)
     result = Validation()
     for fam in families():
