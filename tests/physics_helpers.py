@@ -1,4 +1,5 @@
-"""Small set-ups shared by the physics tests, and the analytic solutions they are checked against."""
+"""Small set-ups shared by the physics tests, and the analytic solutions they are checked
+against."""
 
 from __future__ import annotations
 

@@ -53,8 +53,9 @@ class ReferenceDEM:
                     continue
                 nx, ny = dx / d, dy / d
                 # contact point velocities: v + w x (p - centre)
-                vci = (self.vx[i] - self.w[i] * self.r[i] * ny, self.vy[i] + self.w[i] * self.r[i] * nx)
-                vcj = (self.vx[j] + self.w[j] * self.r[j] * ny, self.vy[j] - self.w[j] * self.r[j] * nx)
+                wri, wrj = self.w[i] * self.r[i], self.w[j] * self.r[j]
+                vci = (self.vx[i] - wri * ny, self.vy[i] + wri * nx)
+                vcj = (self.vx[j] + wrj * ny, self.vy[j] - wrj * nx)
                 rv = (vcj[0] - vci[0], vcj[1] - vci[1])
                 vn = rv[0] * nx + rv[1] * ny
                 vt = -rv[0] * ny + rv[1] * nx
@@ -78,14 +79,16 @@ class ReferenceDEM:
         for i in range(n):
             for w, (ax, ay, bx, by, kn, ks, mu) in enumerate(self.walls):
                 ux, uy = bx - ax, by - ay
-                s = min(1.0, max(0.0, ((self.x[i] - ax) * ux + (self.y[i] - ay) * uy) / (ux * ux + uy * uy)))
+                along = ((self.x[i] - ax) * ux + (self.y[i] - ay) * uy) / (ux * ux + uy * uy)
+                s = min(1.0, max(0.0, along))
                 cx, cy = ax + s * ux, ay + s * uy
                 dx, dy = self.x[i] - cx, self.y[i] - cy
                 d = math.hypot(dx, dy)
                 if d >= self.r[i] or d == 0.0:
                     continue
                 nx, ny = dx / d, dy / d
-                vc = (self.vx[i] + self.w[i] * self.r[i] * ny, self.vy[i] - self.w[i] * self.r[i] * nx)
+                wri = self.w[i] * self.r[i]
+                vc = (self.vx[i] + wri * ny, self.vy[i] - wri * nx)
                 vn = vc[0] * nx + vc[1] * ny
                 vt = -vc[0] * ny + vc[1] * nx
                 f_el, sn, ss = _stiffness(self.r[i] - d, self.r[i], kn, ks, self.hertz)

@@ -1,4 +1,5 @@
-"""A whole fill -> settle -> discharge run on a small silo: conservation, reproducibility, output."""
+"""A whole fill -> settle -> discharge run on a small silo: conservation, reproducibility,
+output."""
 
 from __future__ import annotations
 
@@ -87,7 +88,8 @@ def test_same_seed_gives_bit_identical_results():
     a.run()
     b.run()
     for key in ("x", "y", "vx", "vy", "omega", "radius"):
-        assert np.array_equal(a.snapshots["final"].particles[key], b.snapshots["final"].particles[key])
+        first, second = a.snapshots["final"].particles, b.snapshots["final"].particles
+        assert np.array_equal(first[key], second[key])
     c = SiloRun(small(discharge__max_time=1.0).model_copy(update={"seed": 99}))
     c.run()
     assert not np.array_equal(a.snapshots["settled"].particles["x"],

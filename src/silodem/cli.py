@@ -374,8 +374,11 @@ def bench(
     settle: Annotated[int, typer.Option("--settle", help="Untimed steps first (compilation, "
                                         "fall, start of the flow), as the deck's SETTLE.")] = 10000,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    lammps: Annotated[bool, typer.Option("--lammps", help="Also run the same silo with LAMMPS "
-                                         "(`lmp`, Debian package lammps) and print the ratio.")] = False,
+    lammps: Annotated[bool, typer.Option(
+        "--lammps",
+        help="Also run the same silo with LAMMPS (`lmp`, Debian package lammps) "
+        "and print the ratio.",
+    )] = False,
 ) -> None:
     """Measure particle-steps per second on a dense, steadily discharging flat-bottomed silo
     built to match the reference LAMMPS deck (docs/performance.md). Example:

@@ -41,7 +41,9 @@ class Material(_Strict):
 
     density: float = Field(gt=0, description="grain density rho [kg/m^3]")
     radius_min: float = Field(gt=0, description="smallest grain radius [m]")
-    radius_max: float = Field(gt=0, description="largest grain radius [m]; radii uniform in [min, max]")
+    radius_max: float = Field(
+        gt=0, description="largest grain radius [m]; radii uniform in [min, max]"
+    )
     thickness: float = Field(1.0, gt=0, description="out-of-plane thickness t of a disk [m]")
     contact_model: Literal["linear", "hertz_mindlin"] = Field(
         "linear", description="'linear': the paper's springs kn, ks; 'hertz_mindlin': Hertz's "

@@ -32,7 +32,10 @@ def one_line(text: str) -> str:
 
 
 def submodel(annotation: Any) -> type[BaseModel] | None:
-    """The pydantic model class inside a field annotation (``Material``, ``X | None``), else None."""
+    """The pydantic model class inside a field annotation (``Material``, ``X | None``).
+
+    None when the annotation holds no model.
+    """
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return annotation
     origin = typing.get_origin(annotation)

@@ -123,7 +123,10 @@ def _read_source(source: str) -> dict[str, Any]:
 
 
 def parse_value(text: str) -> Any:
-    """A ``--set`` value: a TOML value (``3``, ``2.5``, ``true``, ``"x"``), else the plain string."""
+    """A ``--set`` value: a TOML value (``3``, ``2.5``, ``true``, ``"x"``).
+
+    Text that is not a TOML value is taken as the plain string.
+    """
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except (ValueError, RecursionError):  # whatever tomllib rejects is taken literally
@@ -170,7 +173,8 @@ def apply_sets(data: dict[str, Any], sets: Iterable[str]) -> dict[str, Any]:
             child = node.setdefault(part, {})
             if not isinstance(child, dict):
                 raise InputError(
-                    f"--set {_short(item)}: '{'.'.join(parts[: i + 1])}' holds a value, not a section"
+                    f"--set {_short(item)}: '{'.'.join(parts[: i + 1])}' holds a value, "
+                    "not a section"
                 )
             node = child
         node[parts[-1]] = parse_value(text)

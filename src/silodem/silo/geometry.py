@@ -40,7 +40,8 @@ class SiloShape:
         if self.kind == "flat" or z >= self.junction:
             return 0.0, self.width
         f = max(z, 0.0) / self.junction
-        return self.outlet_left * (1.0 - f), self.outlet_right + (self.width - self.outlet_right) * f
+        right = self.outlet_right + (self.width - self.outlet_right) * f
+        return self.outlet_left * (1.0 - f), right
 
     def area_below(self, z: float) -> float:
         """Area of the silo's inside under height z [m^2]."""
