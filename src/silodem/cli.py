@@ -188,7 +188,7 @@ def run(
 
       silodem run                       (the paper's hopper case, paper-case2)
 
-      silodem run paper-case1 --quick   (the flat silo, small and fast)
+      silodem run paper-case2 --quick   (the hopper case, small and fast)
 
       silodem run my.toml --set fill.n_particles=300 --out runs/test
 

@@ -30,6 +30,7 @@ from silodem.silo.geometry import GATE, SiloShape, build_walls, silo_shape
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
 
 PHASES = ("fill", "settle", "discharge", "done")
+LOST_TOTAL = "grains lost in all: "  # the warning that holds the running total
 BATCH_INTERVAL = 0.05  # pouring: grains are placed in batches this often [s]
 CHECK_INTERVAL = 0.05  # equilibrium / discharge checks this often [s]
 _PLACEMENT_TRIES = 40  # random positions tried per grain before waiting for room
@@ -338,7 +339,8 @@ class SiloRun:
 
     def _remove_escaped(self) -> None:
         """Remove grains that left the silo other than through the open outlet (pushed through
-        a wall by too soft contacts, or thrown out) and say so once."""
+        a wall by too soft contacts, or thrown out): one warning names the first loss, and a
+        second, rewritten at each later loss, holds the running total."""
         p, shape, st = self.sim.particles, self.shape, self.state
         x, y = p.view("x"), p.view("y")
         margin = 1.0 + 4.0 * self.cfg.material.radius_max
@@ -354,10 +356,27 @@ class SiloRun:
                 f"at t = {self.sim.time:.2f} s (contacts too soft or time step too large); they "
                 "are removed and counted in events/lost_count"
             )
+        first = st.lost_count == 0
         st.lost_count += count
         st.lost_mass += float(np.sum(p.view("mass")[out]))
         self.events["lost_count"] = st.lost_count
         self.sim.remove(out)
+        if not first:
+            self._note_lost_total()
+
+    def _note_lost_total(self) -> None:
+        """Put the running total of lost grains in the warnings (replacing the last total)."""
+        st = self.state
+        share = (f" ({100 * st.lost_count / st.placed:.0f}% of the {st.placed} poured)"
+                 if st.placed else "")
+        text = (f"{LOST_TOTAL}{st.lost_count} grain(s){share}, {st.lost_mass:.3g} kg, the last "
+                f"during {st.phase} at t = {self.sim.time:.2f} s; the measurements describe the "
+                "grains that stayed")
+        old = [i for i, w in enumerate(self.warnings) if w.startswith(LOST_TOTAL)]
+        if old:
+            self.warnings[old[0]] = text
+        else:
+            self.warnings.append(text)
 
     # --- read-outs (never change the state) ---------------------------------------------------
     @property
