@@ -107,7 +107,7 @@ T_SERIES = np.arange(320) / 64 + 1 / 128  # the /timeseries sample times
 
 
 def _janssen_sigma_h(depth, K, mu=MU_WALL, rho_b=RHO_B):
-    """Janssen's 2D slot (DESIGN.md section 4, docs/theory.md), written out here."""
+    """Janssen's 2D slot (docs/theory.md), written out here."""
     c = 2.0 * K * mu / B
     return K * rho_b * G / c * (1.0 - np.exp(-c * np.asarray(depth, dtype=float)))
 

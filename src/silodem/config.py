@@ -167,7 +167,11 @@ class Fill(_Strict):
     n_particles: int = Field(
         gt=0, le=10_000_000, description="number of grains to put in the silo [-]"
     )
-    rate: float = Field(200.0, gt=0, description="pouring rate [grains/s] (method 'pour')")
+    rate: float = Field(
+        200.0, gt=0,
+        description="pouring rate [grains/s] (method 'pour'); an upper bound: a batch places "
+        "only the grains that find room in the band",
+    )
     band_height: float = Field(
         0.6, gt=0, description="height of the pouring band under the wall top [m]"
     )
