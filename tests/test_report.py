@@ -47,6 +47,28 @@ def test_run_writes_a_self_contained_report(run_dir):
         assert f"id='network_{view}'" in html
 
 
+def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):
+    """A flat-bottomed silo: the report has no hopper angle and no wedge-hopper paragraph, and
+    Fig. 2's axis reaches the largest coordination number measured (it was cut at 6.5)."""
+    from silodem.report import figures_stress as fs
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    cfg = tiny_hopper_config()
+    cfg = cfg.model_copy(update={"name": "tiny-flat",
+                                 "silo": cfg.silo.model_copy(update={"kind": "flat"})})
+    run_simulation(cfg, tmp_path, progress=False)
+    html = (tmp_path / "report.html").read_text(encoding="utf-8")
+    assert "flat bottom" in html
+    assert "hopper angle" not in html and "PLANAR" not in html
+    a = analyse(load_results(tmp_path))
+    m = a.res.group("measure")
+    peak = max(np.nanmax(m["band"]["coordination"]), np.nanmax(m["circles"]["coordination"]))
+    fig = fs.fig_coordination(a)
+    for ax in fig.axes:
+        assert ax.get_ylim()[1] >= peak
+
+
 def test_plot_re_renders_from_results_without_running(run_dir, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(run_dir, copy)

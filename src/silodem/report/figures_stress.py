@@ -37,16 +37,20 @@ def fig_coordination(a: Analysis) -> Figure | None:
     ax1.plot(step, rolling_mean(band["coordination"], 9), color="k", lw=1.6,
              label=f"band {lo:.2f} < z < {hi:.2f} m across the silo")
     ax1.set_ylabel("coordination number C_n [-]")
-    ax1.set_title("(a) at the cell-hopper junction (eq. 10: C_n = sum n_c / N_p)", fontsize=10)
+    where = ("at the cell-hopper junction" if a.res.cfg.silo.kind == "hopper"
+             else "in the band over the floor")
+    ax1.set_title(f"(a) {where} (eq. 10: C_n = sum n_c / N_p)", fontsize=10)
     c = m["circles"]
     for k, name in enumerate(c["name"]):
         ax2.plot(step, rolling_mean(c["coordination"][:, k], 9), lw=1.4, label=str(name))
     ax2.set_ylabel("C_n [-]")
     ax2.set_xlabel("cycles (time steps)")
     ax2.set_title("(b) in the measurement circles", fontsize=10)
+    peak = max(np.nanmax(band["coordination"], initial=0.0),
+               np.nanmax(c["coordination"], initial=0.0))
     for ax in (ax1, ax2):
         ax.axhline(4.0, color="0.5", lw=0.7, ls=":")
-        ax.set_ylim(0, 6.5)
+        ax.set_ylim(0, max(6.5, 1.05 * peak))
         ax.legend(fontsize=8, loc="lower right", ncol=2)
     fig.tight_layout()
     return fig

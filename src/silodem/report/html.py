@@ -30,7 +30,8 @@ class FigureSpec:
 FIGURES = [
     FigureSpec("fig2_coordination", "Fig. 2",
                "Coordination number C_n = sum(n_c)/N_p (eq. 10) against cycles, in a band across "
-               "the silo at the cell-hopper junction and in the measurement circles. Shading: "
+               "the silo at the cell-hopper junction (over the floor in a flat silo) and in the "
+               "measurement circles. Shading: "
                "filling, settling, discharge. Ordered packings of equal disks give 4 (square) "
                "and 6 (triangular), Table 3.", fs.fig_coordination),
     FigureSpec("fig3a_horizontal_filling", "Fig. 3a",
@@ -168,12 +169,15 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     title = f"silodem report: {cfg.name}"
     head = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>")
+    hopper = cfg.silo.kind == "hopper"
+    angle = (f" The hopper angle of the config, theta = "
+             f"{cfg.silo.hopper_angle_from_horizontal_deg:g} deg, is measured from the "
+             "horizontal; hopper theory uses alpha = 90 - theta from the vertical." if hopper
+             else " The silo has a flat bottom (no hopper).")
     intro = (f"<p>silodem {html.escape(str(res.attrs.get('silodem_version', '?')))}, seed "
              f"{cfg.seed}, time step {res.attrs.get('dt', float('nan')):.3g} s. Stresses are "
              "compressive positive [Pa], per unit out-of-plane thickness "
-             f"t = {cfg.material.thickness:g} m. The hopper angle of the config, theta = "
-             f"{cfg.silo.hopper_angle_from_horizontal_deg:g} deg, is measured from the "
-             "horizontal; hopper theory uses alpha = 90 - theta from the vertical.</p>")
+             f"t = {cfg.material.thickness:g} m.{angle}</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>",
              f"<p>{html.escape(cfg.description)}</p>", intro]
     if res.warnings:
@@ -183,10 +187,12 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     parts.append(_table(a.numbers, ("quantity", "value", "unit")) if a.numbers else
                  "<p>No measurements in this results file (measure recorder absent).</p>")
     parts.append("<h2>Figures</h2>")
-    parts.append("<p>A 2D silo is a plane-strain slot with a wedge hopper: the hopper curves "
-                 "labelled PLANAR are Walker's slice solution for a wedge (m = 0); the paper's "
-                 "eq. 12 is the conical form (m = 1), which doubles the wall support of a slice "
-                 "and so underestimates the stresses of a 2D hopper (docs/theory.md).</p>")
+    if hopper:
+        parts.append("<p>A 2D silo is a plane-strain slot with a wedge hopper: the hopper curves "
+                     "labelled PLANAR are Walker's slice solution for a wedge (m = 0); the "
+                     "paper's eq. 12 is the conical form (m = 1), which doubles the wall support "
+                     "of a slice and so underestimates the stresses of a 2D hopper "
+                     "(docs/theory.md).</p>")
     for spec, png in figures:
         b64 = base64.b64encode(png).decode("ascii")
         label = f"{spec.paper} equivalent. " if spec.paper else ""
