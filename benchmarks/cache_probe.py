@@ -82,7 +82,7 @@ def ns_per_grain(sim: Simulation, most: int | None, calls: int) -> tuple[float, 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", nargs="+", default=["100x100", "173x173", "316x316", "548x548",
                                                     "1000x1000"], help="NXxNY lattices")
     ap.add_argument("--subset", type=int, default=12_000,

@@ -48,7 +48,7 @@ def lammps_ns(lmp: str, nx: int, steps: int) -> tuple[float, int]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", nargs="+", type=int, default=[100, 173, 316, 548, 1000],
                     help="grains per side of the lattice")
     ap.add_argument("--work", type=float, default=5e7, help="particle-steps per run")

@@ -66,7 +66,7 @@ class BenchResult:
     steps: int
     seconds: float
     particle_steps_per_s: float
-    peak_memory_bytes: int
+    peak_memory_bytes: int | None  # whole process's peak RSS; None: not measured (LAMMPS)
     nx: int
     ny: int
     list_builds: int  # neighbour-list builds during the timed steps
@@ -241,7 +241,7 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
     builds = _BUILDS.findall(proc.stdout)
     neigh = _NEIGH.findall(proc.stdout)
     return BenchResult("lammps", atoms, int(procs), nsteps, seconds, atoms * nsteps / seconds,
-                       0, nx, ny, int(builds[-1]) if builds else -1,
+                       None, nx, ny, int(builds[-1]) if builds else -1,
                        float(neigh[-1]) if neigh else float("nan"))
 
 

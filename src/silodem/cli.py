@@ -472,9 +472,9 @@ def animate(
 def validate(
     quick: Annotated[
         bool,
-        typer.Option("--quick", help="Only the particle-impact cases (linear and "
-                     "Hertz-Mindlin), the settled column and the trajectories against LAMMPS "
-                     "(the subset CI runs; well under a minute). The full suite adds the "
+        typer.Option("--quick", help="Only the particle-impact cases (linear, Chung & Ooi's "
+                     "tests, Hertz-Mindlin), the settled column and the trajectories against "
+                     "LAMMPS (the subset CI runs; well under a minute). The full suite adds the "
                      "Janssen and Beverloo silos (15-20 minutes on two cores)."),
     ] = False,
     cases: Annotated[
