@@ -88,6 +88,60 @@ def test_a_file_that_is_not_toml_at_all_is_refused(capsys, tmp_path):
     assert_names(refused(capsys, "show", str(path)), "binary.toml")
 
 
+@pytest.mark.parametrize("content, needle", [
+    ("x = " + "[" * 5000 + "]" * 5000, "nested too deeply"),  # a RecursionError before
+    ("seed = " + "9" * 5000, "4300 digits"),  # Python's int limit, a ValueError before
+])
+@pytest.mark.parametrize("command", ["show", "sweep"])
+def test_toml_that_python_cannot_read_is_refused(capsys, tmp_path, content, needle, command):
+    path = tmp_path / "odd.toml"
+    path.write_text(content)
+    assert_names(refused(capsys, command, str(path)), "odd.toml", needle)
+
+
+def test_a_byte_order_mark_is_not_a_toml_error(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_text("\ufeff" + config_to_toml(load_config("paper-case2")), encoding="utf-8")
+    assert load_config(str(path)) == load_config("paper-case2")
+
+
+@pytest.mark.parametrize("name", ["/tmp/elsewhere", "..", ".", "a\nb", "a\\b", ""])
+def test_a_name_that_cannot_name_the_results_folder_is_refused(capsys, name):
+    """The default results folder is runs/<name>: a name with '/' wrote anywhere, '..' into
+    the current folder."""
+    line = refused(capsys, "show", "--set", f"name={tomli_w.dumps({'v': name})[4:].strip()}")
+    assert_names(line, "name")
+
+
+def test_the_last_of_two_sets_of_a_key_is_blamed(capsys):
+    line = refused(capsys, "show", "--set", "fill.n_particles=12",
+                   "--set", "fill.n_particles=abc")
+    assert_names(line, "(from --set fill.n_particles=abc)")
+
+
+@pytest.mark.parametrize("seeds", ["[true]", '["1"]', "[2.0]"])
+def test_study_seeds_are_integers_not_converted(capsys, tmp_path, seeds):
+    path = tmp_path / "study.toml"
+    path.write_text(f'base = "paper-case2"\nseeds = {seeds}\n[grid]\n"material.friction_deg" '
+                    "= [20.0]\n")
+    assert_names(refused(capsys, "sweep", str(path), "--out", str(tmp_path / "o")), "seeds")
+
+
+@pytest.mark.parametrize("x, radius, needle", [(0.6, 1e300, "larger than the silo"),
+                                               (100.0, 0.2, "no part inside")])
+def test_a_measurement_circle_outside_the_silo_is_refused_before_the_run(capsys, tmp_path, x,
+                                                                          radius, needle):
+    """A radius of 1e300 m overflowed the circle's area mid-run (an OverflowError); a circle
+    far outside measured nothing.  Refused before any folder is made."""
+    sets = ["measure.circle_names=[\"a\"]", f"measure.circle_x=[{x}]",
+            "measure.circle_z=[0.3]", f"measure.circle_radius=[{radius}]"]
+    out = tmp_path / "r"
+    line = refused(capsys, "run", "--quick", "--out", str(out),
+                   *[arg for s in sets for arg in ("--set", s)])
+    assert_names(line, "circle 'a'", needle)
+    assert not out.exists()
+
+
 # --- files and folders ---------------------------------------------------------------------
 
 
@@ -152,6 +206,23 @@ def test_a_loose_fill_that_cannot_fit_is_refused_before_the_run(capsys, tmp_path
     assert_names(line, "fill.n_particles", "do not fit loose")
     assert not (tmp_path / "checkpoint.h5").exists()
     assert not (tmp_path / "results.h5").exists()
+
+
+def test_values_that_make_no_run_are_refused_before_the_folder_is_made(capsys, tmp_path):
+    out = tmp_path / "new"
+    line = refused(capsys, "run", "--quick", "--out", str(out), "--set", "time.dt=1.0")
+    assert_names(line, "time.dt", "stability limit")
+    assert not out.exists()  # an empty folder was left behind before
+
+
+def test_a_folder_in_the_way_of_a_file_is_named(capsys, tmp_path):
+    """atomic_file names the file asked for, not its temporary name."""
+    from silodem.atomic import write_atomic
+
+    (tmp_path / "report.html").mkdir()
+    with pytest.raises(IsADirectoryError, match="report.html"):
+        write_atomic(tmp_path / "report.html", "x")
+    assert [p.name for p in tmp_path.iterdir()] == ["report.html"]
 
 
 def test_out_holding_an_unfinished_run_is_refused(capsys, tmp_path):

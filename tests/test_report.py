@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import tempfile
 
+import h5py
 import numpy as np
 import pytest
 from measure_helpers import tiny_hopper_config
@@ -138,6 +139,56 @@ def test_plot_of_a_bad_folder_is_one_line_and_exit_2(what, tmp_path, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err and str(folder) in err
+
+
+def test_plot_of_a_damaged_results_file_is_one_line_and_exit_2(run_dir, tmp_path, capsys):
+    """4000 bytes overwritten at one place or another inside results.h5: h5py fails in many
+    ways (OSError, RuntimeError, UnicodeDecodeError, or a None where a group was: a TypeError
+    traceback before), or reads nothing damaged.  Each is one line and exit 2, or a report."""
+    folder = tmp_path / "x"
+    folder.mkdir()
+    size = (run_dir / "results.h5").stat().st_size
+    refused = 0
+    for offset in range(2048, size - 4000, size // 12):
+        shutil.copy(run_dir / "results.h5", folder / "results.h5")
+        with open(folder / "results.h5", "r+b") as f:
+            f.seek(offset)
+            f.write(b"\xff" * 4000)
+        with pytest.raises(SystemExit) as exc:
+            main(["plot", str(folder)])
+        err = capsys.readouterr().err
+        assert exc.value.code in (0, 2) and "Traceback" not in err, (offset, err)
+        if exc.value.code == 2:
+            assert err.count("\n") == 1 and str(folder) in err, (offset, err)
+            refused += 1
+    assert refused >= 6  # most places hold metadata or compressed data that h5py checks
+
+
+def test_plot_with_a_config_file_that_is_not_text_is_one_line(run_dir, tmp_path, capsys):
+    """results.h5 without its config, beside a config.toml that is not UTF-8 text: a
+    UnicodeDecodeError traceback before."""
+    folder = tmp_path / "x"
+    folder.mkdir()
+    shutil.copy(run_dir / "results.h5", folder / "results.h5")
+    with h5py.File(folder / "results.h5", "r+") as h5:
+        del h5.attrs["config_toml"]
+    (folder / "config.toml").write_bytes(b"\x84\xff\x00 not text")
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(folder)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2, err
+    assert err.count("\n") == 1 and "config.toml" in err
+
+
+def test_plot_of_a_run_with_no_measurement_sample(tmp_path):
+    """measure.interval longer than the run: not one sample.  The report is drawn without the
+    measurements (it failed on an empty time array, during the run and in 'silodem plot')."""
+    run_simulation(tiny_hopper_config().model_copy(update={"measure": tiny_hopper_config(
+        interval=1e6).measure}), tmp_path, progress=False)
+    assert (tmp_path / "report.html").is_file()
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(tmp_path)])
+    assert exc.value.code == 0
 
 
 def _chromium() -> str | None:

@@ -9,6 +9,7 @@ interrupted, the temporary file is removed.
 
 from __future__ import annotations
 
+import errno
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -30,6 +31,8 @@ def atomic_file(path: Path | str) -> Iterator[Path]:
     onto ``path`` (``os.replace``), so ``path`` is always either the old or the new file.  On
     any exception (KeyboardInterrupt included) the temporary file is removed."""
     path = Path(path)
+    if path.is_dir():  # say so before the work, naming the file asked for, not the temporary
+        raise IsADirectoryError(errno.EISDIR, "a folder is in the way of the file", str(path))
     tmp = path.with_name(f".{path.name}.tmp")
     try:
         yield tmp

@@ -203,9 +203,11 @@ def run(
         return
     cfg = _config(source, sets, quick)
     out_dir = out if out is not None else Path("runs") / cfg.name
-    _check_out(out_dir)
-
     from silodem.run import run_simulation  # imports numba: only when running
+    from silodem.safety import check_numbers
+
+    check_numbers(cfg)  # values that make no run together: refused before any folder is made
+    _check_out(out_dir)
 
     console = Console()
     console.print(

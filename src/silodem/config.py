@@ -16,7 +16,16 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+
+def folder_name(value: str, key: str) -> str:
+    """``value`` when it can name one folder (a run's default ``runs/<name>``, a study's
+    ``studies/<name>``); ValueError otherwise."""
+    if value in (".", "..") or "/" in value or "\\" in value or not value.isprintable():
+        raise ValueError(f"{key} {value!r} cannot name a results folder: give one without '/', "
+                         "'\\' or control characters, and not '.' or '..'")
+    return value
 
 
 class _Strict(BaseModel):
@@ -346,7 +355,8 @@ class Measure(_Strict):
 class Config(_Strict):
     """A complete silodem run."""
 
-    name: str = Field("custom", description="scenario name")
+    name: str = Field("custom", min_length=1,
+                      description="scenario name; the default results folder is runs/<name>")
     description: str = Field("", description="free text")
     seed: int = Field(ge=0, le=2**63 - 1,
                       description="seed of the random generator (radii, positions)")
@@ -361,6 +371,11 @@ class Config(_Strict):
     output: Output = Output()
     measure: Measure = Measure()
     checkpoint: Checkpoint = Checkpoint()
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, name: str) -> str:
+        return folder_name(name, "name")
 
     @model_validator(mode="after")
     def _check(self) -> Config:

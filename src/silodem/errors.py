@@ -23,6 +23,23 @@ class InputError(Exception):
         super().__init__(one_line(message))
 
 
+def parse_toml(text: str, where: str) -> dict[str, Any]:
+    """The dict of TOML ``text``; an InputError naming ``where`` if it is not TOML.
+
+    Besides malformed TOML, ``tomllib`` raises ValueError for an integer of more than 4300
+    digits and RecursionError for arrays nested thousands deep: each is the file's fault."""
+    import tomllib
+
+    try:
+        return tomllib.loads(text.removeprefix("\ufeff"))  # a byte-order mark is not TOML's
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: malformed TOML: {exc}") from None
+    except ValueError as exc:  # e.g. "Exceeds the limit (4300 digits) for integer string ..."
+        raise InputError(f"{where}: a value TOML cannot read: {str(exc).split(':')[0]}") from None
+    except RecursionError:
+        raise InputError(f"{where}: malformed TOML: nested too deeply") from None
+
+
 def one_line(text: str) -> str:
     """Collapse ``text`` to a single line (newlines and runs of blanks become one space)."""
     return " ".join(str(text).split())

@@ -125,6 +125,27 @@ MAX_KERNEL_CELLS = 1e4  # field cells a grain's or contact's Gaussian is summed 
 MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
 
 
+def _check_circles(cfg: Config, shape, size: str) -> None:
+    """InputError for a configured measurement circle larger than the silo's diagonal or with
+    no part inside the silo (it would measure nothing, or overflow the area quadrature)."""
+    from silodem.measure.regions import area_inside_circle
+
+    m = cfg.measure
+    if m.circle_names is None:
+        return
+    z0 = shape.junction if m.circle_z_from == "junction" else 0.0
+    reach = math.hypot(shape.width, shape.wall_top)
+    for name, x, z, r in zip(m.circle_names, m.circle_x, m.circle_z, m.circle_radius):
+        if r > reach:
+            raise InputError(f"measure.circle_radius of circle '{name}' = {r:.3g} m is larger "
+                             f"than {size} (diagonal {reach:.3g} m)")
+        if not (-r < x < shape.width + r and -r < z0 + z < shape.wall_top + r) or \
+                area_inside_circle(shape, x, z0 + z, r) == 0.0:
+            raise InputError(f"measurement circle '{name}' (x = {x:.3g} m, z = {z:.3g} m from "
+                             f"the {m.circle_z_from}, radius {r:.3g} m) has no part inside "
+                             f"{size}")
+
+
 def check_sizes(cfg: Config) -> None:
     """InputError when a length, valid by itself, is so small against the silo that the
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
@@ -165,6 +186,7 @@ def check_sizes(cfg: Config) -> None:
                 f"over {reach**2:.3g} field cells of {field_cell(cfg):.3g} m, more than "
                 f"{MAX_KERNEL_CELLS:.0e} (a slow measurement); give a smaller "
                 "measure.field_width or a larger measure.field_cell")
+    _check_circles(cfg, shape, size)
     search = 2.0 * cfg.material.radius_max + neighbour_skin(cfg)  # as NeighborList.rebuild
     cells = (width / search + 1) * (height / search + 1)
     if not cells <= MAX_SEARCH_CELLS:

@@ -23,6 +23,7 @@ from silodem.errors import (
     first_error,
     format_validation_error,
     one_line,
+    parse_toml,
     submodel,
     unknown_key_message,
 )
@@ -70,13 +71,6 @@ def list_scenarios() -> list[tuple[str, str]]:
 # --- reading -------------------------------------------------------------------------------
 
 
-def _parse_toml(text: str, where: str) -> dict[str, Any]:
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{where}: malformed TOML: {exc}") from None
-
-
 def _path_kind(path: Path) -> str:
     """'file', 'other' (exists, not a regular file) or 'missing' (also for impossible names)."""
     try:
@@ -101,11 +95,11 @@ def _read_source(source: str) -> dict[str, Any]:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"cannot read {source}: {exc}") from None
-        return _parse_toml(text, str(source))
+        return parse_toml(text, str(source))
     if kind == "other":
         raise InputError(f"{source} is not a file (give a .toml file or one of: {names})")
     if source in files:
-        return _parse_toml(files[source].read_text(encoding="utf-8"), f"scenario {source}")
+        return parse_toml(files[source].read_text(encoding="utf-8"), f"scenario {source}")
     if source.endswith(".toml") or "/" in source or "\\" in source:
         raise InputError(
             f"file not found: {source} (give an existing .toml file, or an embedded scenario: "
@@ -188,7 +182,7 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
         message = format_validation_error(exc, data, model=Config)
         first = first_error(exc)
         dotted = ".".join(str(p) for p in first["loc"])
-        for item in sets:
+        for item in reversed(list(sets)):  # the last --set of a key is the one in force
             key = item.partition("=")[0].strip()
             if dotted and (key == dotted or dotted.startswith(key + ".")):
                 message += f" (from --set {_short(item)})"

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from silodem.config import Config
-from silodem.errors import InputError
+from silodem.errors import InputError, format_validation_error, parse_toml
 
 
 def _tree(group, only: tuple[str, ...] | None = None) -> dict[str, Any]:
@@ -77,23 +77,34 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     path = folder / "results.h5"
     if not folder.is_dir():
         raise InputError(f"{folder} is not a results folder (no such directory)")
+    if path.exists() and not path.is_file():
+        raise InputError(f"{path} is not a file")
     if not path.is_file():
         raise InputError(f"{folder} holds no results.h5 (run 'silodem run --out {folder}' first)")
     try:
         with h5py.File(path, "r") as h5:
             data = _tree(h5, only)
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
+        raise InputError(f"cannot read {path} (damaged?): {type(exc).__name__}: {exc}") from None
+    measure = data.get("measure")
+    if isinstance(measure, dict) and np.size(measure.get("time", ())) == 0:
+        del data["measure"]  # not one sample (measure.interval longer than the run): none
     attrs = data.get("@attrs", {})
     toml_text = attrs.get("config_toml")
-    if toml_text is None and (folder / "config.toml").is_file():
-        toml_text = (folder / "config.toml").read_text(encoding="utf-8")
+    config_file = folder / "config.toml"
+    if toml_text is None and config_file.is_file():
+        try:
+            toml_text = config_file.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read {config_file}: {exc}") from None
     if toml_text is None:
         raise InputError(f"{path} holds no config (attribute config_toml)")
+    data_in = parse_toml(toml_text, f"the config saved in {path}")
     try:
-        cfg = Config.model_validate(tomllib.loads(toml_text))
-    except Exception as exc:  # noqa: BLE001 - any failure is the file's, reported in one line
-        raise InputError(f"the config saved in {path} does not load: {exc}") from None
+        cfg = Config.model_validate(data_in)
+    except ValidationError as exc:
+        detail = format_validation_error(exc, data_in, model=Config)
+        raise InputError(f"the config saved in {path} does not load: {detail}") from None
     events = dict(data.get("events", {}).get("@attrs", {}))
     warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
     return Results(folder, cfg, toml_text, attrs, events, warnings, data)

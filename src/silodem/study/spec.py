@@ -28,15 +28,24 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictInt,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
-from silodem.config import Config
+from silodem.config import Config, folder_name
 from silodem.errors import (
     InputError,
     did_you_mean,
     format_validation_error,
     model_at,
     one_line,
+    parse_toml,
     submodel,
     unknown_key_message,
 )
@@ -94,7 +103,7 @@ class StudySpec(BaseModel):
     base: str | None = Field(None, min_length=1, description="embedded scenario name or .toml "
                              "file of the base configuration (a relative path is taken from the "
                              "study file's folder); or a list of them as the [grid] key 'base'")
-    seeds: list[int] = Field(min_length=1, description="seeds; every grid point runs once per seed")
+    seeds: list[StrictInt] = Field(min_length=1, description="seeds; every grid point runs once per seed")
     set: dict[str, Any] = Field(default_factory=dict,
                                 description="dotted config keys -> values every run gets")
     grid: dict[str, list[Any]] = Field(min_length=1, description="dotted config keys -> lists of "
@@ -110,6 +119,11 @@ class StudySpec(BaseModel):
             if "grid" in data:
                 data["grid"] = _flatten(data["grid"], "grid")
         return data
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, name: str) -> str:
+        return folder_name(name, "name") if name else name
 
     @field_validator("seeds")
     @classmethod
@@ -243,8 +257,8 @@ def study_text(source: str) -> str | None:
         if not path.is_file():
             return None
         text = path.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
-    except (OSError, ValueError, UnicodeDecodeError):
+        data = parse_toml(text, source)
+    except (OSError, UnicodeDecodeError, InputError):
         return None
     return text if isinstance(data, dict) and ("grid" in data or "seeds" in data) else None
 
@@ -268,10 +282,7 @@ def load_study(source: str) -> LoadedStudy:
     """Read and validate an embedded study or a study file; InputError (one line) if bad."""
     text, default_name, folder = _read(str(source))
     where = f"study {source}"
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{where}: malformed TOML: {exc}") from None
+    data = parse_toml(text, where)
     try:
         spec = StudySpec.model_validate(data)
     except ValidationError as exc:
