@@ -29,7 +29,7 @@ from reliability_helpers import (
     wait_for_file,
 )
 
-from silodem.checkpoint import save_checkpoint
+from silodem.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
 from silodem.silo.procedure import SiloRun
@@ -225,6 +225,25 @@ def test_a_checkpoint_file_is_replaced_whole_or_not_at_all(uninterrupted, tmp_pa
         uninterrupted.recorders.pop()
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.h5"]
+
+
+def test_a_damaged_checkpoint_is_refused_as_one_error(uninterrupted, tmp_path):
+    """4000 bytes overwritten at one place or another: h5py fails in many ways (one of them
+    an AttributeError on a None, a traceback before); each is a CheckpointError, whose one
+    line the command line prints with exit code 2, or the file still reads."""
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(quick_config()),
+                    reason="test")
+    whole = path.read_bytes()
+    refused = 0
+    for offset in range(2048, len(whole) - 4000, len(whole) // 12):
+        path.write_bytes(whole[:offset] + b"\xff" * 4000 + whole[offset + 4000:])
+        try:
+            read_checkpoint(path)
+        except CheckpointError as exc:
+            assert "\n" not in str(exc) and str(path) in str(exc)
+            refused += 1
+    assert refused >= 6
 
 
 def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):

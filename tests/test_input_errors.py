@@ -142,6 +142,25 @@ def test_a_measurement_circle_outside_the_silo_is_refused_before_the_run(capsys,
     assert not out.exists()
 
 
+def test_restitution_and_damping_ratio_together_are_refused(capsys):
+    """damping_ratio replaced a given restitution without a word."""
+    line = refused(capsys, "show", "--set", "material.damping_ratio=0.3",
+                   "--set", "material.restitution=0.7")
+    assert_names(line, "material.restitution", "material.damping_ratio", "give one")
+
+
+@pytest.mark.parametrize("flag", ["--steps", "--settle"])
+def test_bench_step_counts_beyond_64_bits_are_refused(capsys, flag):
+    assert_names(refused(capsys, "bench", "--n", "100", flag, "9" * 23), "--steps", "--settle")
+
+
+def test_a_study_given_to_run_and_a_scenario_given_to_sweep_are_named(capsys, tmp_path):
+    assert_names(refused(capsys, "run", "paper-study"), "is a study", "silodem sweep")
+    path = tmp_path / "one.toml"
+    path.write_text(config_to_toml(load_config("paper-case2")))
+    assert_names(refused(capsys, "sweep", str(path)), "is a scenario", "silodem run")
+
+
 # --- files and folders ---------------------------------------------------------------------
 
 

@@ -137,14 +137,16 @@ def test_validate_case_runs_only_the_named_family(tmp_path):
     (["--case", "janssen", "--quick"], ["--quick", "--case"]),
 ])
 def test_validate_case_refuses_bad_names_in_one_line(tmp_path, args, words):
+    out = tmp_path / "figures"
     proc = subprocess.run([sys.executable, "-m", "silodem", "validate", *args, "--out",
-                           str(tmp_path)], capture_output=True, text=True, timeout=120,
+                           str(out)], capture_output=True, text=True, timeout=120,
                           check=False)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert "Traceback" not in proc.stderr and len(lines) == 1
+    assert lines[0].startswith("error: ")
     assert all(w in lines[0] for w in words), lines[0]
-    assert not any(tmp_path.iterdir())  # refused before any work
+    assert not out.exists()  # refused before any work, even the folder
 
 
 # --- pure functions ------------------------------------------------------------------------------

@@ -241,7 +241,7 @@ def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):
 
 
 @pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color",
-                                  "out_in_proc"])
+                                  "out_in_proc", "out_a_folder"])
 def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
     target = tmp_path / "r"
     extra: list[str] = []
@@ -254,12 +254,16 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         target, extra = run_dir, ["--color", "rainbow"]
     if case == "out_in_proc":  # refused before rendering, not after (root may write nowhere)
         target, extra = run_dir, ["--out", "/proc/silodem.gif"]
+    if case == "out_a_folder":  # '.' crashed (ValueError); a folder failed after rendering
+        target, extra = run_dir, ["--out", str(tmp_path)]
     res = cli("animate", str(target), *extra)
     assert res.returncode == 2
     assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
     assert res.stderr.startswith("error:")
     if case == "out_in_proc":
         assert "rendering" not in res.stderr and "--out /proc/silodem.gif" in res.stderr
+    if case == "out_a_folder":
+        assert "rendering" not in res.stderr and "is a folder" in res.stderr
 
 
 def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):

@@ -323,8 +323,9 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
             data = {key: get(node) for key, node in h5.items()}
     except CheckpointError:
         raise
-    except (OSError, KeyError, ValueError, TypeError) as exc:
-        raise CheckpointError(f"{path} cannot be read as a checkpoint ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
+        raise CheckpointError(f"{path} cannot be read as a checkpoint "
+                              f"({type(exc).__name__}: {exc})") from None
     toml_text = data.pop("config_toml")
     cfg = config_from_toml(toml_text, str(path))
     return LoadedCheckpoint(path, cfg, toml_text, attrs, data)

@@ -201,6 +201,11 @@ def run(
     if resume is not None:
         _resume(ctx, resume, threads)
         return
+    from silodem.study.spec import study_text
+
+    if study_text(source) is not None:
+        raise InputError(f"{source} is a study (a grid of runs): run it with 'silodem sweep "
+                         f"{source}'")
     cfg = _config(source, sets, quick)
     out_dir = out if out is not None else Path("runs") / cfg.name
     from silodem.run import run_simulation  # imports numba: only when running
@@ -361,9 +366,12 @@ def sweep(
     say(f"report: {outcome.report_path}")
     if outcome.failed:
         first_id, first_error = next(iter(outcome.failed.items()))
-        _error(f"{len(outcome.failed)} of {len(plan.runs)} runs failed (first: {first_id}: "
-               f"{first_error}); see {out_dir / 'report.html'}; run the command again to retry "
+        _error(f"error: {len(outcome.failed)} of {len(plan.runs)} runs failed (first: "
+               f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command again to retry "
                "them", 1)
+
+
+_MAX_BENCH_STEPS = 10**12  # as safety.MAX_STEPS; a 64-bit step count beyond is an overflow
 
 
 @app.command()
@@ -389,8 +397,9 @@ def bench(
     """
     if n < 10 or n > 20_000_000:
         raise InputError(f"--n must be between 10 and 20000000 grains, got {n}")
-    if steps < 1 or settle < 0:
-        raise InputError(f"--steps must be >= 1 and --settle >= 0, got {steps} and {settle}")
+    if not (1 <= steps <= _MAX_BENCH_STEPS and 0 <= settle <= _MAX_BENCH_STEPS):
+        raise InputError(f"--steps must be from 1 and --settle from 0, each to "
+                         f"{_MAX_BENCH_STEPS:.0e}; got {steps} and {settle}")
     _check_threads(threads)
     from silodem import bench as benchmark
 
@@ -512,15 +521,16 @@ def validate(
 
       silodem validate --out validation --json > validation.json
     """
-    _check_out(out)
     from silodem.validate.runner import check_cases, print_table, run_validation
 
     if cases and quick:
-        _error("give --quick or --case, not both (--case runs the named families whole)")
+        raise InputError("give --quick or --case, not both (--case runs the named families "
+                         "whole)")
     try:
         check_cases(cases or ())
     except ValueError as err:
-        _error(f"--case: {err}")
+        raise InputError(f"--case: {err}") from None
+    _check_out(out)  # after the checks: a refused command makes no folder
     err = Console(stderr=True)
     result = run_validation(quick=quick, out=out, only=cases or None,  # imports numba
                             progress=lambda msg: err.print(msg, markup=False, highlight=False))

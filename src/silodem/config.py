@@ -67,7 +67,8 @@ class Material(_Strict):
         0.5, gt=0, le=1, description="normal restitution coefficient e of a contact [-]"
     )
     damping_ratio: float | None = Field(
-        None, ge=0, lt=1, description="normal critical-damping ratio zeta [-] (instead of e)"
+        None, ge=0, lt=1,
+        description="normal critical-damping ratio zeta [-]; replaces restitution's e",
     )
     local_damping: float = Field(
         0.0, ge=0, lt=1, description="PFC local (non-viscous) damping coefficient alpha [-]"
@@ -84,6 +85,12 @@ class Material(_Strict):
                 f"({self.radius_min})"
             )
         law_keys(self, "material", self.contact_model)
+        default_e = type(self).model_fields["restitution"].default
+        if self.damping_ratio is not None and self.restitution not in (None, default_e):
+            raise ValueError(
+                f"material.restitution ({self.restitution}) and material.damping_ratio "
+                f"({self.damping_ratio}) both set the normal damping; give one of them"
+            )
         return self
 
     @property

@@ -92,7 +92,7 @@ class OverlapEstimate:
             f"soft contacts: under the expected {self.fill_height:.2f} m of grains the vertical "
             f"stress reaches ~{self.sigma_v:.3g} Pa, "
             f"contact forces ~{self.contact_force:.3g} N and overlaps ~{self.overlap:.3g} m = "
-            f"{100 * self.overlap_fraction:.0f}% of the mean radius; "
+            f"{100 * self.overlap_fraction:.3g}% of the mean radius; "
             f"{advice} keeps them under {100 * TARGET_OVERLAP:.0f}%"
         )
 

@@ -283,6 +283,10 @@ def load_study(source: str) -> LoadedStudy:
     text, default_name, folder = _read(str(source))
     where = f"study {source}"
     data = parse_toml(text, where)
+    if "grid" not in data and "seeds" not in data and {"material", "silo"} & set(data):
+        raise InputError(f"{source} is a scenario (one run), not a study: run it with "
+                         f"'silodem run {source}', or name it as a study's base "
+                         "(see 'silodem show paper-study')")
     try:
         spec = StudySpec.model_validate(data)
     except ValidationError as exc:

@@ -96,6 +96,9 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
     if out_path is None:
         out_path = Path(run_dir) / f"animation.{fmt}"
     try:
+        if out_path.is_dir() or not out_path.name:
+            raise InputError(f"--out {out_path} is a folder; give the video's file name "
+                             f"(e.g. {out_path / f'animation.{fmt}'})")
         if not out_path.parent.is_dir():
             raise InputError(f"--out {out_path}: folder '{out_path.parent}' does not exist")
         probe = out_path.with_name(f".{out_path.stem}.tmp.{fmt}")  # render's temporary file
