@@ -157,6 +157,70 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
         assert_same_as_reference(out, ref)
 
 
+def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):
+    """SIGTERM while no run's handlers are installed (here a sweep waiting 10 s for a
+    scheduler that is not there) killed the process without a word before."""
+    proc = start("sweep", "paper-study", "--quick", "--scheduler", "tcp://127.0.0.1:1",
+                 "--out", str(tmp_path / "study"))
+    try:
+        time.sleep(3.0)  # started, and still waiting for the scheduler
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 143, stderr[-2000:]
+    assert "Traceback" not in stderr
+    assert stderr.strip().splitlines()[-1] == "interrupted (SIGTERM)"
+
+
+def test_ctrl_c_while_the_final_results_are_written_names_the_resume(tmp_path, monkeypatch,
+                                                                     capsys):
+    """The final write of results.h5 interrupted: the file is the last save's (atomic), the
+    checkpoint stays, and the line says how to finish the run (a bare 'interrupted' before)."""
+    import silodem.run
+    from silodem.cli import main
+
+    write_results = silodem.run.write_results
+
+    def interrupted_final_write(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(silodem.run, "write_results", interrupted_final_write)
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as exc:
+        main(run_args(out))
+    assert exc.value.code == 130
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("interrupted: while the run's final results were written")
+    assert f"silodem run --resume {out}" in last
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "running"  # the last periodic save
+    monkeypatch.setattr(silodem.run, "write_results", write_results)
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", str(out)])
+    assert exc.value.code == 0
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "complete"
+
+
+def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
+    """An old run's settled.png, report.html and figures stayed beside a new run that drew
+    none, and a new run stopped before its first save left its config beside the old run's
+    complete results.h5.  Files silodem does not write are left alone."""
+    out = tmp_path / "run"
+    (out / "figures").mkdir(parents=True)
+    for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png"):
+        (out / name).write_bytes(b"old run")
+    (out / "notes.txt").write_text("mine")
+    result = cli(*run_args(out))  # output.png and measure.report are off in SETS
+    assert result.returncode == 0, result.stderr[-2000:]
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert left == ["config.toml", "notes.txt", "results.h5"]
+
+
 # --- in process: a checkpoint in each phase -----------------------------------------------
 
 

@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import importlib
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.console import Console
 
-from silodem.errors import InputError, RunInterrupted, UnstableRunError, one_line
+from silodem.errors import InputError, RunInterrupted, Terminated, UnstableRunError, one_line
 from silodem.scenario_files import (
     DEFAULT_SCENARIO,
     config_to_toml,
@@ -561,6 +563,32 @@ def _click_types(name: str) -> tuple[type[BaseException], ...]:
     return tuple(found)
 
 
+def _stop_on_sigterm():
+    """SIGTERM raises ``Terminated`` (a KeyboardInterrupt) instead of killing the process
+    silently, so it ends like Ctrl-C: one line, exit code 143, temporary files removed.  A run
+    installs its own handlers while it goes (safety.RunGuard).  Returns the handler it
+    replaced (None outside the main thread, where signals cannot be set)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def terminated(signum, frame):
+        _SIGTERM_SEEN.append(signum)  # click turns the exception into a plain Abort / 130
+        raise Terminated
+
+    _SIGTERM_SEEN.clear()
+    return signal.signal(signal.SIGTERM, terminated)
+
+
+_SIGTERM_SEEN: list[int] = []
+
+
+def _interrupted() -> None:
+    """One line and exit code 143 after a SIGTERM, 130 after Ctrl-C."""
+    if _SIGTERM_SEEN:
+        _error("interrupted (SIGTERM)", 143)
+    _error("interrupted", 130)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     command = typer.main.get_command(app)
@@ -568,6 +596,7 @@ def main(argv: list[str] | None = None) -> None:
     usage = _click_types("UsageError")
     other = _click_types("ClickException")
     abort = _click_types("Abort") + (typer.Abort, KeyboardInterrupt)
+    previous = _stop_on_sigterm()
     try:
         result = command.main(args=argv, prog_name="silodem", standalone_mode=False)
     except InputError as exc:
@@ -586,10 +615,13 @@ def main(argv: list[str] | None = None) -> None:
     except other as exc:
         _error(f"error: {exc.format_message()}", getattr(exc, "exit_code", 1))
     except abort:
-        _error("interrupted", 130)
+        _interrupted()
     except OSError as exc:  # a path given that the system refuses (name too long, ...)
         where = f": {exc.filename}" if exc.filename else ""
         _error(f"error: {exc.strerror or exc}{where}", 2)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     if result == 130:  # typer turns a KeyboardInterrupt that no command caught into 130
-        _error("interrupted", 130)
+        _interrupted()
     raise SystemExit(result if isinstance(result, int) else 0)

@@ -221,6 +221,11 @@ class UnstableRunError(RuntimeError):
     The CLI reports it as one line with exit code 3."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM outside a run's own handlers (``cli.main``): stops the command like Ctrl-C,
+    with exit code 143."""
+
+
 class RunInterrupted(Exception):
     """A run stopped cleanly on a signal (SIGINT, SIGTERM) after saving a checkpoint.
 

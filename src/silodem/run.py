@@ -13,10 +13,10 @@ from pathlib import Path
 
 from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
-from silodem.errors import RunInterrupted
+from silodem.errors import RunInterrupted, Terminated
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.safety import RunGuard, check_numbers
+from silodem.safety import RunGuard, check_numbers, clear_previous_run
 from silodem.silo.frames import FramesRecorder
 from silodem.silo.procedure import PHASES, Progress, SiloRun
 
@@ -69,6 +69,8 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     _set_threads(threads)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    if resume_from is None:
+        clear_previous_run(out)
     toml_text = config_to_toml(cfg)
     write_text(out / "config.toml", toml_text)
     guard = RunGuard(out, toml_text, cfg, resume_from)
@@ -99,18 +101,30 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     else:
         run = SiloRun(cfg, recorders=recorders)
         guard.drive(run)
-    write_results(run, out / "results.h5", toml_text)
+    try:
+        write_results(run, out / "results.h5", toml_text)
+    except KeyboardInterrupt as exc:  # results.h5 is the last save's (atomic write)
+        kept = (f"the last checkpoint is kept: 'silodem run --resume {out}' finishes the run"
+                if guard.checkpoint_path.exists() else
+                f"{out / 'results.h5'} holds the run up to its last save")
+        raise RunInterrupted(f"while the run's final results were written; {kept}",
+                             _signal_of(exc)) from None
     guard.completed()
     try:
         write_views(out)
         if cfg.measure.report:
             _write_report(out, run.warnings)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         raise RunInterrupted(f"after the run's results were written to {out / 'results.h5'}; "
                              f"'silodem plot {out}' draws its pictures and report.html",
-                             signal.SIGINT) from None
+                             _signal_of(exc)) from None
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                       dict(run.events), list(run.warnings))
+
+
+def _signal_of(exc: KeyboardInterrupt) -> int:
+    """The signal behind a KeyboardInterrupt: SIGTERM for ``errors.Terminated``, else SIGINT."""
+    return signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
 
 
 def _write_report(out: Path, warnings: list[str]) -> None:

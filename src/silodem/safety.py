@@ -146,6 +146,24 @@ def _check_circles(cfg: Config, shape, size: str) -> None:
                              f"{size}")
 
 
+# what a run and its pictures write into the folder (the VTK writer clears its own files)
+_RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTIC_NAME,
+              FAILURE_NAME)
+
+
+def clear_previous_run(out: Path) -> None:
+    """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
+    report, a failed run's diagnosis; only these names, and ``figures/*.png``), so that a
+    fresh run's folder never shows the old run's results beside the new config, even if the
+    new run is stopped before its first save."""
+    for name in _RUN_FILES:
+        (out / name).unlink(missing_ok=True)
+    figures = out / "figures"
+    if figures.is_dir():
+        for png in figures.glob("*.png"):
+            png.unlink()
+
+
 def check_sizes(cfg: Config) -> None:
     """InputError when a length, valid by itself, is so small against the silo that the
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
@@ -374,8 +392,6 @@ class RunGuard:
         self.last_wall = wallclock.perf_counter()
         with self.signals():
             if self.resume_from is None:
-                for stale in (DIAGNOSTIC_NAME, FAILURE_NAME):  # from an earlier failed run
-                    (self.out / stale).unlink(missing_ok=True)
                 self.save(run, "start")
             try:
                 run.run()
