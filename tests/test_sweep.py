@@ -285,6 +285,7 @@ def test_a_failing_run_is_reported_kept_aside_and_retried(tmp_path, monkeypatch)
     study_dir = tmp_path / "study"
     outcome = run_study(plan, study_dir, serial=True)
     assert list(outcome.failed) == [bad.id] and outcome.computed == 1
+    assert outcome.failed[bad.id] == "unstable: grain 7 left the domain (test)"
     assert calls.count(bad.cfg.material.friction_deg) == 1
     assert _run_folders(study_dir) == [plan.runs[0].id]
     assert (study_dir / "failed" / bad.id / "attempt.json").is_file()

@@ -12,6 +12,7 @@ import io
 import itertools
 import math
 import os
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -241,7 +242,7 @@ def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):
 
 
 @pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color",
-                                  "out_in_proc", "out_a_folder"])
+                                  "out_in_proc", "out_a_folder", "walls_missing"])
 def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
     target = tmp_path / "r"
     extra: list[str] = []
@@ -256,6 +257,10 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         target, extra = run_dir, ["--out", "/proc/silodem.gif"]
     if case == "out_a_folder":  # '.' crashed (ValueError); a folder failed after rendering
         target, extra = run_dir, ["--out", str(tmp_path)]
+    if case == "walls_missing":  # was told it had no /frames, and to run it again
+        shutil.copy(run_dir / "results.h5", target / "results.h5")
+        with h5py.File(target / "results.h5", "r+") as f:
+            del f["walls"]
     res = cli("animate", str(target), *extra)
     assert res.returncode == 2
     assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
@@ -264,6 +269,8 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         assert "rendering" not in res.stderr and "--out /proc/silodem.gif" in res.stderr
     if case == "out_a_folder":
         assert "rendering" not in res.stderr and "is a folder" in res.stderr
+    if case == "walls_missing":
+        assert "cannot be read" in res.stderr and "has no /frames" not in res.stderr
 
 
 def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):

@@ -110,9 +110,13 @@ def run_task(cfg_data: dict[str, Any], study_dir: str, run_id: str) -> dict[str,
         shutil.rmtree(failed, ignore_errors=True)
         try:
             os.rename(tmp, failed)
+            where = str(failed)
         except OSError:
             shutil.rmtree(tmp, ignore_errors=True)
-        return {**info, "status": "failed", "error": f"{type(exc).__name__}: {one_line(exc)}",
+            where = "(folder not kept)"
+        kind = "unstable" if isinstance(exc, UnstableRunError) else "bad input"
+        error = one_line(exc).replace(str(tmp), where)  # its files are in failed/ now
+        return {**info, "status": "failed", "error": f"{kind}: {error}",
                 "wall_s": time.perf_counter() - t0}
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

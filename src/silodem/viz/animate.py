@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from silodem.errors import InputError
@@ -47,12 +48,19 @@ def load_run_frames(run_dir: Path | str) -> Frames:
     if not h5.is_file():
         raise InputError(f"'{d}' has no results.h5; make one with: silodem run ... --out {d}")
     try:
-        frames = read_frames(h5)
-    except KeyError:
+        with h5py.File(h5, "r") as f:
+            has_frames = "frames" in f
+    except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
+        raise InputError(f"cannot read '{h5}' (damaged?): {type(exc).__name__}: {exc}") from None
+    if not has_frames:
         raise InputError(f"'{h5}' has no /frames (saved frames); run it again with this "
-                         "version of silodem") from None
-    except OSError as exc:
-        raise InputError(f"cannot read '{h5}': {exc}") from None
+                         "version of silodem")
+    try:
+        frames = read_frames(h5)
+    except Exception as exc:  # noqa: BLE001 - the frames are there but not whole
+        raise InputError(f"'{h5}': its /frames (or /walls) cannot be read "
+                         f"({type(exc).__name__}: {exc}); damaged, or written by another "
+                         "version") from None
     if len(frames) == 0:
         raise InputError(f"'{h5}' holds no frames: the run was shorter than "
                          "output.frame_interval")
