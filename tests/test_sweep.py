@@ -171,6 +171,37 @@ def test_a_worker_killed_mid_run_loses_no_grid_point(serial, tmp_path):
     _assert_same_runs(plan, ref_dir, study_dir)
 
 
+def test_ctrl_c_in_a_terminal_stops_the_sweep_without_worker_tracebacks(tmp_path):
+    """Ctrl-C goes to the terminal's whole process group: the sweep and its Dask workers.
+    The sweep stopped cleanly, but each worker that took the signal printed tracebacks
+    (CancelledError, KeyboardInterrupt); workers now start with SIGINT ignored."""
+    import subprocess
+
+    from reliability_helpers import command, env
+
+    study = tmp_path / "tiny.toml"
+    study.write_text(TINY, encoding="utf-8")
+    runs = tmp_path / "study" / "runs"
+    proc = subprocess.Popen(command("sweep", str(study), "--workers", "2", "--out",
+                                    str(tmp_path / "study")),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env(), start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (runs.is_dir() and any(runs.glob(".*.tmp-*/attempt.json"))):
+            assert proc.poll() is None and time.monotonic() < deadline, "no run started"
+            time.sleep(0.01)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 130, stderr[-3000:]
+    assert "Traceback" not in stderr, stderr[-3000:]
+    assert stderr.strip().splitlines()[-1] == "interrupted"
+
+
 @pytest.mark.parametrize(("text", "needles"), [
     (TINY.replace('seeds = [3]', 'seeds = [3]\ngird = 1'), ["unknown key 'gird'", "'grid'"]),
     (TINY.replace('"material.friction_deg"', '"material.frction_deg"'),

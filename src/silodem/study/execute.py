@@ -276,13 +276,27 @@ def run_on_client(plan: StudyPlan, out_dir: Path, client,
 
 def local_cluster(workers: int):
     """A LocalCluster of ``workers`` single-threaded worker processes (each under a nanny
-    that restarts it if it dies), no dashboard, quiet logs."""
+    that restarts it if it dies), no dashboard, and only critical log records: a worker
+    that loses the scheduler while a sweep is stopped logs a traceback at ERROR, and every
+    failure of a run reaches the sweep through its future (and is reported there).
+
+    The worker processes are started with SIGINT ignored (they inherit it): Ctrl-C in a
+    terminal goes to the whole process group, and workers that took it each printed
+    tracebacks while the sweep itself stopped cleanly and closed them anyway."""
     import logging
+    import signal
+    import threading
 
     from distributed import LocalCluster
 
-    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                        dashboard_address=":0", silence_logs=logging.ERROR)
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=":0", silence_logs=logging.CRITICAL)
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, before)
 
 
 def connect(scheduler: str | None, workers: int | None):
