@@ -122,7 +122,8 @@ class Simulation:
             if not np.isfinite(max_d2):
                 raise UnstableRunError(
                     f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
-                    "the run is unstable; reduce the time step"
+                    "the run is unstable (a time step too large for its contacts, or extreme "
+                    "values of density, gravity or speed)"
                 )
             self._drift = float(np.sqrt(max_d2))
             if walls_move:  # step 4, one step at a time
