@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -62,6 +63,20 @@ def wait_for_file(path: Path, proc: subprocess.Popen[str], timeout: float = 60) 
         assert proc.poll() is None, f"process ended ({proc.returncode}) before {path} appeared"
         assert time.monotonic() - t0 < timeout, f"{path} did not appear in {timeout} s"
         time.sleep(0.01)
+
+
+def signal_when(proc: subprocess.Popen[str], sig: int, ready: Callable[[], object]) -> str:
+    """Wait with ``ready()``, send ``sig`` to ``proc`` and return its stderr once it ended;
+    the process is killed if anything on the way fails."""
+    try:
+        ready()
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return stderr
 
 
 def assert_one_line_error(result: subprocess.CompletedProcess[str], code: int,

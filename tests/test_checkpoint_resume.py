@@ -24,6 +24,7 @@ from reliability_helpers import (
     datasets,
     quick_config,
     run_args,
+    signal_when,
     start,
     stop_and_restore,
     wait_for_file,
@@ -133,15 +134,8 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
     ref, _ = reference
     out = tmp_path / "run"
     proc = start(*run_args(out))
-    try:
-        wait_for_file(out / "checkpoint.h5", proc)
-        time.sleep(0.2)
-        proc.send_signal(sig)
-        _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    stderr = signal_when(proc, sig, lambda: (wait_for_file(out / "checkpoint.h5", proc),
+                                             time.sleep(0.2)))
     assert proc.returncode == 128 + sig, stderr[-2000:]
     assert "Traceback" not in stderr
     last = stderr.strip().splitlines()[-1]
@@ -162,15 +156,7 @@ def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):
     scheduler that is not there) killed the process without a word before."""
     proc = start("sweep", "paper-study", "--quick", "--scheduler", "tcp://127.0.0.1:1",
                  "--out", str(tmp_path / "study"))
-    try:
-        time.sleep(3.0)  # started, and still waiting for the scheduler
-        assert proc.poll() is None
-        proc.send_signal(signal.SIGTERM)
-        _, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    stderr = signal_when(proc, signal.SIGTERM, lambda: time.sleep(3.0))  # waiting for it
     assert proc.returncode == 143, stderr[-2000:]
     assert "Traceback" not in stderr
     assert stderr.strip().splitlines()[-1] == "interrupted (SIGTERM)"
@@ -313,15 +299,8 @@ def test_a_damaged_checkpoint_is_refused_as_one_error(uninterrupted, tmp_path):
 def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):
     out = tmp_path / "run"
     proc = start(*run_args(out, "checkpoint.enabled=false"))
-    try:
-        wait_for_file(out / "results.h5", proc)
-        time.sleep(0.3)
-        proc.send_signal(signal.SIGINT)
-        _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    stderr = signal_when(proc, signal.SIGINT, lambda: (wait_for_file(out / "results.h5", proc),
+                                                       time.sleep(0.3)))
     assert proc.returncode == 130, stderr[-2000:]
     assert "cannot be resumed" in stderr.strip().splitlines()[-1]
     assert not (out / "checkpoint.h5").exists()
