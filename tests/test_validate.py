@@ -244,7 +244,8 @@ def test_record_pass_rules():
 
 
 def test_beverloo_fits_recover_known_laws():
-    from silodem.validate.beverloo import fit_free, fit_three_halves
+    from silodem.theory import fit_beverloo_free as fit_free
+    from silodem.theory import fit_beverloo_three_halves as fit_three_halves
 
     d, rho, g, t = 0.01, 2000.0, 9.81, 0.01
     D = np.array([6.0, 9.0, 13.5, 20.0, 30.0]) * d

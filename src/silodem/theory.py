@@ -248,6 +248,72 @@ def beverloo_2d_C(rate: float, D: float, d: float, rho_b: float, g: float, k: fl
     return rate / base if base > 0 else float("nan")
 
 
+@dataclass(frozen=True)
+class BeverlooFit:
+    """Constants of W = C rho_b sqrt(g) (D - k d)^b t fitted to measured rates, with their
+    standard errors (NaN where the fit gives none; 0 for an exponent held at 3/2)."""
+
+    C: float
+    k: float
+    b: float
+    b_err: float
+    C_err: float = float("nan")
+    k_err: float = float("nan")
+
+
+def fit_beverloo_free(D, W, W_err, d: float, rho_b: float, g: float,
+                      t: float) -> BeverlooFit:
+    """C, k and the exponent b free: weighted least squares on ln W (scipy ``curve_fit``,
+    sigma = W_err / W, absolute); k is bounded below min(D)/d.  Needs four outlet widths or
+    more (three parameters).  D, W, W_err: arrays [m, kg/s, kg/s]; d [m], rho_b [kg/m^3],
+    g [m/s^2], t [m] as in :func:`beverloo_2d`."""
+    from scipy.optimize import curve_fit
+
+    D, W, W_err = (np.asarray(a, dtype=float) for a in (D, W, W_err))
+    scale = rho_b * math.sqrt(g) * t
+
+    def model(x, lnC, k, b):
+        return lnC + b * np.log(np.maximum(x - k * d, 1e-12)) + math.log(scale)
+
+    p0 = [math.log(0.6), 1.0, 1.5]
+    bounds = ([-10.0, -5.0, 0.5], [10.0, 0.95 * D.min() / d, 3.0])
+    popt, pcov = curve_fit(model, D, np.log(W), p0=p0, sigma=W_err / W, absolute_sigma=True,
+                           bounds=bounds, maxfev=20000)
+    errs = np.sqrt(np.diag(pcov)) if np.all(np.isfinite(pcov)) else np.full(3, np.nan)
+    C = float(math.exp(popt[0]))
+    return BeverlooFit(C, float(popt[1]), float(popt[2]), float(errs[2]),
+                       C_err=float(C * errs[0]), k_err=float(errs[1]))
+
+
+def fit_beverloo_three_halves(D, W, d: float, rho_b: float, g: float, t: float,
+                              W_err=None) -> BeverlooFit:
+    """C and k with the exponent held at 3/2: W^(2/3) = (C rho_b sqrt(g) t)^(2/3) (D - k d) is a
+    straight line in D (least squares, weighted by the errors of W^(2/3) when ``W_err`` is
+    given).  Two outlet widths determine it; the errors of C and k need three or more."""
+    D, W = np.asarray(D, dtype=float), np.asarray(W, dtype=float)
+    y = W ** (2.0 / 3.0)
+    w = None
+    if W_err is not None:
+        y_err = (2.0 / 3.0) * y / W * np.asarray(W_err, dtype=float)
+        if np.all(y_err > 0):
+            w = 1.0 / y_err
+    cov = np.full((2, 2), np.nan)
+    if w is not None and D.size >= 3:  # the given errors: absolute
+        (slope, intercept), cov = np.polyfit(D, y, 1, w=w, cov="unscaled")
+    elif D.size >= 4:  # errors from the scatter (numpy needs two points more than parameters)
+        (slope, intercept), cov = np.polyfit(D, y, 1, cov=True)
+    else:
+        slope, intercept = np.polyfit(D, y, 1)
+    scale = rho_b * math.sqrt(g) * t
+    C = slope**1.5 / scale
+    k = -intercept / slope / d
+    # first-order propagation: C ~ slope^(3/2); k d = -intercept / slope
+    C_err = 1.5 * C / abs(slope) * math.sqrt(cov[0, 0])
+    dk = np.array([intercept / slope**2, -1.0 / slope]) / d  # d k / d(slope, intercept)
+    k_err = math.sqrt(max(float(dk @ cov @ dk), 0.0))
+    return BeverlooFit(float(C), float(k), 1.5, 0.0, C_err=float(C_err), k_err=float(k_err))
+
+
 # --- EN 1991-4:2006 ------------------------------------------------------------------------------
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from silodem.config import Config
 from silodem.measure.discharge import steady_rate
 from silodem.silo.procedure import SiloRun
+from silodem.theory import fit_beverloo_free, fit_beverloo_three_halves
 from silodem.validate.records import Record, absolute, info, rel
 
 CASE = "Beverloo"
@@ -186,42 +187,6 @@ def mean_rate(D_over_d: float, H_over_B: float = FILL) -> Rate:
                 float(rates.mean()), err, runs)
 
 
-@dataclass(frozen=True)
-class BeverlooFit:
-    C: float
-    k: float
-    b: float
-    b_err: float
-
-
-def fit_free(D, W, W_err, d: float, rho_b: float, g: float, t: float) -> BeverlooFit:
-    """W = C rho_b sqrt(g) (D - k d)^b t with C, k and b free: weighted least squares on ln W
-    (scipy curve_fit, sigma = W_err / W); k is bounded below min(D)/d."""
-    from scipy.optimize import curve_fit
-
-    D, W, W_err = (np.asarray(a, dtype=float) for a in (D, W, W_err))
-    scale = rho_b * math.sqrt(g) * t
-
-    def model(x, lnC, k, b):
-        return lnC + b * np.log(np.maximum(x - k * d, 1e-12)) + math.log(scale)
-
-    p0 = [math.log(0.6), 1.0, 1.5]
-    bounds = ([-10.0, -5.0, 0.5], [10.0, 0.95 * D.min() / d, 3.0])
-    popt, pcov = curve_fit(model, D, np.log(W), p0=p0, sigma=W_err / W, absolute_sigma=True,
-                           bounds=bounds, maxfev=20000)
-    err = float(np.sqrt(pcov[2, 2])) if np.all(np.isfinite(pcov)) else float("nan")
-    return BeverlooFit(float(math.exp(popt[0])), float(popt[1]), float(popt[2]), err)
-
-
-def fit_three_halves(D, W, d: float, rho_b: float, g: float, t: float) -> BeverlooFit:
-    """C and k with the exponent fixed at 3/2: W^(2/3) = (C rho_b sqrt(g) t)^(2/3) (D - k d) is
-    a straight line in D (least squares)."""
-    D, W = np.asarray(D, dtype=float), np.asarray(W, dtype=float)
-    slope, intercept = np.polyfit(D, W ** (2.0 / 3.0), 1)
-    C = slope**1.5 / (rho_b * math.sqrt(g) * t)
-    return BeverlooFit(float(C), float(-intercept / slope / d), 1.5, 0.0)
-
-
 def run(quick: bool = False) -> tuple[list[Record], dict]:
     rates = [mean_rate(w) for w in WIDTHS]
     D_h, factor = HEIGHT_CHECK
@@ -232,8 +197,8 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
     D = np.array([r.D for r in rates])
     W = np.array([r.rate for r in rates])
     W_err = np.array([r.err for r in rates])
-    free = fit_free(D, W, W_err, d, rho_b, G, t)
-    fixed = fit_three_halves(D, W, d, rho_b, G, t)
+    free = fit_beverloo_free(D, W, W_err, d, rho_b, G, t)
+    fixed = fit_beverloo_three_halves(D, W, d, rho_b, G, t)
     records: list[Record] = []
     for r in rates:
         each = ", ".join(f"{run.rate:.4g}" for run in r.runs)
