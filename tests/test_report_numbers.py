@@ -469,7 +469,7 @@ def test_plain_columns_copy_the_run(synth):
     and attributes written into the synthetic file."""
     _, s = synth
     _check(s, {"junction_z": Z_J, "fill_level": 1.25, "discharged_fraction": 0.75,
-               "dt": 1.5e-4})
+               "dt": 1.5e-4, "bulk_density": RHO_B})
     assert (s["n_poured"], s["steps"], s["discharge_end_reason"]) == (150, 12345, "fraction")
 
 
@@ -700,7 +700,8 @@ def _recompute(raw: dict) -> dict:
     lo_b, hi_b = Z_J + DIAM, surf - DIAM
     inside = (y >= lo_b) & (y < hi_b)
     out["_surface"] = surf
-    out["_rho_b"] = (RHO * math.pi * r[inside] ** 2 * THICK).sum() / (B * (hi_b - lo_b) * THICK)
+    mass = (RHO * math.pi * r[inside] ** 2 * THICK).sum()
+    out["bulk_density"] = mass / (B * (hi_b - lo_b) * THICK)
     return {k: float(v) for k, v in out.items()}
 
 
@@ -738,7 +739,7 @@ def test_real_run_report_matches_a_recomputation(real):
     equal their recomputation from the settled grains, the wall bins and the discharged mass."""
     _, exp, _, a = real
     assert a.surface["fill"] == pytest.approx(exp["_surface"], rel=REL)
-    assert a.rho_b == pytest.approx(exp["_rho_b"], rel=REL)
+    assert a.rho_b == pytest.approx(exp["bulk_density"], rel=REL)
     for key in ("fill", "discharge"):
         assert a.peaks[key] == pytest.approx(
             (exp[f"wall_peak_{key}"], exp[f"wall_peak_z_{key}"]), rel=REL)
@@ -758,7 +759,8 @@ DOC_COLUMNS = [
     "switch_ratio_fill", "switch_ratio_discharge", "switch_ratio_cv_fill",
     "switch_ratio_cv_discharge", "wall_peak_fill", "wall_peak_z_fill", "wall_peak_discharge",
     "wall_peak_z_discharge", "wall_peak_change_pct", "discharge_rate", "discharge_rate_err",
-    "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level", "n_poured",
+    "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level",
+    "bulk_density", "n_poured",
     "discharged_fraction", "discharge_end_reason", "steps", "dt"]
 
 

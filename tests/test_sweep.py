@@ -202,6 +202,54 @@ def test_ctrl_c_in_a_terminal_stops_the_sweep_without_worker_tracebacks(tmp_path
     assert stderr.strip().splitlines()[-1] == "interrupted"
 
 
+OUTLET_STUDY = """\
+base = "paper-case2"
+seeds = [1, 2]
+[grid]
+"material.friction_deg" = [20.0, 30.0]
+"silo.outlet_width" = [0.6, 0.8, 1.0, 1.2, 1.4]
+"""
+
+
+def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
+    """Rates drawn from the 2D Beverloo law (docs/theory.md), one C per friction angle, k = 1.4,
+    the two seeds 3 % above and below it: the study's fit gives C and k back (the seed means
+    are the law), b = 3/2 when free, and the report and beverloo.csv carry them."""
+    import csv as csv_module
+
+    from silodem import theory as th
+    from silodem.study.beverloo import outlet_fits
+    from silodem.study.report import write_study_report
+
+    path = tmp_path / "outlets.toml"
+    path.write_text(OUTLET_STUDY, encoding="utf-8")
+    plan = expand(load_study(str(path)), quick=True)
+    C_of = {20.0: 0.55, 30.0: 0.45}
+    rho_b, d = 700.0, 0.2  # d: the mean diameter, r_min + r_max of paper-case2
+    rows = []
+    for run in plan.runs:
+        W = th.beverloo_2d(run.cfg.silo.outlet_width, d, rho_b, 9.81,
+                           C_of[run.cfg.material.friction_deg], 1.4, 1.0)
+        rows.append({"id": run.id, "discharge_rate": W * (1.03 if run.seed == 1 else 0.97),
+                     "discharge_rate_err": 0.01 * W, "bulk_density": rho_b})
+    fits = outlet_fits(plan, {r["id"]: r for r in rows})
+    assert [f.label for f in fits] == ["phiG=20", "phiG=30"]
+    for f, C in zip(fits, (0.55, 0.45)):
+        assert f.D.tolist() == [0.6, 0.8, 1.0, 1.2, 1.4] and f.n_runs == 10
+        assert (f.fixed.C, f.fixed.k) == pytest.approx((C, 1.4), rel=1e-9)
+        assert (f.free.C, f.free.k, f.free.b) == pytest.approx((C, 1.4, 1.5), rel=1e-6)
+        # error of a mean: the seeds' spread (3 % of W, sample std / sqrt 2) beats 1 % / sqrt 2
+        assert f.W_err == pytest.approx(0.03 * f.W, rel=1e-9)
+        assert 0 < f.fixed.C_err < 0.1 * C and 0 < f.fixed.k_err < 0.5
+    write_study_report(plan, tmp_path / "study", rows)
+    with open(tmp_path / "study" / "beverloo.csv", encoding="utf-8") as fh:
+        table = list(csv_module.DictReader(fh))
+    assert [float(r["C"]) for r in table] == pytest.approx([0.55, 0.45], rel=1e-9)
+    assert [float(r["b_free"]) for r in table] == pytest.approx([1.5, 1.5], rel=1e-6)
+    html = (tmp_path / "study" / "report.html").read_text(encoding="utf-8")
+    assert "Beverloo fit" in html and "id='beverloo'" in html
+
+
 @pytest.mark.parametrize(("text", "needles"), [
     (TINY.replace('seeds = [3]', 'seeds = [3]\ngird = 1'), ["unknown key 'gird'", "'grid'"]),
     (TINY.replace('"material.friction_deg"', '"material.frction_deg"'),

@@ -369,8 +369,8 @@ def sweep(
     if outcome.failed:
         first_id, first_error = next(iter(outcome.failed.items()))
         _error(f"error: {len(outcome.failed)} of {len(plan.runs)} runs failed (first: "
-               f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command again to retry "
-               "them", 1)
+               f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command "
+               "again to retry them", 1)
 
 
 _MAX_BENCH_STEPS = 10**12  # as safety.MAX_STEPS; a 64-bit step count beyond is an overflow

@@ -29,9 +29,11 @@ from silodem.atomic import write_atomic
 from silodem.report.draw import rolling_mean, shade_phases
 from silodem.report.html import _CSS, _table
 from silodem.report.numbers import significant
+from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
-from silodem.study.table import COLUMNS, switch_series
+from silodem.study.table import COLUMNS, switch_series, table_csv
 
+BEVERLOO_CSV = "beverloo.csv"  # the Beverloo fits, when the grid varies the outlet width
 CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
 
 
@@ -290,7 +292,36 @@ FIGURES = [
      "stress at the switch zone from the end of filling (settling window) to the discharge "
      "window, grouped by the first grid key, one bar per combination of the others.")),
     ("heatmaps", "", "The main quantities over the grid (seed means)."),
+    ("beverloo", "", ("Discharge rate against outlet width, as W^(2/3) against D, where the 2D "
+     "Beverloo law W = C rho_b sqrt(g) (D - k d)^(3/2) t is a straight line crossing the axis "
+     "at k d: seed means with their standard errors, and the fitted line of each case.")),
 ]
+
+
+def _beverloo_section(fits: list, out_dir: Path) -> list[str]:
+    """The Beverloo fits' table for the report, and beverloo.csv (removed when no fit)."""
+    path = out_dir / BEVERLOO_CSV
+    if not fits:
+        path.unlink(missing_ok=True)
+        return []
+    rows = fit_rows(fits)
+    columns = [c for c, _, _ in FIT_COLUMNS]
+    write_atomic(path, table_csv(columns, rows).encode("utf-8"))
+
+    def pm(r: dict[str, Any], key: str) -> str:
+        if not math.isfinite(r[key]):
+            return "n/a"
+        return f"{_fmt(r[key])} +- {_fmt(r[key + '_err'], 2)}"
+
+    shown = [(r["group"], r["widths"], r["runs"], _fmt(r["bulk_density"]), pm(r, "C"),
+              pm(r, "k"), pm(r, "b_free")) for r in rows]
+    return ["<h2>Beverloo fit</h2>",
+            ("<p>The grid varies the outlet width D: per case, W = C rho_b sqrt(g) (D - k d)^b "
+             "t fitted to the seed means of the steady discharge rate, with b = 3/2 (C, k) and, "
+             "from four widths on, b free; d is the mean grain diameter, rho_b the settled "
+             f"bulk density (docs/theory.md, docs/sweeps.md). Every value: {BEVERLOO_CSV}.</p>"),
+            _table(shown, ("case", "widths", "runs", "rho_b [kg/m^3]", "C (b = 3/2)",
+                           "k (b = 3/2)", "b free"))]
 
 
 def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]],
@@ -300,11 +331,13 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     failed = failed or {}
     rows_by_id = {r["id"]: r for r in rows}
     lay = layout_of(plan)
+    fits = outlet_fits(plan, rows_by_id)
     makers = {
         "fig7_switch_stresses": lambda: fig_evolution(plan, out_dir, lay, ratio=False),
         "fig7_switch_ratio": lambda: fig_evolution(plan, out_dir, lay, ratio=True),
         "fig8_change": lambda: fig_change(plan, rows_by_id, lay),
         "heatmaps": lambda: fig_heatmaps(plan, rows_by_id, lay),
+        "beverloo": lambda: fig_beverloo(fits),
     }
     fig_dir = out_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -350,7 +383,9 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             for k, v in failed.items()) + "</ul>")
     parts += ["<h2>Runs</h2>", _run_table(plan, rows_by_id, out_dir, failed),
               ("<p>Every value per run, with units: results.csv (columns in docs/sweeps.md). "
-              "A run's name links to its own report when it wrote one.</p>"), "<h2>Figures</h2>"]
+              "A run's name links to its own report when it wrote one.</p>")]
+    parts += _beverloo_section(fits, out_dir)
+    parts.append("<h2>Figures</h2>")
     for name, paper, caption, png in pngs:
         b64 = base64.b64encode(png).decode("ascii")
         label = f"{paper} equivalent. " if paper else ""

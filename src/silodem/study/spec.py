@@ -103,7 +103,8 @@ class StudySpec(BaseModel):
     base: str | None = Field(None, min_length=1, description="embedded scenario name or .toml "
                              "file of the base configuration (a relative path is taken from the "
                              "study file's folder); or a list of them as the [grid] key 'base'")
-    seeds: list[StrictInt] = Field(min_length=1, description="seeds; every grid point runs once per seed")
+    seeds: list[StrictInt] = Field(min_length=1,
+                                   description="seeds; every grid point runs once per seed")
     set: dict[str, Any] = Field(default_factory=dict,
                                 description="dotted config keys -> values every run gets")
     grid: dict[str, list[Any]] = Field(min_length=1, description="dotted config keys -> lists of "

@@ -53,6 +53,7 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("flow_pattern", "", "mass flow, funnel flow, or unknown (MFI not measured)"),
     ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
     ("fill_level", "m", "free surface after settling"),
+    ("bulk_density", "kg/m^3", "bulk density rho_b of the settled packing under the free surface"),
     ("n_poured", "-", "grains poured"),
     ("discharged_fraction", "-", "mass fraction that left the silo"),
     ("discharge_end_reason", "", "what ended the discharge: fraction, time or clog"),
@@ -152,6 +153,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
     ev = res.events
     out: dict[str, Any] = {c: NAN for c, _, _ in COLUMNS}
     out.update(junction_z=_f(a.geom.get("z_j")), fill_level=_f(ev.get("fill_level")),
+               bulk_density=_f(a.rho_b),
                n_poured=int(ev.get("n_poured", 0)),
                discharged_fraction=_f(ev.get("discharged_fraction")),
                discharge_end_reason=str(ev.get("discharge_end_reason", "")),
