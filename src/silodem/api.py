@@ -1,0 +1,188 @@
+"""The Python API for notebooks: build a scenario, run it, read its results as pandas
+DataFrames and NumPy arrays (docs/api.md).
+
+    from silodem import api
+
+    cfg = api.scenario("paper-case2", quick=True, set={"material.friction_deg": 25.0})
+    res = api.run(cfg, "runs/nb1")          # or api.open_results("runs/paper-case2")
+    res.timeseries()                        # one row per sample: time, phase, energy, ...
+    res.particles("settled")                # one row per grain of a snapshot
+    res.wall_profile("fill")                # the wall stresses the report draws as Fig. 3a
+    res.numbers()                           # the report's key numbers
+
+Everything here reads; nothing changes a results folder except :func:`run`, which writes one.
+Bad input raises :class:`silodem.errors.InputError` with the same one-line message the
+command line prints.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from silodem.config import Config
+from silodem.errors import InputError
+from silodem.report.load import Results as _Raw
+from silodem.report.load import load_results
+
+SNAPSHOTS = ("settled", "discharge", "final")  # "discharge": mid-window of the discharge
+PHASE_NAMES = {0: "fill", 1: "settle", 2: "discharge"}  # codes of the phase columns
+
+
+def scenario(source: str = "paper-case2", *, quick: bool = False,
+             set: dict[str, Any] | None = None) -> Config:
+    """The validated config of an embedded scenario or a TOML file, with ``set``'s dotted keys
+    given new values (as ``--set``: ``{"material.kn": 2e7}``) and, with ``quick``, shrunk as
+    ``--quick`` does."""
+    from silodem.scenario_files import _toml_value, load_config, quick_variant
+
+    sets = []
+    for key, value in (set or {}).items():
+        try:
+            sets.append(f"{key}={_toml_value(value)}")
+        except TypeError:
+            raise InputError(f"set {key!r}: {value!r} is not a TOML value") from None
+    cfg = load_config(source, sets)
+    return quick_variant(cfg) if quick else cfg
+
+
+def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = None,
+        progress: bool = False) -> RunResults:
+    """Run ``cfg`` into the folder ``out`` (default ``runs/<name>``), as ``silodem run`` does,
+    and open its results."""
+    from silodem.run import run_simulation
+
+    folder = Path(out) if out is not None else Path("runs") / cfg.name
+    run_simulation(cfg, folder, threads=threads, progress=progress)
+    return open_results(folder)
+
+
+def open_results(folder: Path | str) -> RunResults:
+    """The results of the run in ``folder`` (its results.h5, read once)."""
+    return RunResults(load_results(folder))
+
+
+def _frame(group: dict[str, Any] | None, what: str) -> pd.DataFrame:
+    if group is None:
+        raise InputError(f"this results file has no {what}")
+    columns = {k: v for k, v in group.items()
+               if not k.startswith("@") and isinstance(v, np.ndarray) and v.ndim == 1}
+    return pd.DataFrame(columns)
+
+
+class RunResults:
+    """One run's results (``open_results``): the config, events and warnings, and its data
+    as DataFrames (SI units, compressive stresses positive, per unit thickness t)."""
+
+    def __init__(self, raw: _Raw) -> None:
+        self._raw = raw
+        self._analysis = None
+
+    def __repr__(self) -> str:
+        return f"RunResults({str(self.folder)!r}, scenario={self.config.name!r})"
+
+    folder = property(lambda self: self._raw.folder, doc="the results folder")
+    config = property(lambda self: self._raw.cfg, doc="the run's complete Config")
+    events = property(lambda self: dict(self._raw.events),
+                      doc="fill time, settling, discharge end... (docs/output.md)")
+    warnings = property(lambda self: list(self._raw.warnings), doc="every warning printed")
+    status = property(lambda self: str(self._raw.attrs.get("status", "complete")),
+                      doc="'complete', or how far an unfinished run's file goes")
+    dt = property(lambda self: float(self._raw.attrs["dt"]), doc="the time step [s]")
+
+    def timeseries(self) -> pd.DataFrame:
+        """/timeseries: one row per sample (every output.sample_interval), with the phase's
+        name in ``phase_name``."""
+        df = _frame(self._raw.group("timeseries"), "/timeseries")
+        df["phase_name"] = df["phase"].map(PHASE_NAMES)
+        return df
+
+    def _snapshot(self, name: str) -> dict[str, Any]:
+        if name not in SNAPSHOTS:
+            raise InputError(f"snapshot must be one of {', '.join(SNAPSHOTS)}; got {name!r}")
+        snap = self._raw.snapshot(name)
+        if snap is None:
+            raise InputError(f"the run has no '{name}' snapshot (not reached, or not recorded)")
+        return snap
+
+    def particles(self, snapshot: str = "final") -> pd.DataFrame:
+        """The grains of a snapshot: x, y [m], vx, vy [m/s], omega [rad/s], radius [m], uid,
+        fx, fy [N] (resultant contact force), and mass [kg] from the config."""
+        df = _frame(self._snapshot(snapshot).get("particles"), f"{snapshot}/particles")
+        m = self.config.material
+        df["mass"] = m.density * np.pi * df["radius"] ** 2 * m.thickness
+        return df
+
+    def contacts(self, snapshot: str = "final") -> pd.DataFrame:
+        """The touching grain pairs of a snapshot: i, j (rows of ``particles``), fn, fs [N],
+        fx, fy [N] (the force on j)."""
+        return _frame(self._snapshot(snapshot).get("contacts"), f"{snapshot}/contacts")
+
+    def wall_contacts(self, snapshot: str = "final") -> pd.DataFrame:
+        """The touching grain-wall contacts of a snapshot: grain, wall, fn, fs, fx, fy [N]."""
+        return _frame(self._snapshot(snapshot).get("wall_contacts"),
+                      f"{snapshot}/wall_contacts")
+
+    def measurements(self) -> pd.DataFrame:
+        """The measurement samples (every measure.interval): time, step, phase, the junction
+        band's coordination number and stress, and each circle's coordination number and
+        stress (``<circle>_coordination``, ``<circle>_sigma_xx`` / ``_zz`` / ``_xz`` [Pa])."""
+        m = self._raw.group("measure")
+        if m is None:
+            raise InputError("this run recorded no measurements (measure recorder absent, or "
+                             "no sample)")
+        df = pd.DataFrame({"time": m["time"], "step": m["step"], "phase": m["phase"]})
+        df["phase_name"] = df["phase"].map(PHASE_NAMES)
+        df["band_coordination"] = m["band"]["coordination"]
+        for k, comp in enumerate(("xx", "zz", "xz")):
+            df[f"band_sigma_{comp}"] = m["band"]["stress"][:, k]
+        c = m["circles"]
+        for n, name in enumerate(str(x) for x in c["name"]):
+            df[f"{name}_coordination"] = c["coordination"][:, n]
+            for k, comp in enumerate(("xx", "zz", "xz")):
+                df[f"{name}_sigma_{comp}"] = c["stress"][:, n, k]
+        return df
+
+    def analysis(self):
+        """The report's analysis (``silodem.report.analysis.Analysis``), made once."""
+        if self._analysis is None:
+            from silodem.report.analysis import analyse
+
+            self._analysis = analyse(self._raw)
+        return self._analysis
+
+    def wall_profile(self, window: str = "fill") -> pd.DataFrame:
+        """Wall stresses along the silo's edges, time-averaged over the ``'fill'`` window (the
+        end of settling) or the ``'discharge'`` window: z [m] (bin centre), sigma_n [Pa] (both
+        sides averaged), tau_down [Pa] (downward shear traction), on_vertical (bin on a vertical
+        wall).  What Figs. 3a and 6 of the report draw."""
+        if window not in ("fill", "discharge"):
+            raise InputError(f"window must be 'fill' or 'discharge'; got {window!r}")
+        edge = self.analysis().edge.get(window)
+        if edge is None:
+            raise InputError(f"no wall profile for the {window} window (not reached, or no "
+                             "measurement sample in it)")
+        return pd.DataFrame({"z": edge.z, "sigma_n": edge.sigma_n, "tau_down": edge.tau_down,
+                             "on_vertical": edge.on_vertical})
+
+    def numbers(self) -> pd.DataFrame:
+        """The report's key numbers: quantity, value (as the report prints it), unit."""
+        return pd.DataFrame(self.analysis().numbers, columns=["quantity", "value", "unit"])
+
+    def summary(self) -> dict[str, Any]:
+        """The per-run quantities of a study's results.csv (docs/sweeps.md), as a dict."""
+        from silodem.study.table import summarise_run
+
+        return summarise_run(self.folder)
+
+    def frames(self):
+        """The saved frames (``silodem.silo.frames.Frames``) for pictures and animations."""
+        from silodem.silo.frames import read_frames
+
+        try:
+            return read_frames(self.folder / "results.h5")
+        except KeyError:
+            raise InputError(f"{self.folder / 'results.h5'} has no /frames") from None

@@ -1,0 +1,107 @@
+"""The Python API for notebooks (silodem.api, docs/api.md): build a scenario, run it, read its
+results as DataFrames.  The tables are checked against results.h5 read with h5py, against
+mass conservation, and against each grain's force balance."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+from measure_helpers import tiny_hopper_config
+
+from silodem import api
+from silodem.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def res(tmp_path_factory):
+    return api.run(tiny_hopper_config(), tmp_path_factory.mktemp("api") / "run")
+
+
+def test_scenario_takes_dotted_keys_and_quick():
+    cfg = api.scenario("paper-case2", set={"material.friction_deg": 25.0, "silo.cell_width": 4})
+    assert cfg.material.friction_deg == 25.0 and cfg.silo.cell_width == 4.0
+    quick = api.scenario("paper-case2", quick=True)
+    assert quick.name == "paper-case2-quick" and quick.silo.cell_width == pytest.approx(3.4 * 0.6)
+    with pytest.raises(InputError, match="did you mean 'material.friction_deg'"):
+        api.scenario("paper-case2", set={"material.friction": 25.0})
+    with pytest.raises(InputError, match="not a TOML value"):
+        api.scenario("paper-case2", set={"material.kn": object()})
+
+
+def test_tables_are_the_datasets_of_results_h5(res):
+    """Each DataFrame column is the dataset of the same name, read here with h5py."""
+    with h5py.File(res.folder / "results.h5", "r") as h5:
+        ts = res.timeseries()
+        for key, dset in h5["timeseries"].items():
+            assert np.array_equal(ts[key].to_numpy(), dset[()], equal_nan=True), key
+        assert set(ts["phase_name"]) <= {"fill", "settle", "discharge"}
+        for snap in ("settled", "final"):
+            for table, group in ((res.particles(snap), "particles"),
+                                 (res.contacts(snap), "contacts"),
+                                 (res.wall_contacts(snap), "wall_contacts")):
+                for key, dset in h5[f"{snap}/{group}"].items():
+                    assert np.array_equal(table[key].to_numpy(), dset[()], equal_nan=True), (snap, key)
+        m = res.measurements()
+        assert np.array_equal(m["band_coordination"].to_numpy(),
+                              h5["measure/band/coordination"][()], equal_nan=True)
+        name = h5["measure/circles/name"][0].decode()
+        assert np.array_equal(m[f"{name}_sigma_zz"].to_numpy(),
+                              h5["measure/circles/stress"][:, 0, 1], equal_nan=True)
+    assert isinstance(ts, pd.DataFrame) and len(ts) > 10
+
+
+def test_the_grains_left_in_the_silo_hold_the_mass_not_discharged(res):
+    """Mass conservation: the final grains' mass (rho pi r^2 t) is the mass at the gate's
+    opening less the discharged fraction (the tiny silo does not re-insert grains)."""
+    ev = res.events
+    left = res.particles("final")["mass"].sum()
+    assert left == pytest.approx(ev["initial_mass"] * (1 - ev["discharged_fraction"]), rel=1e-12)
+
+
+def test_contact_tables_balance_each_grains_resultant_force(res):
+    """Per grain of the settled packing: the forces of its grain-grain contacts (+F on j, -F
+    on i) and of its wall contacts add up to its resultant contact force (fx, fy).  The
+    contact vectors are rebuilt at the snapshot's positions, one step after the forces were
+    computed: the normal has turned by at most |v_j - v_i| dt / |x_j - x_i|, which bounds the
+    difference by that angle times |F| summed over the grain's contacts."""
+    p, c, w = res.particles("settled"), res.contacts("settled"), res.wall_contacts("settled")
+    dt = res.dt
+    i, j = c["i"].to_numpy(), c["j"].to_numpy()
+    Fc = c[["fx", "fy"]].to_numpy()
+    total = np.zeros((len(p), 2))
+    np.add.at(total, j, Fc)
+    np.add.at(total, i, -Fc)
+    np.add.at(total, w["grain"].to_numpy(), w[["fx", "fy"]].to_numpy())
+    x, v = p[["x", "y"]].to_numpy(), p[["vx", "vy"]].to_numpy()
+    turn = np.linalg.norm(v[j] - v[i], axis=1) * dt / np.linalg.norm(x[j] - x[i], axis=1)
+    bound = np.zeros(len(p))
+    np.add.at(bound, i, np.linalg.norm(Fc, axis=1) * turn)
+    np.add.at(bound, j, np.linalg.norm(Fc, axis=1) * turn)
+    resultant = p[["fx", "fy"]].to_numpy()
+    miss = np.linalg.norm(total - resultant, axis=1)
+    assert np.all(miss <= bound * (1 + 1e-6) + 1e-9 * np.abs(resultant).max())
+    assert len(c) > len(p)  # a packing: more contacts than grains
+
+
+def test_report_views_and_summary(res):
+    prof = res.wall_profile("fill")
+    assert list(prof.columns) == ["z", "sigma_n", "tau_down", "on_vertical"]
+    assert np.all(np.diff(prof["z"]) > 0) and (prof["sigma_n"] >= 0).all()
+    numbers = res.numbers()
+    assert numbers["quantity"].str.contains("Janssen").any()
+    assert res.summary()["n_poured"] == res.events["n_poured"] == 150
+    assert len(res.frames()) > 0 and res.status == "complete"
+    with h5py.File(res.folder / "results.h5", "r") as h5:
+        assert res.dt == h5.attrs["dt"]
+
+
+@pytest.mark.parametrize("call, needle", [
+    (lambda r: r.particles("middle"), "snapshot must be one of"),
+    (lambda r: r.wall_profile("later"), "window must be"),
+    (lambda r: api.open_results(r.folder / "nothing"), "not a results folder"),
+])
+def test_bad_requests_are_one_line_input_errors(res, call, needle):
+    with pytest.raises(InputError, match=needle):
+        call(res)
