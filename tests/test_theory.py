@@ -193,6 +193,16 @@ def test_beverloo_2d_scaling_and_inverse():
     assert th.beverloo_2d(0.25, 0.2, RHO_B, G, C=1.0, k=1.5) == 0.0
 
 
+def test_janssen_free_fit_of_a_hydrostatic_profile_says_mu_w_is_at_its_bound():
+    """sigma_h = K rho g depth (no wall support): the free fit takes mu_w to its lower bound and
+    K to the hydrostatic K; a Janssen profile is not flagged."""
+    z = np.linspace(0.2, 4.0, 20)
+    flat = th.fit_janssen(z, 0.5 * 700 * 9.81 * z, 700, 9.81, 3.4)
+    assert flat.mu_w_at_bound and flat.K == pytest.approx(0.5, rel=1e-5)
+    curved = th.fit_janssen(z, th.janssen_sigma_h(z, 700, 9.81, 3.4, 0.5, 0.4), 700, 9.81, 3.4)
+    assert not curved.mu_w_at_bound and (curved.K, curved.mu_w) == pytest.approx((0.5, 0.4))
+
+
 def test_beverloo_fit_errors_match_the_scatter_of_noisy_fits():
     """The standard errors the two fits report (covariance of the least squares, propagated to
     C and k) against a brute-force reference: the spread of the constants fitted to 600 sets of

@@ -86,6 +86,15 @@ class JanssenFit:
     n_points: int
     mu_w_fitted: bool
 
+    @property
+    def mu_w_at_bound(self) -> bool:
+        """mu_w fitted onto its lower bound (``FIT_LOWER``): the profile is hydrostatic or
+        steeper, it shows no wall support; K is then sigma_h / (rho_b g depth)."""
+        return self.mu_w_fitted and self.mu_w <= 10 * FIT_LOWER
+
+
+FIT_LOWER = 1e-6  # lower bound of K and mu_w in fit_janssen [-]
+
 
 def fit_janssen(depth, sigma_h, rho_b: float, g: float, B: float,
                 mu_w: float | None = None) -> JanssenFit:
@@ -113,7 +122,7 @@ def fit_janssen(depth, sigma_h, rho_b: float, g: float, B: float,
         def model_k(zz, K):
             return janssen_sigma_h(zz, rho_b, g, B, K, mu_w)
 
-        popt, pcov = curve_fit(model_k, z, s, p0=[k0], bounds=([1e-6], [50.0]))
+        popt, pcov = curve_fit(model_k, z, s, p0=[k0], bounds=([FIT_LOWER], [50.0]))
         K, mu = float(popt[0]), float(mu_w)
         errs = np.sqrt(np.clip(np.diag(pcov), 0.0, np.inf)) if np.all(np.isfinite(pcov)) else [
             np.nan]
@@ -124,8 +133,8 @@ def fit_janssen(depth, sigma_h, rho_b: float, g: float, B: float,
         def model(zz, K, mu):
             return janssen_sigma_h(zz, rho_b, g, B, K, mu)
 
-        popt, pcov = curve_fit(model, z, s, p0=[k0, mu0], bounds=([1e-6, 1e-6], [50.0, 50.0]),
-                               maxfev=20000)
+        popt, pcov = curve_fit(model, z, s, p0=[k0, mu0],
+                               bounds=([FIT_LOWER, FIT_LOWER], [50.0, 50.0]), maxfev=20000)
         K, mu = float(popt[0]), float(popt[1])
         if np.all(np.isfinite(pcov)):
             K_err, mu_err = (float(v) for v in np.sqrt(np.clip(np.diag(pcov), 0.0, np.inf)))

@@ -309,8 +309,10 @@ def _numbers(a: Analysis) -> None:
                       f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}", "-"))
     if a.janssen_free is not None:
         j = a.janssen_free
-        n.append(("Janssen free fit after filling: K, mu_w", f"{_fmt(j.K, 3)}, {_fmt(j.mu_w, 3)}",
-                  "-"))
+        mu = ("~0 (at the fit's lower bound: the profile shows no wall support)"
+              if j.mu_w_at_bound else f"{_fmt(j.mu_w, 3)} +- {_fmt(j.mu_w_err, 2)}")
+        value = f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}, {mu}"
+        n.append(("Janssen free fit after filling: K, mu_w", value, "-"))
     if "fill" in a.janssen and "fill" in a.peaks:
         v, z = a.peaks["fill"]
         jan = th.janssen_sigma_h(a.surface["fill"] - z, a.rho_b, g["g"], g["B"],
