@@ -111,15 +111,24 @@ def test_parallel_kernels_give_the_same_bits_as_serial(monkeypatch):
                               parallel.snapshots["final"].particles[key])
 
 
-def test_clog_is_detected_and_reported_not_hung():
-    """An outlet barely wider than two grains arches at once: the run must stop and say so."""
+def test_clog_is_detected_and_reported_not_hung(tmp_path):
+    """An outlet barely wider than two grains arches at once: the run must stop and say so,
+    and its flow is 'clogged', not classified from the velocities of grains at rest (it read
+    'funnel flow', with an MFI of noise)."""
+    from silodem.study.table import summarise_run
+
     cfg = small(silo__outlet_width=0.3, discharge__clog_time=0.5,
                 discharge__max_time=20.0, material__friction_deg=40.0)
-    run = SiloRun(cfg)
-    run.run()
-    assert run.events["discharge_end_reason"] == "clog"
-    assert any("clogged" in w for w in run.warnings)
-    assert run.events["discharge_time"] < 20.0
+    run_simulation(cfg, tmp_path, progress=False)
+    with h5py.File(tmp_path / "results.h5", "r") as h5:
+        events = dict(h5["events"].attrs)
+        warnings = [w.decode() for w in h5["warnings"][()]]
+    assert events["discharge_end_reason"] == "clog"
+    assert any("clogged" in w for w in warnings)
+    assert events["discharge_time"] < 20.0
+    row = summarise_run(tmp_path)
+    assert row["discharged_fraction"] == 0.0 and math.isnan(row["discharge_rate"])
+    assert row["flow_pattern"] == "clogged" and math.isnan(row["mass_flow_index"])
 
 
 def test_results_folder_layout(tmp_path):

@@ -263,12 +263,16 @@ def _flow(a: Analysis, shape) -> None:
         return
     band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
     mi = f["mass_flow_index"]
-    mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
-                              band_hi - band_lo)
     dead = dis.dead_zone(f["exit_time"], f["max_displacement"], 0.5 * a.geom["d"])
     dead_frac = float(dead.mean()) if dead.size else float("nan")
-    a.flow.update(mfi=mfi, dead=dead, dead_fraction=dead_frac,
-                  pattern=dis.classify_flow(mfi, dead_frac, cfg.measure.mass_flow_index_threshold))
+    if np.isfinite(rate.rate):
+        mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
+                                  band_hi - band_lo)
+        pattern = dis.classify_flow(mfi, dead_frac, cfg.measure.mass_flow_index_threshold)
+    else:  # no steady flow to classify: the velocities of grains at rest are noise
+        mfi = float("nan")
+        pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
+    a.flow.update(mfi=mfi, dead=dead, dead_fraction=dead_frac, pattern=pattern)
     if np.isfinite(rate.rate) and np.isfinite(a.rho_b):
         a.flow["beverloo_C"] = th.beverloo_2d_C(rate.rate, cfg.silo.outlet_width, a.geom["d"],
                                                 a.rho_b, cfg.gravity, 1.5, a.geom["t"])
