@@ -11,7 +11,8 @@ too (``theory.fit_beverloo_free``).  Per width: W is the mean of the seeds' stea
 and the seeds' standard error of the mean (as ``validate.beverloo``); rho_b is the mean bulk
 density of the group's settled packings (``bulk_density``), d the mean grain diameter
 r_min + r_max of the config, t its thickness and g its gravity.  Runs without a rate (a clog,
-a discharge too short to measure) are left out, and so is a width left with no run.
+a discharge too short to measure) are left out of W, and so is a width left with no run; the
+notes say which, and why a case has no fit.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ class OutletFit:
     W: np.ndarray  # mean steady rate at each [kg/s]
     W_err: np.ndarray  # its standard error [kg/s]
     n_runs: int  # runs behind the means
+    left_out: list[float]  # outlet widths of the grid without a rate [m]
     rho_b: float  # [kg/m^3]
     d: float  # mean grain diameter [m]
     t: float  # thickness [m]
@@ -65,24 +67,33 @@ def _mean_rate(rates: np.ndarray, errs: np.ndarray) -> tuple[float, float]:
 
 
 def _fit_group(label: str, runs: list[PlannedRun],
-               rows_by_id: dict[str, dict[str, Any]]) -> OutletFit | None:
-    by_width: dict[float, list[tuple[float, float, float]]] = {}
+               rows_by_id: dict[str, dict[str, Any]]) -> tuple[OutletFit | None, str]:
+    """The fit of one case, or None; and a note on what was left out or why there is no fit."""
+    by_width: dict[float, list[tuple[float, float]]] = {}
+    rhos = []  # every settled packing counts, whatever happened at the outlet
+    widths = sorted({float(run.cfg.silo.outlet_width) for run in runs})
     for run in runs:
         row = rows_by_id.get(run.id)
         if row is None:
             continue
         W, err, rho = (_float(row.get(k)) for k in ("discharge_rate", "discharge_rate_err",
                                                      "bulk_density"))
-        if math.isfinite(W) and W > 0 and math.isfinite(rho):
-            by_width.setdefault(float(run.cfg.silo.outlet_width), []).append((W, err, rho))
-    if len(by_width) < MIN_WIDTHS:
-        return None
+        if math.isfinite(rho):
+            rhos.append(rho)
+        if math.isfinite(W) and W > 0:
+            by_width.setdefault(float(run.cfg.silo.outlet_width), []).append((W, err))
+    left_out = [x for x in widths if x not in by_width]
+    note = (f"{label}: no steady rate at D = {', '.join(f'{x:g}' for x in left_out)} m "
+            "(clogged, too short, or not finished)" if left_out else "")
+    if len(by_width) < MIN_WIDTHS or not rhos:
+        return None, (f"{label}: no fit, {len(by_width)} outlet width(s) with a steady rate, "
+                      f"{MIN_WIDTHS} needed" + (f"; {note.split(': ', 1)[1]}" if note else ""))
     D = np.array(sorted(by_width))
-    means = [_mean_rate(np.array([w for w, _, _ in by_width[x]]),
-                        np.array([e for _, e, _ in by_width[x]])) for x in D]
+    means = [_mean_rate(np.array([w for w, _ in by_width[x]]),
+                        np.array([e for _, e in by_width[x]])) for x in D]
     W = np.array([m for m, _ in means])
     W_err = np.array([e for _, e in means])
-    rho_b = float(np.mean([r for x in D for _, _, r in by_width[x]]))
+    rho_b = float(np.mean(rhos))
     cfg = runs[0].cfg
     d = mean_diameter(cfg)
     t, g = cfg.material.thickness, cfg.gravity
@@ -95,27 +106,34 @@ def _fit_group(label: str, runs: list[PlannedRun],
         except (RuntimeError, ValueError):  # no convergence, or widths under k d
             free = None
     n = sum(len(v) for v in by_width.values())
-    return OutletFit(label, D, W, W_err, n, rho_b, d, t, g, fixed, free)
+    return OutletFit(label, D, W, W_err, n, left_out, rho_b, d, t, g, fixed, free), note
 
 
-def outlet_fits(plan: StudyPlan, rows_by_id: dict[str, dict[str, Any]]) -> list[OutletFit]:
+def outlet_fits(plan: StudyPlan, rows_by_id: dict[str, dict[str, Any]]
+                ) -> tuple[list[OutletFit], list[str]]:
     """One fit per combination of the grid values other than the outlet width (runs grouped by
-    them); none when the grid does not vary ``silo.outlet_width`` over MIN_WIDTHS values."""
+    them), and notes: widths left out, cases without a fit.  No fit and no note when the grid
+    does not vary ``silo.outlet_width``; a note when it does over fewer than MIN_WIDTHS."""
     grid = plan.study.spec.grid
-    if OUTLET not in grid or len(set(grid[OUTLET])) < MIN_WIDTHS:
-        return []
+    if OUTLET not in grid:
+        return [], []
+    if len(set(grid[OUTLET])) < MIN_WIDTHS:
+        count = len(set(grid[OUTLET]))
+        return [], [f"no Beverloo fit: the grid has {count} outlet width(s), {MIN_WIDTHS} needed"]
     others = [k for k in grid if k != OUTLET]
     names = nicknames(list(grid))
     groups: dict[tuple, list[PlannedRun]] = {}
     for run in plan.runs:
         groups.setdefault(tuple(format_value(run.point[k]) for k in others), []).append(run)
-    fits = []
+    fits, notes = [], []
     for key, runs in groups.items():
         label = ", ".join(f"{names[k]}={v}" for k, v in zip(others, key)) or "all"
-        fit = _fit_group(label, runs, rows_by_id)
+        fit, note = _fit_group(label, runs, rows_by_id)
         if fit is not None:
             fits.append(fit)
-    return fits
+        if note:
+            notes.append(note)
+    return fits, notes
 
 
 FIT_COLUMNS: list[tuple[str, str, str]] = [
@@ -124,7 +142,7 @@ FIT_COLUMNS: list[tuple[str, str, str]] = [
     ("runs", "-", "runs behind the rates"),
     ("D_min", "m", "smallest outlet width"),
     ("D_max", "m", "largest outlet width"),
-    ("bulk_density", "kg/m^3", "mean bulk density rho_b of the settled packings"),
+    ("bulk_density", "kg/m^3", "mean bulk density rho_b of the case's settled packings"),
     ("grain_diameter", "m", "mean grain diameter d = r_min + r_max"),
     ("C", "-", "Beverloo constant C with b = 3/2"),
     ("C_err", "-", "its standard error"),

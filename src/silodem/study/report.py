@@ -298,12 +298,15 @@ FIGURES = [
 ]
 
 
-def _beverloo_section(fits: list, out_dir: Path) -> list[str]:
-    """The Beverloo fits' table for the report, and beverloo.csv (removed when no fit)."""
+def _beverloo_section(fits: list, notes: list[str], out_dir: Path) -> list[str]:
+    """The Beverloo fits' table for the report with its notes (what was left out, why a case
+    has no fit), and beverloo.csv (removed when there is no fit)."""
     path = out_dir / BEVERLOO_CSV
+    listed = ("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>"
+              if notes else "")
     if not fits:
         path.unlink(missing_ok=True)
-        return []
+        return ["<h2>Beverloo fit</h2>", listed] if notes else []
     rows = fit_rows(fits)
     columns = [c for c, _, _ in FIT_COLUMNS]
     write_atomic(path, table_csv(columns, rows).encode("utf-8"))
@@ -321,7 +324,7 @@ def _beverloo_section(fits: list, out_dir: Path) -> list[str]:
              "from four widths on, b free; d is the mean grain diameter, rho_b the settled "
              f"bulk density (docs/theory.md, docs/sweeps.md). Every value: {BEVERLOO_CSV}.</p>"),
             _table(shown, ("case", "widths", "runs", "rho_b [kg/m^3]", "C (b = 3/2)",
-                           "k (b = 3/2)", "b free"))]
+                           "k (b = 3/2)", "b free")), listed]
 
 
 def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]],
@@ -331,7 +334,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     failed = failed or {}
     rows_by_id = {r["id"]: r for r in rows}
     lay = layout_of(plan)
-    fits = outlet_fits(plan, rows_by_id)
+    fits, fit_notes = outlet_fits(plan, rows_by_id)
     makers = {
         "fig7_switch_stresses": lambda: fig_evolution(plan, out_dir, lay, ratio=False),
         "fig7_switch_ratio": lambda: fig_evolution(plan, out_dir, lay, ratio=True),
@@ -384,7 +387,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     parts += ["<h2>Runs</h2>", _run_table(plan, rows_by_id, out_dir, failed),
               ("<p>Every value per run, with units: results.csv (columns in docs/sweeps.md). "
               "A run's name links to its own report when it wrote one.</p>")]
-    parts += _beverloo_section(fits, out_dir)
+    parts += _beverloo_section(fits, fit_notes, out_dir)
     parts.append("<h2>Figures</h2>")
     for name, paper, caption, png in pngs:
         b64 = base64.b64encode(png).decode("ascii")
