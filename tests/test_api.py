@@ -97,10 +97,25 @@ def test_report_views_and_summary(res):
         assert res.dt == h5.attrs["dt"]
 
 
+def test_numpy_scalars_are_values_too():
+    cfg = api.scenario("paper-case2", set={"fill.n_particles": np.int64(200),
+                                           "output.png": np.bool_(False),
+                                           "material.kn": np.float64(6e6)})
+    assert (cfg.fill.n_particles, cfg.output.png, cfg.material.kn) == (200, False, 6e6)
+
+
 @pytest.mark.parametrize("call, needle", [
     (lambda r: r.particles("middle"), "snapshot must be one of"),
     (lambda r: r.wall_profile("later"), "window must be"),
     (lambda r: api.open_results(r.folder / "nothing"), "not a results folder"),
+    (lambda r: api.open_results(r.folder / "results.h5"), "give the results folder"),
+    (lambda r: api.open_results(None), "folder must be"),
+    (lambda r: api.scenario(set=[("material.kn", 1.0)]), "set must map dotted keys"),
+    (lambda r: api.scenario(set={"silo": {"outlet_width": 0.8}}), "dotted key, not a table"),
+    (lambda r: api.scenario(quick="no"), "quick must be True or False"),
+    (lambda r: api.run({"name": "x"}), "cfg must be a Config"),
+    (lambda r: api.run(r.config, r.folder / "results.h5"), "is a file, not a folder"),
+    (lambda r: api.run(r.config, r.folder / "again", threads=0), "threads must be"),
 ])
 def test_bad_requests_are_one_line_input_errors(res, call, needle):
     with pytest.raises(InputError, match=needle):

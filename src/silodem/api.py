@@ -17,6 +17,7 @@ command line prints.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -39,13 +40,24 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
     ``--quick`` does."""
     from silodem.scenario_files import _toml_value, load_config, quick_variant
 
+    if not isinstance(source, str | Path):
+        raise InputError(f"source must be a scenario name or a TOML file's path; got {source!r}")
+    if not isinstance(quick, bool):
+        raise InputError(f"quick must be True or False; got {quick!r}")
+    if set is not None and not isinstance(set, Mapping):
+        raise InputError("set must map dotted keys to values, e.g. {'material.kn': 2e7}; got "
+                         f"{type(set).__name__}")
     sets = []
     for key, value in (set or {}).items():
+        if isinstance(value, np.generic):  # numpy's scalars, as notebooks make them
+            value = value.item()
+        if isinstance(value, Mapping):
+            raise InputError(f"set {key!r}: give each value by its dotted key, not a table")
         try:
             sets.append(f"{key}={_toml_value(value)}")
         except TypeError:
             raise InputError(f"set {key!r}: {value!r} is not a TOML value") from None
-    cfg = load_config(source, sets)
+    cfg = load_config(str(source), sets)
     return quick_variant(cfg) if quick else cfg
 
 
@@ -53,15 +65,24 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
         progress: bool = False) -> RunResults:
     """Run ``cfg`` into the folder ``out`` (default ``runs/<name>``), as ``silodem run`` does,
     and open its results."""
-    from silodem.run import run_simulation
+    from silodem.run import check_threads, run_simulation
 
+    if not isinstance(cfg, Config):
+        raise InputError(f"cfg must be a Config (from api.scenario); got {type(cfg).__name__}")
+    check_threads(threads)
     folder = Path(out) if out is not None else Path("runs") / cfg.name
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"out {folder} is a file, not a folder")
     run_simulation(cfg, folder, threads=threads, progress=progress)
     return open_results(folder)
 
 
 def open_results(folder: Path | str) -> RunResults:
     """The results of the run in ``folder`` (its results.h5, read once)."""
+    if not isinstance(folder, str | Path):
+        raise InputError(f"folder must be a results folder's path; got {folder!r}")
+    if Path(folder).is_file():
+        raise InputError(f"{folder} is a file; give the results folder that holds it")
     return RunResults(load_results(folder))
 
 

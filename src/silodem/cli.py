@@ -71,21 +71,10 @@ QuickOpt = Annotated[
 ]
 
 
-def _numba_max_threads() -> int:
-    import numba
-
-    return int(numba.config.NUMBA_NUM_THREADS)
-
-
 def _check_threads(threads: int | None) -> None:
-    if threads is None:
-        return
-    top = _numba_max_threads()
-    if not 1 <= threads <= top:
-        raise InputError(
-            f"--threads must be an integer from 1 to {top} (the number of threads numba may "
-            f"use here, NUMBA_NUM_THREADS); got {threads}"
-        )
+    from silodem.run import check_threads
+
+    check_threads(threads, "--threads")
 
 
 def _config(source: str, sets: list[str] | None, quick: bool):

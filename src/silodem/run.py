@@ -13,7 +13,7 @@ from pathlib import Path
 
 from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
-from silodem.errors import RunInterrupted, Terminated
+from silodem.errors import InputError, RunInterrupted, Terminated
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
 from silodem.safety import RunGuard, check_numbers, clear_previous_run
@@ -47,6 +47,18 @@ class RunSummary:
         out += [f"warning: {w}" for w in self.warnings]
         out.append(f"results: {self.out_dir}")
         return out
+
+
+def check_threads(threads: int | None, what: str = "threads") -> None:
+    """InputError unless ``threads`` is None or a thread count numba may use here."""
+    if threads is None:
+        return
+    import numba
+
+    top = int(numba.config.NUMBA_NUM_THREADS)
+    if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= top:
+        raise InputError(f"{what} must be an integer from 1 to {top} (the number of threads "
+                         f"numba may use here, NUMBA_NUM_THREADS); got {threads!r}")
 
 
 def _set_threads(threads: int | None) -> None:

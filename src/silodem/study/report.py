@@ -97,7 +97,8 @@ def _mean_std(v: np.ndarray) -> tuple[float, float]:
 def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> Figure | None:
     """Fig. 7 for every case: switch-zone sigma_h and sigma_v (or their ratio) against time."""
     nr, nc = len(lay.rows), len(lay.cols)
-    fig = Figure(figsize=(2.9 * nc + 1.0, 2.3 * nr + 1.0), dpi=90)
+    # wide enough for the title and the one-line legend above the panels, even for one column
+    fig = Figure(figsize=(max(2.9 * nc + 1.0, 7.5), 2.3 * nr + 1.2), dpi=90)
     axes = np.atleast_2d(fig.subplots(nr, nc, squeeze=False, sharex=True))
     drawn = 0
     for i, row in enumerate(lay.rows):
@@ -145,11 +146,12 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
                 labels.append(lab)
     what = ("ratio sigma_h / sigma_v (grey: samples, black: 0.2 s running mean)" if ratio
             else "horizontal and vertical stress, 0.2 s running mean")
-    fig.suptitle(f"Switch zone: {what}", fontsize=9, x=0.02, ha="left")
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.suptitle(f"Switch zone: {what}", fontsize=9, x=0.02, y=0.995, ha="left", va="top")
+    top = 1.0 - 0.55 / fig.get_figheight()  # room for the title line and the legend line
+    fig.tight_layout(rect=(0, 0, 1, top))
     if handles:
-        fig.legend(handles, labels, loc="upper right", ncol=len(labels), fontsize=7,
-                   frameon=False)
+        fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.02, 1.0 - 0.25
+                   / fig.get_figheight()), ncol=len(labels), fontsize=7, frameon=False)
     return fig
 
 
