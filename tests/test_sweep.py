@@ -8,6 +8,7 @@ import csv
 import json
 import os
 import signal
+import socket
 import threading
 import time
 import tomllib
@@ -114,6 +115,8 @@ def test_local_cluster_equals_serial_and_second_invocation_recomputes_nothing(
     stamps[study_dir / "runs"] = (study_dir / "runs").stat().st_mtime_ns
     again = run_study(_plan(tmp_path), study_dir, client=client)
     assert again.computed == 0 and again.skipped == 2 and not again.results
+    # the report still says where the runs were computed (it said only "finished before")
+    assert again.where == f"every run finished before this invocation, on {socket.gethostname()}"
     with pytest.raises(SystemExit) as exc:
         main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)])
     assert exc.value.code == 0

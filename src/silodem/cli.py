@@ -349,7 +349,7 @@ def sweep(
         console.print(text, markup=False, highlight=False, soft_wrap=True)
 
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
-        f"-> {out_dir}, on {where}")
+        f"-> {out_dir}; those not finished yet run on {where}")
     outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
     say(f"{outcome.computed} computed, {outcome.skipped} already finished, "
         f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")

@@ -33,6 +33,23 @@ def collect_rows(plan: StudyPlan, out_dir: Path) -> list[dict[str, Any]]:
     return table_rows(plan, summaries)
 
 
+def _earlier_hosts(plan: StudyPlan, out_dir: Path) -> str:
+    """Where the finished runs were computed, from their attempt.json (host names)."""
+    import json
+
+    from silodem.study.execute import ATTEMPT_NAME
+
+    hosts = set()
+    for run in plan.runs:
+        try:
+            info = json.loads((out_dir / "runs" / run.id / ATTEMPT_NAME).read_text("utf-8"))
+            hosts.add(str(info["host"]))
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return ("every run finished before this invocation, on " + (", ".join(sorted(hosts))
+            or "hosts not recorded"))
+
+
 def finish_study(plan: StudyPlan, out_dir: Path, outcome: StudyOutcome | None = None,
                  report: bool = True) -> StudyOutcome:
     """Write DIR/results.csv (from the run folders that exist) and DIR/report.html."""
@@ -95,7 +112,7 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     todo = prepare(plan, out_dir)
     if not todo:
         outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs),
-                               where="(every run was finished before)")
+                               where=_earlier_hosts(plan, out_dir))
     elif serial:
         with _progress_bar(len(todo), progress) as on_done:
             outcome = run_serial(plan, out_dir, on_done)
