@@ -42,7 +42,8 @@ def test_tables_are_the_datasets_of_results_h5(res):
                                  (res.contacts(snap), "contacts"),
                                  (res.wall_contacts(snap), "wall_contacts")):
                 for key, dset in h5[f"{snap}/{group}"].items():
-                    assert np.array_equal(table[key].to_numpy(), dset[()], equal_nan=True), (snap, key)
+                    same = np.array_equal(table[key].to_numpy(), dset[()], equal_nan=True)
+                    assert same, (snap, key)
         m = res.measurements()
         assert np.array_equal(m["band_coordination"].to_numpy(),
                               h5["measure/band/coordination"][()], equal_nan=True)
