@@ -105,6 +105,13 @@ def test_numpy_scalars_are_values_too():
     assert (cfg.fill.n_particles, cfg.output.png, cfg.material.kn) == (200, False, 6e6)
 
 
+def _unfinished(parent):
+    folder = parent / "unfinished"
+    folder.mkdir(exist_ok=True)
+    (folder / "checkpoint.h5").write_bytes(b"a run's state")
+    return folder
+
+
 @pytest.mark.parametrize("call, needle", [
     (lambda r: r.particles("middle"), "snapshot must be one of"),
     (lambda r: r.wall_profile("later"), "window must be"),
@@ -117,6 +124,7 @@ def test_numpy_scalars_are_values_too():
     (lambda r: api.run({"name": "x"}), "cfg must be a Config"),
     (lambda r: api.run(r.config, r.folder / "results.h5"), "is a file, not a folder"),
     (lambda r: api.run(r.config, r.folder / "again", threads=0), "threads must be"),
+    (lambda r: api.run(r.config, _unfinished(r.folder.parent)), "holds an unfinished run"),
 ])
 def test_bad_requests_are_one_line_input_errors(res, call, needle):
     with pytest.raises(InputError, match=needle):

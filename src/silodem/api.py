@@ -73,6 +73,9 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     if folder.exists() and not folder.is_dir():
         raise InputError(f"out {folder} is a file, not a folder")
+    if (folder / "checkpoint.h5").exists():  # as the command line: never overwrite it
+        raise InputError(f"out {folder} holds an unfinished run (checkpoint.h5); continue it "
+                         f"with 'silodem run --resume {folder}', or delete the checkpoint")
     run_simulation(cfg, folder, threads=threads, progress=progress)
     return open_results(folder)
 
