@@ -65,17 +65,13 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
         progress: bool = False) -> RunResults:
     """Run ``cfg`` into the folder ``out`` (default ``runs/<name>``), as ``silodem run`` does,
     and open its results."""
-    from silodem.run import check_threads, run_simulation
+    from silodem.run import check_out, check_threads, run_simulation
 
     if not isinstance(cfg, Config):
         raise InputError(f"cfg must be a Config (from api.scenario); got {type(cfg).__name__}")
     check_threads(threads)
     folder = Path(out) if out is not None else Path("runs") / cfg.name
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"out {folder} is a file, not a folder")
-    if (folder / "checkpoint.h5").exists():  # as the command line: never overwrite it
-        raise InputError(f"out {folder} holds an unfinished run (checkpoint.h5); continue it "
-                         f"with 'silodem run --resume {folder}', or delete the checkpoint")
+    check_out(folder)  # as the command line: never a file, never over an unfinished run
     run_simulation(cfg, folder, threads=threads, progress=progress)
     return open_results(folder)
 

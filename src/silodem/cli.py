@@ -7,7 +7,6 @@ stderr and exit code 2, never a traceback: see :func:`main`.
 from __future__ import annotations
 
 import importlib
-import os
 import signal
 import sys
 import threading
@@ -89,30 +88,9 @@ def _given(ctx: typer.Context, name: str) -> bool:
 
 
 def _check_out(out: Path) -> None:
-    """Refuse an --out that is a file, lies under a file, cannot be created or written, or
-    holds an unfinished run; create the folder."""
-    try:
-        _check_out_folder(out)
-    except OSError as exc:  # a name too long, a system folder (/proc, /sys), ...
-        raise InputError(f"--out {out}: cannot write a folder there ({exc.strerror})") from None
+    from silodem.run import check_out
 
-
-def _check_out_folder(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} is a file, not a folder; give a folder for the results "
-                         "(created if missing)")
-    for folder in (out, *out.parents):
-        if folder.exists():
-            if not folder.is_dir():
-                raise InputError(f"--out {out}: {folder} is a file, not a folder")
-            if not os.access(folder, os.W_OK | os.X_OK):
-                raise InputError(f"--out {out}: no permission to write in {folder}")
-            break
-    if (out / "checkpoint.h5").exists():
-        raise InputError(f"--out {out} holds an unfinished run (checkpoint.h5); continue it with "
-                         f"'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
-                         "start afresh there")
-    out.mkdir(parents=True, exist_ok=True)
+    check_out(out, "--out")
 
 
 def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:

@@ -6,6 +6,7 @@ Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> di
 
 from __future__ import annotations
 
+import os
 import signal
 import time
 from dataclasses import dataclass, field
@@ -47,6 +48,34 @@ class RunSummary:
         out += [f"warning: {w}" for w in self.warnings]
         out.append(f"results: {self.out_dir}")
         return out
+
+
+def check_out(out: Path, flag: str = "out") -> None:
+    """Refuse (InputError) an output folder that is a file, lies under a file, cannot be
+    created or written, or holds an unfinished run; create it.  ``flag`` names it in the
+    message (``--out`` on the command line)."""
+    try:
+        _check_out_folder(Path(out), flag)
+    except OSError as exc:  # a name too long, a system folder (/proc, /sys), ...
+        raise InputError(f"{flag} {out}: cannot write a folder there ({exc.strerror})") from None
+
+
+def _check_out_folder(out: Path, flag: str) -> None:
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{flag} {out} is a file, not a folder; give a folder for the results "
+                         "(created if missing)")
+    for folder in (out, *out.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise InputError(f"{flag} {out}: {folder} is a file, not a folder")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise InputError(f"{flag} {out}: no permission to write in {folder}")
+            break
+    if (out / "checkpoint.h5").exists():
+        raise InputError(f"{flag} {out} holds an unfinished run (checkpoint.h5); continue it with "
+                         f"'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
+                         "start afresh there")
+    out.mkdir(parents=True, exist_ok=True)
 
 
 def check_threads(threads: int | None, what: str = "threads") -> None:

@@ -126,24 +126,24 @@ MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
 
 
 def _check_circles(cfg: Config, shape, size: str) -> None:
-    """InputError for a configured measurement circle larger than the silo's diagonal or with
-    no part inside the silo (it would measure nothing, or overflow the area quadrature)."""
-    from silodem.measure.regions import area_inside_circle
+    """InputError for a configured measurement circle larger than the silo's diagonal (its
+    area quadrature would overflow) or with no part inside the silo (it would measure
+    nothing); the circles placed as the recorder places them (``regions.circles_for``)."""
+    from silodem.measure.regions import circles_for
 
-    m = cfg.measure
-    if m.circle_names is None:
+    if cfg.measure.circle_names is None:
         return
-    z0 = shape.junction if m.circle_z_from == "junction" else 0.0
     reach = math.hypot(shape.width, shape.wall_top)
-    for name, x, z, r in zip(m.circle_names, m.circle_x, m.circle_z, m.circle_radius):
+    for name, r in zip(cfg.measure.circle_names, cfg.measure.circle_radius):
         if r > reach:
             raise InputError(f"measure.circle_radius of circle '{name}' = {r:.3g} m is larger "
                              f"than {size} (diagonal {reach:.3g} m)")
-        if not (-r < x < shape.width + r and -r < z0 + z < shape.wall_top + r) or \
-                area_inside_circle(shape, x, z0 + z, r) == 0.0:
-            raise InputError(f"measurement circle '{name}' (x = {x:.3g} m, z = {z:.3g} m from "
-                             f"the {m.circle_z_from}, radius {r:.3g} m) has no part inside "
-                             f"{size}")
+    m = cfg.measure
+    for c, z in zip(circles_for(cfg, shape), m.circle_z):
+        if c.area_inside == 0.0:
+            raise InputError(f"measurement circle '{c.name}' (x = {c.x:.3g} m, z = {z:.3g} m "
+                             f"from the {m.circle_z_from}, radius {c.radius:.3g} m) has no "
+                             f"part inside {size}")
 
 
 # what a run and its pictures write into the folder (the VTK writer clears its own files)

@@ -31,6 +31,19 @@ class RateEstimate:
     t1: float
 
 
+def mean_of_runs(rates, errs) -> tuple[float, float]:
+    """Mean [kg/s] of the steady rates of runs that differ only by their seed, and its standard
+    error: the runs' errors combined, sqrt(sum err^2) / n, or the seeds' standard error of the
+    mean, std / sqrt(n), if that is larger (the fills differ by more than one run's noise)."""
+    rates = np.asarray(rates, dtype=float)
+    errs = np.nan_to_num(np.asarray(errs, dtype=float))
+    n = rates.size
+    err = float(np.sqrt(np.sum(errs**2))) / n
+    if n > 1:
+        err = max(err, float(np.std(rates, ddof=1)) / float(np.sqrt(n)))
+    return float(rates.mean()), err
+
+
 def steady_rate(t, m, lo: float = 0.15, hi: float = 0.75, blocks: int = 5) -> RateEstimate:
     """Steady discharge rate from the discharged mass m(t) [kg] at times t [s] (see module)."""
     t = np.asarray(t, dtype=float)

@@ -25,8 +25,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from silodem import theory as th
+from silodem.measure.discharge import mean_of_runs
 from silodem.measure.regions import mean_diameter
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
+from silodem.study.table import as_float
 
 OUTLET = "silo.outlet_width"
 MIN_WIDTHS = 3  # for C and k with b = 3/2 and their errors
@@ -51,21 +53,6 @@ class OutletFit:
     free: th.BeverlooFit | None  # b fitted too (None under MIN_WIDTHS_FREE widths)
 
 
-def _float(value: Any) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _mean_rate(rates: np.ndarray, errs: np.ndarray) -> tuple[float, float]:
-    n = rates.size
-    err = math.sqrt(float(np.sum(np.nan_to_num(errs) ** 2))) / n
-    if n > 1:
-        err = max(err, float(np.std(rates, ddof=1)) / math.sqrt(n))
-    return float(rates.mean()), err
-
-
 def _fit_group(label: str, runs: list[PlannedRun],
                rows_by_id: dict[str, dict[str, Any]]) -> tuple[OutletFit | None, str]:
     """The fit of one case, or None; and a note on what was left out or why there is no fit."""
@@ -76,7 +63,7 @@ def _fit_group(label: str, runs: list[PlannedRun],
         row = rows_by_id.get(run.id)
         if row is None:
             continue
-        W, err, rho = (_float(row.get(k)) for k in ("discharge_rate", "discharge_rate_err",
+        W, err, rho = (as_float(row.get(k)) for k in ("discharge_rate", "discharge_rate_err",
                                                      "bulk_density"))
         if math.isfinite(rho):
             rhos.append(rho)
@@ -89,7 +76,7 @@ def _fit_group(label: str, runs: list[PlannedRun],
         return None, (f"{label}: no fit, {len(by_width)} outlet width(s) with a steady rate, "
                       f"{MIN_WIDTHS} needed" + (f"; {note.split(': ', 1)[1]}" if note else ""))
     D = np.array(sorted(by_width))
-    means = [_mean_rate(np.array([w for w, _ in by_width[x]]),
+    means = [mean_of_runs(np.array([w for w, _ in by_width[x]]),
                         np.array([e for _, e in by_width[x]])) for x in D]
     W = np.array([m for m, _ in means])
     W_err = np.array([e for _, e in means])

@@ -31,7 +31,7 @@ from silodem.report.html import _CSS, _table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
-from silodem.study.table import COLUMNS, switch_series, table_csv
+from silodem.study.table import COLUMNS, as_float, switch_series, table_csv
 
 BEVERLOO_CSV = "beverloo.csv"  # the Beverloo fits, when the grid varies the outlet width
 CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
@@ -73,15 +73,8 @@ def _runs_at(plan: StudyPlan, lay: Layout, row: Any, col: dict[str, Any]) -> lis
 
 
 def _values(rows_by_id: dict[str, dict], runs: list[PlannedRun], column: str) -> np.ndarray:
-    vals = []
-    for r in runs:
-        row = rows_by_id.get(r.id)
-        if row is not None:
-            try:
-                vals.append(float(row.get(column, math.nan)))
-            except (TypeError, ValueError):
-                vals.append(math.nan)
-    return np.array(vals, dtype=float)
+    rows = (rows_by_id.get(r.id) for r in runs)
+    return np.array([as_float(row.get(column)) for row in rows if row is not None], dtype=float)
 
 
 def _mean_std(v: np.ndarray) -> tuple[float, float]:
@@ -268,19 +261,12 @@ def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[st
                 _fmt(row.get("switch_sigma_v_change_pct")),
                 _fmt(row.get("switch_ratio_discharge")),
                 _fmt(row.get("switch_ratio_cv_discharge")),
-                regime(_float(row.get("switch_ratio_cv_discharge"))),
+                regime(as_float(row.get("switch_ratio_cv_discharge"))),
                 _fmt(row.get("wall_peak_change_pct")), _fmt(row.get("discharge_rate"), 4),
                 str(row.get("flow_pattern") or "n/a")]
         body.append(f"<tr><td>{name}</td>" + "".join(f"<td>{html.escape(v)}</td>" for v in vals)
                     + "</tr>")
     return f"<table><tr>{cells}</tr>{''.join(body)}</table>"
-
-
-def _float(value: Any) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 FIGURES = [

@@ -72,12 +72,12 @@ CIRCLE_QUANTITIES: list[tuple[str, str, str]] = [
 NAN = float("nan")
 
 
-def _f(value: Any) -> float:
+def as_float(value: Any) -> float:
+    """``value`` as a float; NaN for what is not a number (None, "", text)."""
     try:
-        v = float(value)
+        return float(value)
     except (TypeError, ValueError):
         return NAN
-    return v
 
 
 def _change(before: float, after: float) -> float:
@@ -152,12 +152,12 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
     a = analyse(res)
     ev = res.events
     out: dict[str, Any] = {c: NAN for c, _, _ in COLUMNS}
-    out.update(junction_z=_f(a.geom.get("z_j")), fill_level=_f(ev.get("fill_level")),
-               bulk_density=_f(a.rho_b),
+    out.update(junction_z=as_float(a.geom.get("z_j")), fill_level=as_float(ev.get("fill_level")),
+               bulk_density=as_float(a.rho_b),
                n_poured=int(ev.get("n_poured", 0)),
-               discharged_fraction=_f(ev.get("discharged_fraction")),
+               discharged_fraction=as_float(ev.get("discharged_fraction")),
                discharge_end_reason=str(ev.get("discharge_end_reason", "")),
-               steps=int(res.attrs.get("steps", 0)), dt=_f(res.attrs.get("dt")),
+               steps=int(res.attrs.get("steps", 0)), dt=as_float(res.attrs.get("dt")),
                flow_pattern="")
     m = res.group("measure")
     if m is not None and a.windows:
@@ -196,15 +196,15 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
                 window_stats(stress[:, k, 0], stress[:, k, 1], f"circle_{name}_")
     for key in ("fill", "discharge"):
         if key in a.peaks:
-            out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = map(_f, a.peaks[key])
+            out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = map(as_float, a.peaks[key])
     out["wall_peak_change_pct"] = _change(out["wall_peak_fill"], out["wall_peak_discharge"])
     flow = a.flow
     if "rate" in flow:
-        out["discharge_rate"], out["discharge_rate_err"] = _f(flow["rate"].rate), \
-            _f(flow["rate"].err)
+        out["discharge_rate"], out["discharge_rate_err"] = as_float(flow["rate"].rate), \
+            as_float(flow["rate"].err)
     if "pattern" in flow:
-        out["mass_flow_index"] = _f(flow["mfi"])
-        out["dead_fraction"] = _f(flow["dead_fraction"])
+        out["mass_flow_index"] = as_float(flow["mfi"])
+        out["dead_fraction"] = as_float(flow["dead_fraction"])
         out["flow_pattern"] = str(flow["pattern"])
     return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in out.items()}
 

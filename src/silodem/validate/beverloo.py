@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from silodem.config import Config
-from silodem.measure.discharge import steady_rate
+from silodem.measure.discharge import mean_of_runs, steady_rate
 from silodem.silo.procedure import SiloRun
 from silodem.theory import fit_beverloo_free, fit_beverloo_three_halves
 from silodem.validate.records import Record, absolute, info, rel
@@ -178,13 +178,8 @@ class Rate:
 
 def mean_rate(D_over_d: float, H_over_B: float = FILL) -> Rate:
     runs = [discharge(D_over_d, H_over_B, seed) for seed in SEEDS]
-    rates = np.array([r.rate for r in runs])
-    n = rates.size
-    err = math.sqrt(sum(r.err**2 for r in runs)) / n
-    if n > 1:
-        err = max(err, float(np.std(rates, ddof=1)) / math.sqrt(n))
-    return Rate(runs[0].D, runs[0].B, float(np.mean([r.H for r in runs])),
-                float(rates.mean()), err, runs)
+    rate, err = mean_of_runs([r.rate for r in runs], [r.err for r in runs])
+    return Rate(runs[0].D, runs[0].B, float(np.mean([r.H for r in runs])), rate, err, runs)
 
 
 def run(quick: bool = False) -> tuple[list[Record], dict]:
