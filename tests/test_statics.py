@@ -38,3 +38,55 @@ def test_settled_pile_weight_equals_summed_wall_forces(local_damping):
     assert mean[1] == pytest.approx(-weight, rel=1e-3)  # grains push the walls down
     assert abs(mean[0]) < 1e-3 * weight  # side walls balance each other
     assert q.unbalanced_force_ratio(sim) < 1e-2
+
+
+@pytest.mark.parametrize("alpha", [0.3, 0.7])
+def test_local_damping_scales_gravity_by_one_minus_alpha_falling_one_plus_alpha_rising(alpha):
+    """PFC local damping, F_d = -alpha |F| sign(v) per degree of freedom (Itasca PFC2D manual;
+    docs/physics.md): a free grain's only force is its weight, so while it falls it
+    accelerates at g (1 - alpha) and while it rises it slows at g (1 + alpha). The leap-frog
+    integrates a constant acceleration exactly; the horizontal velocity and the spin, with no
+    force or moment on them, keep their values."""
+    g, dt, steps = 9.81, 1e-3, 1000
+    p = Particles(8)
+    p.add([0.0, 5.0], [0.0, 0.0], [0.1, 0.1], 1000.0, vx=[0.7, -0.4], vy=[-1.0, 20.0],
+          omega=[3.0, -2.0])
+    law = GrainLaw(kn=1e6, ks=1e6, mu=0.5, zeta=0.0, local_damping=alpha)
+    sim = Simulation(p, Walls(), law, dt=dt, gravity=g, skin=0.02)
+    sim.run(steps)
+    t = steps * dt
+    by_uid = np.argsort(p.view("uid"))
+    vx, vy, omega = (p.view(name)[by_uid] for name in ("vx", "vy", "omega"))
+    assert vy[0] == pytest.approx(-1.0 - g * (1 - alpha) * t, rel=1e-12)
+    assert vy[1] == pytest.approx(20.0 - g * (1 + alpha) * t, rel=1e-12)
+    assert vy[1] > 0  # still rising: the sign of v did not change
+    np.testing.assert_array_equal(vx, [0.7, -0.4])
+    np.testing.assert_array_equal(omega, [3.0, -2.0])
+
+
+def test_config_stiffnesses_combine_in_series_for_grain_and_wall_contacts():
+    """PFC2D's convention (DESIGN section 1): the stiffness of a contact is the two bodies'
+    springs in series, k = k_a k_b / (k_a + k_b). Two grains stacked at rest on the floor of a
+    silo built from a config with grain k_n = 1e6 N/m and wall k_n = 3e6 N/m: the floor
+    contact carries both weights on 7.5e5 N/m, the grain-grain contact the upper weight on
+    5e5 N/m, so the overlaps are those weights over these stiffnesses (statics)."""
+    from silodem.scenario_files import load_config
+    from silodem.silo.checks import grain_law
+    from silodem.silo.geometry import build_walls
+
+    cfg = load_config("paper-case1", ["material.kn=1e6", "material.ks=1e6", "walls.kn=3e6",
+                                      "walls.ks=3e6", "material.restitution=0.1"])
+    m, g = cfg.material, cfg.gravity
+    r1, r2 = m.radius_min, m.radius_max
+    p = Particles(8)
+    p.add([1.0, 1.0], [r1, 2 * r1 + r2], [r1, r2], m.density, thickness=m.thickness)
+    mass = p.view("mass")
+    sim = Simulation(p, build_walls(cfg), grain_law(cfg), dt=1e-4, gravity=g, skin=0.02)
+    sim.run(40_000)
+    assert q.unbalanced_force_ratio(sim) < 1e-9
+    by_uid = np.argsort(p.view("uid"))
+    y = p.view("y")[by_uid]
+    floor_overlap = r1 - y[0]
+    pair_overlap = r1 + r2 - (y[1] - y[0])
+    assert floor_overlap == pytest.approx(mass.sum() * g / 7.5e5, rel=1e-6)
+    assert pair_overlap == pytest.approx(mass[by_uid][1] * g / 5e5, rel=1e-6)
