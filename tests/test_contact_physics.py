@@ -159,6 +159,24 @@ def test_convex_corner_pushes_as_the_nearest_point_of_the_block(angle, depth, sl
     assert p.fy[0] == pytest.approx(f * (cy - qy) / d, abs=1e-9 * f)
 
 
+@pytest.mark.parametrize("offset", [0.0, 1e-12, -1e-12])
+def test_grain_over_the_joint_of_two_floor_pieces_rests_on_them(offset):
+    """Floor, gate and floor end to end, as the silo builds them: a grain whose centre is
+    exactly above a joint (it met neither face and fell through) rests like any other, at
+    the static overlap m g / k, with one contact."""
+    r, k, g = 0.01, 1e5, 9.81
+    w = Walls()
+    w.add("left_floor", (-1.0, 0.0), (-0.02, 0.0), k, k, 0.4, one_sided=True)
+    w.add("gate", (-0.02, 0.0), (0.02, 0.0), k, k, 0.4, one_sided=True)
+    w.add("right_floor", (0.02, 0.0), (1.0, 0.0), k, k, 0.4, one_sided=True)
+    p = Particles(1)
+    p.add(-0.02 + offset, r + 1e-3, r, 2500.0)
+    sim = Simulation(p, w, law(k, zeta=0.3), dt=1e-5, gravity=g, skin=0.003)
+    sim.run(20_000)
+    assert r - p.y[0] == pytest.approx(p.mass[0] * g / k, rel=1e-9)
+    assert np.count_nonzero(sim.neighbors.wc_fn) == 1
+
+
 def _corner_offset(a: float, dist: float) -> tuple[float, float]:
     """A point at distance ``dist`` outside the block, parametrised by ``a``: the corner wedge
     for 0 <= a <= 90 deg, the floor face (x < 0) above 90, the outlet face (y < 0) below 0."""

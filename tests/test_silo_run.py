@@ -11,6 +11,7 @@ import pytest
 
 import silodem.jit
 from silodem.config import Config
+from silodem.engine.walls import END_CAP
 from silodem.errors import InputError
 from silodem.run import run_simulation
 from silodem.scenario_files import load_config, quick_variant
@@ -49,18 +50,37 @@ def test_mass_is_conserved_through_the_run(hopper_run):
 
 
 def test_grains_stay_inside_the_silo_until_the_gate_opens(hopper_run):
+    """The settled fill: every centre inside the silo's outline, and no grain deeper in a wall
+    than the linear law allows, F_n / k_n for the largest wall force (the deepest grain is the
+    one pressed hardest; the dashpot's share of F_n at rest, 1e-5 of it here, is the only
+    difference). The walls carry the weight: the wall forces are the grains' contact
+    resultants summed (Newton's third law: the grain-grain forces cancel), and these differ
+    from the weight by at most the grains' leftover resultants, sum |F_i - m_i g|."""
     snap = hopper_run.snapshots["settled"]
-    shape = hopper_run.shape
+    shape, walls = hopper_run.shape, hopper_run.walls
     x, y, r = snap.particles["x"], snap.particles["y"], snap.particles["radius"]
     assert np.all(y + r > 0.0)  # nothing has passed the gate
     for xi, yi in zip(x, y):
         lo, hi = shape.inner_x_range(min(yi, shape.wall_top))
-        assert lo - 0.05 < xi < hi + 0.05
+        assert lo < xi < hi
+    distance = np.full(x.size, np.inf)  # from each centre to the nearest wall segment
+    for ax, ay, bx, by in zip(walls.ax, walls.ay, walls.bx, walls.by):
+        ux, uy = bx - ax, by - ay
+        t = np.clip(((x - ax) * ux + (y - ay) * uy) / (ux * ux + uy * uy), 0.0, 1.0)
+        distance = np.minimum(distance, np.hypot(x - ax - t * ux, y - ay - t * uy))
+    assert np.all(walls.kn == walls.kn[0])
+    deepest = np.max(r - distance)
+    assert deepest == pytest.approx(snap.wall_contacts["fn"].max() / walls.kn[0], rel=1e-4)
     # the settled fill is at rest by the configured criterion, and the walls carry its weight
     assert hopper_run.events["settle_criterion_value"] < hopper_run.cfg.settle.threshold
     m = hopper_run.cfg.material
-    weight = np.sum(m.density * np.pi * r**2 * m.thickness) * hopper_run.cfg.gravity
-    assert np.sum(snap.wall_contacts["fy"]) == pytest.approx(weight, rel=1e-2)
+    mass = m.density * np.pi * r**2 * m.thickness
+    g = hopper_run.cfg.gravity
+    fy = snap.particles["fy"]
+    assert np.sum(snap.wall_contacts["fy"]) == pytest.approx(np.sum(fy), rel=1e-12)
+    leftover = np.sum(np.hypot(snap.particles["fx"], fy - mass * g))
+    assert abs(np.sum(fy) - np.sum(mass) * g) <= leftover
+    assert leftover < 0.01 * np.sum(mass) * g  # the bound is a sharp one (6e-3 here)
 
 
 def test_discharge_ends_for_a_stated_reason(hopper_run):
@@ -200,10 +220,62 @@ def test_geometry_places_the_junction_where_the_paper_has_it():
     assert walls.names == ["left_wall", "right_wall", "left_hopper", "right_hopper", "gate"]
     # the gate's ends are shared with the hopper walls, so they are not contact points
     g = walls.index("gate")
-    assert not walls.cap_a[g] and not walls.cap_b[g]
+    assert walls.cap_a[g] != END_CAP and walls.cap_b[g] != END_CAP
     h = walls.index("left_hopper")
     assert (walls.bx[h], walls.by[h]) == (shape.outlet_left, 0.0)
-    assert not walls.cap_b[h]
+    assert walls.cap_b[h] != END_CAP
     walls.set_active("gate", False)
-    assert walls.cap_b[h]  # the outlet edge becomes a free end
-    assert not walls.cap_a[h]  # the junction stays shared with the vertical wall
+    assert walls.cap_b[h] == END_CAP  # the outlet edge becomes a free end
+    assert walls.cap_a[h] != END_CAP  # the junction stays shared with the vertical wall
+
+
+def test_reinsertion_keeps_every_grain_and_its_radius_until_the_time_limit():
+    """discharge.reinsert: each grain that leaves through the outlet comes back at the top with
+    its radius (DESIGN section 2, steady-flow studies). Between every two chunks the grains in
+    the silo and those waiting for a free spot are the poured grains: the same count and, as
+    a multiset, the same radii (so the same mass, rho pi r^2 t each). The discharged mass
+    counts every passage, so stop_fraction = 1 ends the run once the silo's initial mass has
+    passed the outlet, and the silo still holds all its grains."""
+    cfg = small(discharge__reinsert=True, discharge__stop_fraction=1.0,
+                discharge__max_time=20.0)
+    run = SiloRun(cfg)
+    checked = []
+
+    def conserved(r: SiloRun) -> None:
+        if r.phase != "discharge":
+            return
+        inside = r.sim.particles.view("radius")
+        radii = np.sort(np.concatenate([inside, r.state.pending_radii]))
+        np.testing.assert_array_equal(radii, np.sort(r.radii))
+        checked.append(r.sim.time)
+
+    run.chunk_hooks.append(conserved)
+    run.run()
+    assert len(checked) > 20
+    assert run.events["discharge_end_reason"] == "fraction"
+    assert run.discharged_mass >= run.state.mass0
+    m = cfg.material
+    mass0 = float(np.sum(m.density * math.pi * run.radii**2 * m.thickness))
+    pending = np.asarray(run.state.pending_radii)
+    pending_mass = float(np.sum(m.density * math.pi * pending**2 * m.thickness))
+    assert run.sim.particles.total_mass() + pending_mass == pytest.approx(mass0, rel=1e-12)
+
+
+def test_kinetic_energy_criterion_ends_settling_below_its_threshold():
+    """settle.criterion = "kinetic_energy": settling ends once the mean kinetic energy per
+    grain, (1/N) sum (m v^2 / 2 + I omega^2 / 2) with m = rho pi r^2 t and I = m r^2 / 2,
+    is below the threshold. The value recorded is that of the settled snapshot, recomputed
+    here from its velocities, spins and radii."""
+    threshold = 1e-4  # [J]
+    cfg = small(settle__criterion="kinetic_energy", settle__threshold=threshold,
+                discharge__enabled=False)
+    run = SiloRun(cfg)
+    run.run()
+    snap = run.snapshots["settled"].particles
+    m = cfg.material
+    mass = m.density * math.pi * snap["radius"] ** 2 * m.thickness
+    energy = 0.5 * mass * (snap["vx"] ** 2 + snap["vy"] ** 2) \
+        + 0.25 * mass * snap["radius"] ** 2 * snap["omega"] ** 2
+    value = run.events["settle_criterion_value"]
+    assert value == pytest.approx(energy.mean(), rel=1e-12)
+    assert 0 < value < threshold

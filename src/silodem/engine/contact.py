@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from silodem.engine.walls import END_CAP, END_FACE
 from silodem.jit import kernel, prange
 
 
@@ -269,7 +270,8 @@ def pair_forces(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
 
 @numba.njit(inline="always", cache=True)
 def closest_point(px, py, ax, ay, bx, by):
-    """Closest point of segment A-B to P, and where it lies: 0 on the face, 1 at A, 2 at B."""
+    """Closest point of segment A-B to P, and where it lies: 0 on the face, 1 at A, 2 at B
+    (an end also where P is exactly on the face's normal there: ``wall_contact`` decides)."""
     ux = bx - ax
     uy = by - ay
     s = ((px - ax) * ux + (py - ay) * uy) / (ux * ux + uy * uy)
@@ -289,7 +291,8 @@ def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_k
     from (ax, ay) to (bx, by) [m] with its velocity, stiffnesses, friction and flags (one
     entry of each ``Walls.arrays()``); the candidate's shear and normal force of the last step
     [N].  Returns (F_n, F_s, force on the grain x, y) [N], all zero when they do not touch.
-    ``gax, gay`` / ``gbx, gby``: the guards of the caps at A / B (``Walls.guard``).
+    ``cap_a, cap_b``: what the ends are (``walls.END_*``); ``gax, gay`` / ``gbx, gby``: the
+    guards of the caps at A / B (``Walls.guard``).
     Scalars only, no arrays: numba then keeps no reference counts in the caller's loop.
 
     n points from the closest point of the wall to the grain's centre.  One-sided walls: a
@@ -300,6 +303,9 @@ def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_k
     if not active:
         return 0.0, 0.0, 0.0, 0.0
     cx, cy, where = closest_point(px, py, ax, ay, bx, by)
+    if where != 0 and (cap_a if where == 1 else cap_b) == END_FACE \
+            and (px - cx) * (bx - ax) + (py - cy) * (by - ay) == 0.0:
+        where = 0  # the centre is on the normal at a joint this face closes (walls.py)
     if where == 0 and one_sided:
         ux = bx - ax
         uy = by - ay
@@ -315,8 +321,9 @@ def wall_contact(px, py, pvx, pvy, pomega, r, m, ax, ay, bx, by, w_vx, w_vy, w_k
         dy = py - cy
         # an end counts where it is capped, at a convex corner only in the wedge its guard
         # (g*) leaves (walls.py)
-        counts = (where == 0 or (where == 1 and cap_a and dx * gax + dy * gay <= 0.0)
-                  or (where == 2 and cap_b and dx * gbx + dy * gby <= 0.0))
+        counts = (where == 0
+                  or (where == 1 and cap_a == END_CAP and dx * gax + dy * gay <= 0.0)
+                  or (where == 2 and cap_b == END_CAP and dx * gbx + dy * gby <= 0.0))
         d = math.sqrt(dx * dx + dy * dy)
         if not (counts and 0.0 < d < r):
             return 0.0, 0.0, 0.0, 0.0

@@ -4,7 +4,9 @@ A grain touches a wall at the point of the segment closest to its centre.  An en
 segment acts as a contact point (a "cap") where it is free.  Where two active segments share
 an end point P, the faces of the two cover every grain near a straight joint (a flat floor and
 its gate) or a concave one (the corners of a convex container), and P is not capped, so that
-no grain is counted twice.  A convex corner (the edge of a thick floor at an outlet, as in the
+no grain is counted twice; P itself, the foot of a centre exactly on the normal there, belongs
+to the face of the segment added first only (``END_FACE``; on neither, such a grain fell
+through the joint).  A convex corner (the edge of a thick floor at an outlet, as in the
 benchmark's silo) leaves a wedge that neither face covers: the grains whose closest point is P
 on both segments.  There the segment added first is capped at P with a *guard*, the unit
 direction of the other segment from P, and its cap counts only for grains with
@@ -29,6 +31,10 @@ import numpy as np
 
 _JOIN_TOL = 1e-9  # [m] end points closer than this are the same point
 
+# what an end of a segment is (``Walls.cap_a``, ``cap_b``): not a contact point, a contact
+# point (a cap, with its guard), or the closing point of the face
+END_NONE, END_CAP, END_FACE = 0, 1, 2
+
 
 class Walls:
     def __init__(self) -> None:
@@ -43,8 +49,8 @@ class Walls:
         self.ks = np.zeros(0)  # contact shear stiffness with a grain [N/m]
         self.mu = np.zeros(0)  # grain-wall friction coefficient tan(phi_P) [-]
         self.active = np.zeros(0, dtype=np.bool_)
-        self.cap_a = np.zeros(0, dtype=np.bool_)
-        self.cap_b = np.zeros(0, dtype=np.bool_)
+        self.cap_a = np.zeros(0, dtype=np.int8)  # END_NONE, END_CAP or END_FACE
+        self.cap_b = np.zeros(0, dtype=np.int8)
         # per wall: the guards of ends a (columns 0, 1) and b (2, 3); zero for a free end
         self.guard = np.zeros((0, 4))
         self.one_sided = np.zeros(0, dtype=np.bool_)
@@ -78,8 +84,8 @@ class Walls:
         ):
             setattr(self, attr, np.append(getattr(self, attr), float(val)))
         self.active = np.append(self.active, True)
-        self.cap_a = np.append(self.cap_a, True)
-        self.cap_b = np.append(self.cap_b, True)
+        self.cap_a = np.append(self.cap_a, np.int8(END_CAP))
+        self.cap_b = np.append(self.cap_b, np.int8(END_CAP))
         self.guard = np.vstack([self.guard, np.zeros((1, 4))])
         self.one_sided = np.append(self.one_sided, bool(one_sided))
         # the new wall, and the walls that end where it does, are the only ones that change
@@ -101,7 +107,8 @@ class Walls:
 
     def update_caps(self, walls=None, ends=None) -> None:
         """Cap the free ends and, at a convex corner of two segments, the first one's end with
-        a guard (module docstring); leave straight and concave joints uncapped.  ``walls``:
+        a guard (module docstring); at a straight or concave joint close the first one's face
+        with the shared point and leave both uncapped.  ``walls``:
         the indices to update (default all); ``ends``: ``_ends()`` if the caller has it."""
         ends = self._ends() if ends is None else ends
         for w in range(len(self)) if walls is None else walls:
@@ -122,24 +129,24 @@ class Walls:
         near[~self.active] = False
         return np.argwhere(near)
 
-    def _cap(self, w: int, which: int, ends: np.ndarray) -> tuple[bool, np.ndarray]:
-        """Whether end ``which`` of wall w is a contact point, and its guard."""
+    def _cap(self, w: int, which: int, ends: np.ndarray) -> tuple[int, np.ndarray]:
+        """What end ``which`` of wall w is (``END_*``), and its guard."""
         none = np.zeros(2)
         if not self.active[w]:
-            return False, none
+            return END_NONE, none
         joined = self._joined(ends[w, which], ends, w)
         if len(joined) == 0:
-            return True, none
+            return END_CAP, none
         v, end_v = joined[0]
         if len(joined) > 1 or v < w:
-            return False, none
+            return END_NONE, none
         into_w = ends[w, 1 - which] - ends[w, which]
         into_v = ends[v, 1 - end_v] - ends[v, end_v]
         into_w = into_w / np.hypot(*into_w)
         into_v = into_v / np.hypot(*into_v)
         if self._convex(w, into_w, into_v) and self._convex(v, into_v, into_w):
-            return True, into_v
-        return False, none
+            return END_CAP, into_v
+        return END_FACE, none
 
     def _convex(self, w: int, into_w: np.ndarray, into_v: np.ndarray) -> bool:
         """Whether the wedge beyond both segments at their joint lies on wall w's grain side:
