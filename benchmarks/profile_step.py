@@ -7,8 +7,9 @@ For each size, ``copies`` silos of the scaling benchmark (NX = 32, NY = 200, 10,
 each, side by side; ``performance_matrix.py --scaling``) run SETTLE untimed steps, then STEPS
 timed steps of the compiled step loop (``Simulation.run``), in which every neighbour-list
 build and each kernel inside it is timed: the whole step and the builds.  A copy of the
-settled simulation then takes the same STEPS one at a time from Python (``stepped``: the
-same kernels, tests and builds in the same order, with the same bits), each part timed: the
+settled simulation then takes the same STEPS with ``Simulation.run`` and its step loop
+``simulation._steps`` run by Python instead of compiled (``stepped``: the same code, kernels,
+tests and builds in the same order, with the same bits), each part timed: the
 grain-grain pair loop (``contact.pair_forces``), the wall contacts with the leap-frog
 (``integrate.walls_and_leapfrog``) and the list test by cells (``list_validity``, on the
 steps whose global test failed).  "rest" is the whole step less the builds and those three
@@ -27,7 +28,6 @@ import collections
 import contextlib
 import copy
 import json
-import math
 import time
 from pathlib import Path
 
@@ -36,13 +36,16 @@ import numpy as np
 
 import silodem.engine.neighbors as nbm
 from silodem.bench import advance, build
-from silodem.engine.contact import pair_forces
-from silodem.engine.integrate import walls_and_leapfrog
-from silodem.engine.list_validity import global_bound, list_expired, must_rebuild
+from silodem.engine import simulation
+from silodem.engine.contact import pair_forces, pair_forces_hertz
+from silodem.engine.integrate import walls_and_leapfrog, walls_and_leapfrog_hertz
+from silodem.engine.list_validity import list_expired, must_rebuild
+from silodem.jit import _renamed
 
 BUILD_KERNELS = ["_pairs_of", "_compact_touching_first", "_old_index", "_carry_pairs",
                  "_wall_candidates_of", "_compact", "_carry_walls"]
 BUILD_FUNCTIONS = ["cell_list", "strip_rows", "walls_by_cell", "first_grains"]
+MOVE_COLLECT = 27  # the position of ``collect`` among walls_and_leapfrog's arguments
 
 
 class _Timed:
@@ -86,41 +89,23 @@ def builds_timed(sim, acc):
 
 
 def stepped(sim, steps, acc):
-    """Advance ``sim`` by ``steps`` steps as ``Simulation.run`` does (the same compiled
-    kernels, list tests and builds, in the same order, with the same bits; walls at rest), but
-    one step at a time from Python, adding each part's time to ``acc`` [s]: "build" (with the
-    hooks before it), "pair_loop", "walls_and_leapfrog", "test_by_cells" (the list test on
-    the steps whose global test failed).  Calling a compiled function from Python costs a
-    few microseconds that the compiled step loop does not pay (about 1 ns per grain at 1e4
-    grains); each part is counted less that cost, timed on calls that do no work.  What a
-    step does besides these parts (the global test, Python) is its whole time less them.
-    Returns the number of steps in which the leap-frog listed the fast grains and in which
-    the test by cells ran."""
-    p, nb, w, law, dt = sim.particles, sim.neighbors, sim.walls, sim.law, sim.dt
-    if w.moving():
-        raise ValueError("stepped() follows Simulation.run for walls at rest only")
+    """Advance ``sim`` by ``steps`` steps with ``Simulation.run`` itself, but with its compiled
+    step loop replaced by the same function, ``simulation._steps``, run by Python over the
+    same compiled kernels wrapped in timers: the same order, list tests and builds, the same
+    bits, and each part's time added to ``acc`` [s]: "build" (with the hooks before it),
+    "pair_loop", "walls_and_leapfrog", "test_by_cells" (the list test on the steps whose
+    global test failed). Calling a compiled function from Python costs a few microseconds
+    that the compiled step loop does not pay (about 1 ns per grain at 1e4 grains); each part
+    is counted less that cost, timed on calls that do no work. What a step does besides these
+    parts (the global test, Python) is its whole time less them. Returns the number of steps
+    in which the leap-frog listed the fast grains and in which the test by cells ran."""
+    p, nb = sim.particles, sim.neighbors
     threads = numba.get_num_threads()
-    parallel = pair_forces.pick(p.n, threads) is pair_forces.parallel
-    pair = pair_forces.parallel if parallel else pair_forces.serial
-    move = walls_and_leapfrog.parallel if parallel else walls_and_leapfrog.serial
+    variant = "parallel" if pair_forces.pick(p.n, threads) is pair_forces.parallel else "serial"
+    pair = getattr(pair_forces_hertz if sim.law.hertz else pair_forces, variant)
+    move = getattr(walls_and_leapfrog_hertz if sim.law.hertz else walls_and_leapfrog, variant)
     clock = time.perf_counter
-
-    def pair_loop(blocks):
-        pair(nb.strip_start, blocks, nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs, nb.pair_fn,
-             p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy, p.torque,
-             law.kn, law.ks, law.mu, law.zeta, law.allow_tension, dt)
-
-    def walls_and_move(blocks, runs, collect):
-        return move(nb.strip_start, blocks, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx,
-                    nb.wc_fy, w.arrays(), p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy,
-                    p.torque, p.radius, p.mass, p.x_ref, p.y_ref, sim.gravity, law.zeta,
-                    law.allow_tension, law.local_damping, dt, runs, collect, nb.wall_gap,
-                    sim._wall_drift, 0.25 * nb.skin * nb.skin, nb.fast)
-
-    def list_test(bound, runs):
-        return must_rebuild(bound, sim._drift, sim._wall_drift, nb.skin, sim.cell_test, p.n,
-                            runs, nb.fast, p.x, p.y, p.x_ref, p.y_ref, p.radius, nb.i_start,
-                            nb.pair_j, nb.cell_grid, nb.cell_start)
+    counts = {"listed": 0, "tested": 0}
 
     def call_cost(call, *args):  # [s], median of calls that do no work
         times = []
@@ -131,39 +116,59 @@ def stepped(sim, steps, acc):
         return float(np.median(times))
 
     no_blocks = np.zeros(1, dtype=nb.strip_start.dtype)
-    cost = {"pair_loop": call_cost(pair_loop, no_blocks),
-            "walls_and_leapfrog": call_cost(walls_and_move, no_blocks, np.zeros((0, 8)), False),
-            "test_by_cells": call_cost(list_test, 0.0, np.zeros((0, 8)))}  # bound 0: kept
+    no_runs = np.zeros((0, 8))
 
-    listed = tested = 0
-    for step in range(steps):
-        # Simulation.run asks the list test once when called, then after each step
-        if sim.needs_rebuild or (step == 0 and sim._list_expired()):
-            t = clock()
-            sim._rebuild_list()
-            acc["build"] += clock() - t
-        blocks = nb.blocks(threads if parallel else 1)
-        runs = nb.step_report(threads if parallel else 1)
-        bound = global_bound(sim._drift, *sim._spread)
-        collect = sim.cell_test and bound >= 0.5 * nb.skin
-        t0 = clock()
-        pair_loop(blocks)
-        t1 = clock()
-        max_d2, *spread = walls_and_move(blocks, runs, collect)
-        t2 = clock()
-        acc["pair_loop"] += t1 - t0 - cost["pair_loop"]
-        acc["walls_and_leapfrog"] += t2 - t1 - cost["walls_and_leapfrog"]
-        listed += collect
-        sim.steps += 1
-        sim.time += dt
-        sim._drift, sim._spread = math.sqrt(max_d2), tuple(spread)
-        bound = global_bound(sim._drift, *sim._spread)
-        if list_expired(bound, sim._drift, sim._wall_drift, nb.skin):  # the global test
-            t = clock()
-            sim._stale = list_test(bound, runs)
-            acc["test_by_cells"] += clock() - t - cost["test_by_cells"]
-            tested += sim.cell_test
-    return listed, tested
+    def timed_pair(*args):
+        t = clock()
+        pair(*args)
+        acc["pair_loop"] += clock() - t - cost["pair_loop"]
+
+    def timed_move(*args):
+        counts["listed"] += bool(args[MOVE_COLLECT])
+        t = clock()
+        out = move(*args)
+        acc["walls_and_leapfrog"] += clock() - t - cost["walls_and_leapfrog"]
+        return out
+
+    def timed_test(bound, drift, wall_drift, skin, cell_test, *rest):
+        if not list_expired(bound, drift, wall_drift, skin):  # the global test keeps the list
+            return False
+        counts["tested"] += bool(cell_test)
+        t = clock()
+        out = must_rebuild(bound, drift, wall_drift, skin, cell_test, *rest)
+        acc["test_by_cells"] += clock() - t - cost["test_by_cells"]
+        return out
+
+    # the kernels' call costs, on calls with no strips to work (list test: bound 0, kept)
+    walls = sim.walls.arrays()
+    cost = {
+        "pair_loop": call_cost(
+            pair, nb.strip_start, no_blocks, nb.i_start, nb.i_apart, nb.pair_j, nb.pair_fs,
+            nb.pair_fn, p.x, p.y, p.vx, p.vy, p.omega, p.radius, p.inv_mass, p.fx, p.fy,
+            p.torque, 0.0, 0.0, 0.0, 0.0, False, sim.dt),
+        "walls_and_leapfrog": call_cost(
+            move, nb.strip_start, no_blocks, nb.w_start, nb.wc_w, nb.wc_fs, nb.wc_fn, nb.wc_fx,
+            nb.wc_fy, walls, p.x, p.y, p.vx, p.vy, p.omega, p.fx, p.fy, p.torque, p.radius,
+            p.mass, p.x_ref, p.y_ref, 0.0, 0.0, False, 0.0, sim.dt, no_runs, False,
+            nb.wall_gap, 0.0, 1.0, nb.fast),
+        "test_by_cells": call_cost(
+            must_rebuild, 0.0, 0.0, 0.0, nb.skin, sim.cell_test, p.n, no_runs, nb.fast, p.x,
+            p.y, p.x_ref, p.y_ref, p.radius, nb.i_start, nb.pair_j, nb.cell_grid,
+            nb.cell_start)}
+
+    python_steps = _renamed(simulation._steps, "_timed", {
+        "_pair_forces": timed_pair, "_walls_and_leapfrog": timed_move,
+        "must_rebuild": timed_test})
+    build_timer = _timer("build", sim._rebuild_list, acc)
+    saved = simulation.STEPS
+    simulation.STEPS = {key: python_steps for key in saved}
+    sim._rebuild_list = build_timer
+    try:
+        sim.run(steps)
+    finally:
+        simulation.STEPS = saved
+        del sim._rebuild_list
+    return counts["listed"], counts["tested"]
 
 
 def profile(copies, settle, steps, threads):
@@ -182,6 +187,8 @@ def profile(copies, settle, steps, threads):
     parts = collections.defaultdict(float)
     builds0 = twin.neighbors.rebuilds
     listed, tested = stepped(twin, steps, parts)
+    for name in ("x", "y", "vx", "vy", "omega"):  # the same steps, the same bits
+        assert np.array_equal(twin.particles.view(name), sim.particles.view(name)), name
     per_step = 1e9 / (n * steps)
     row = {"n": n, "copies": copies, "threads": threads, "settle": settle, "steps": steps,
            "builds": builds,

@@ -251,6 +251,12 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     assert [float(r["b_free"]) for r in table] == pytest.approx([1.5, 1.5], rel=1e-6)
     html = (tmp_path / "study" / "report.html").read_text(encoding="utf-8")
     assert "Beverloo fit" in html and "id='beverloo'" in html
+    # every column of results.csv is explained, the per-circle ones too (docs/sweeps.md)
+    from silodem.study.table import CIRCLE_QUANTITIES, COLUMNS
+    for column, _, _ in COLUMNS:
+        assert f"<td>{column}</td>" in html
+    for column, _, _ in CIRCLE_QUANTITIES:
+        assert f"<td>circle_&lt;name&gt;_{column}</td>" in html
 
     # a clog at the narrowest outlet of phiG = 30: that width leaves the fit and the note says
     # so; its settled packing still counts in rho_b.  With one more width clogged, no fit.

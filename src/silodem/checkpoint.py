@@ -6,7 +6,8 @@ everything the run needs to go on as if it had never stopped:
 
 * ``/particles``, ``/walls``, ``/neighbors``, ``/simulation``: every array and number of the
   engine's objects (the grain arrays up to their capacity, the whole Verlet list with its
-  contact history, the walls with their active flags, the clock and the rebuild trigger);
+  contact history, the walls with their active flags, the clock and the rebuild trigger),
+  less what the list remakes itself (``NeighborList.NOT_STATE``);
 * ``/run``: the procedure state, the random generator's bit-generator state, the grain radii
   drawn at the start, events, warnings and the snapshots taken so far;
 * ``/recorders/<name>``: what each recorder's ``state()`` returned;
@@ -196,7 +197,7 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
         put(h5, "config_toml", config_toml)
         put(h5, "particles", object_state(sim.particles))
         put(h5, "walls", object_state(sim.walls))
-        put(h5, "neighbors", object_state(sim.neighbors))
+        put(h5, "neighbors", object_state(sim.neighbors, skip=sim.neighbors.NOT_STATE))
         put(h5, "simulation", object_state(sim, skip=_SIM_OBJECTS))
         put(h5, "run", {
             "state": _dataclass_state(run.state),
@@ -259,6 +260,7 @@ class LoadedCheckpoint:
         restore_object(sim.particles, d["particles"])
         restore_object(sim.walls, d["walls"])
         restore_object(sim.neighbors, d["neighbors"])
+        sim.neighbors.forget_derived()
         restore_object(sim, d["simulation"])
         r = d["run"]
         run.state = type(run.state)(**r["state"])

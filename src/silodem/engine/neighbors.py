@@ -415,19 +415,19 @@ class NeighborList:
             self._pair_i = _owners(self.i_start)
         return self._pair_i
 
-    @pair_i.setter
-    def pair_i(self, value: np.ndarray) -> None:
-        self._pair_i = value
-
     @property
     def wc_i(self) -> np.ndarray:
         if self._wc_i is None:
             self._wc_i = _owners(self.w_start)
         return self._wc_i
 
-    @wc_i.setter
-    def wc_i(self, value: np.ndarray) -> None:
-        self._wc_i = value
+    # what a checkpoint leaves out: the expansions above (remade from the CSR starts) and the
+    # search's scratch buffer (overwritten at every build)
+    NOT_STATE = ("_pair_i", "_wc_i", "_buf")
+
+    def forget_derived(self) -> None:
+        """Drop the expansions of ``pair_i`` and ``wc_i`` (after a build or a restore)."""
+        self._pair_i = self._wc_i = None
 
     def step_report(self, threads: int) -> np.ndarray:
         """Rows for the leap-frog's report of each step, one per run of strips of
@@ -546,7 +546,7 @@ class NeighborList:
         self.cell_start = np.zeros(0, dtype=INDEX) if many else cell_start.astype(INDEX)
         if self.fast.shape[0] < p.capacity:
             self.fast = np.empty(p.capacity, dtype=INDEX)
-        self._pair_i = self._wc_i = None  # expanded on demand (measurements only)
+        self.forget_derived()  # expanded on demand (measurements only)
 
         slot = np.full(p.next_uid, -1, dtype=np.int64)
         slot[uid] = np.arange(n, dtype=np.int64)

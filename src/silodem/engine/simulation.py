@@ -37,7 +37,7 @@ class Simulation:
     Parameters: ``law`` grain-grain contact parameters (series values), ``dt`` time step [s],
     ``gravity`` g [m/s^2] acting along -y, ``skin`` Verlet skin [m], ``cell_test`` whether
     the list is kept past the global test while the test by cells holds (``list_validity``;
-    off: rebuilt by the global test alone, as before the fourteenth session).
+    off: rebuilt as soon as the global test, max displacement > skin / 2, fails).
     """
 
     def __init__(self, particles: Particles, walls: Walls, law: GrainLaw, dt: float,

@@ -40,9 +40,6 @@ class WallBins:
     def length(self) -> np.ndarray:
         return self.s1 - self.s0
 
-    def of_wall(self, w: int) -> np.ndarray:
-        return np.flatnonzero(self.wall == w)
-
 
 def wall_bins(ax, ay, bx, by, bin_len: float) -> WallBins:
     """Cut each wall into round(L / bin_len) (at least 1) equal bins."""

@@ -25,6 +25,7 @@ from silodem.engine.contact import GrainLaw, critical_time_step
 from silodem.errors import InputError
 from silodem.silo.geometry import silo_shape
 from silodem.silo.materials import contact_constants, linearised
+from silodem.theory import janssen_sigma_v
 
 PACKING_FRACTION = 0.82  # area fraction of a random packing of disks [-]
 JANSSEN_K = 0.4  # lateral pressure ratio during filling (the paper, section 4.2) [-]
@@ -33,6 +34,9 @@ TARGET_OVERLAP = 0.01  # the stiffness recommended keeps the overlap under 1 % o
 
 
 def grain_law(cfg: Config) -> GrainLaw:
+    """The grain-grain contact law of ``cfg``: series stiffnesses (``contact_constants``),
+    mu = tan(phi_G), the damping ratio from the restitution, the tension and local-damping
+    options and the law (linear or Hertz-Mindlin)."""
     m = cfg.material
     c = contact_constants(cfg)
     return GrainLaw(
@@ -98,6 +102,11 @@ class OverlapEstimate:
 
 
 def estimate_overlap(cfg: Config) -> OverlapEstimate:
+    """The overlap to expect at the bottom of ``cfg``'s settled fill, before running it: the
+    fill height from the grains' area at the packing fraction PACKING_FRACTION, Janssen's
+    vertical stress (``theory.janssen_sigma_v``, K = JANSSEN_K, bulk density = the packing
+    fraction x the grain density) at the junction, the force on one grain's diameter, and the
+    overlap that force makes on the softer of the grain-grain and grain-wall contacts."""
     m, s = cfg.material, cfg.silo
     shape = silo_shape(cfg)
     r_mean = 0.5 * (m.radius_min + m.radius_max)
@@ -108,11 +117,7 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
     depth = max(fill_height - shape.junction, 0.0)
     rho_b = PACKING_FRACTION * m.density
     mu_w = math.tan(math.radians(cfg.walls.friction_deg))
-    if mu_w > 0:
-        a = 2.0 * JANSSEN_K * mu_w / s.cell_width
-        sigma_v = rho_b * cfg.gravity / a * (1.0 - math.exp(-a * depth))
-    else:
-        sigma_v = rho_b * cfg.gravity * depth
+    sigma_v = float(janssen_sigma_v(depth, rho_b, cfg.gravity, s.cell_width, JANSSEN_K, mu_w))
     force = sigma_v * 2.0 * r_mean * m.thickness
     c = contact_constants(cfg)
     if c.hertz:

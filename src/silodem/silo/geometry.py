@@ -66,6 +66,8 @@ class SiloShape:
 
 
 def silo_shape(cfg: Config) -> SiloShape:
+    """The outline of ``cfg``'s silo: a centred outlet of ``silo.outlet_width`` in a cell of
+    ``silo.cell_width`` [m]."""
     s = cfg.silo
     left = 0.5 * (s.cell_width - s.outlet_width)
     return SiloShape(s.kind, s.cell_width, s.wall_height, left, left + s.outlet_width,

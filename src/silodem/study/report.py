@@ -31,7 +31,7 @@ from silodem.report.html import _CSS, _table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
-from silodem.study.table import COLUMNS, as_float, switch_series, table_csv
+from silodem.study.table import CIRCLE_QUANTITIES, COLUMNS, as_float, switch_series, table_csv
 
 BEVERLOO_CSV = "beverloo.csv"  # the Beverloo fits, when the grid varies the outlet width
 CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
@@ -384,7 +384,9 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
                      f"<figcaption><b>{html.escape(label)}</b>{html.escape(caption)}"
                      "</figcaption></figure>")
     parts.append("<h2>Columns of results.csv</h2>" + _table(
-        [(c, u or "-", d) for c, u, d in COLUMNS], ("column", "unit", "meaning")))
+        [(c, u or "-", d) for c, u, d in COLUMNS]
+        + [(f"circle_<name>_{c}", u or "-", d) for c, u, d in CIRCLE_QUANTITIES],
+        ("column", "unit", "meaning")))
     parts.append("<h2>Study file</h2><pre>" + html.escape(plan.study.text) + "</pre>")
     parts.append("</body></html>")
     path = out_dir / "report.html"

@@ -149,15 +149,6 @@ def render_animation(plan: AnimationPlan,
                            artist.height_px)
 
 
-def animate(run_dir: Path | str, out: Path | str | None = None, *, color: str = "velocity",
-            fmt: str | None = None, fps: int = 10,
-            on_frame: Callable[[int, int], None] | None = None) -> AnimationResult:
-    """Render the frames of ``run_dir`` to ``out`` (default ``run_dir/animation.<fmt>``),
-    one video frame per saved frame."""
-    return render_animation(plan_animation(run_dir, out, color=color, fmt=fmt, fps=fps),
-                            on_frame)
-
-
 def _write_mp4(path: Path, pictures, fps: int) -> None:
     import imageio.v2 as imageio
 

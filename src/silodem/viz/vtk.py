@@ -145,12 +145,6 @@ def write_pvd(path: Path, entries: list[tuple[float, str]]) -> None:
     os.replace(tmp, path)
 
 
-def read_pvd(path: Path | str) -> list[tuple[float, str]]:
-    """(time, file) of each data set of a .pvd, in file order."""
-    root = ET.parse(path).getroot()
-    return [(float(d.get("timestep")), d.get("file")) for d in root.iter("DataSet")]
-
-
 class VtkSeries:
     """Writes the three files of each output time into ``directory`` and keeps the .pvd
     collections current (rewritten after every output, so ParaView can open a running job).
