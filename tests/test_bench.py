@@ -32,12 +32,17 @@ def _bench(*args):
     return json.loads(proc.stdout)
 
 
-def test_bench_json_smoke():
+def test_bench_json_reports_the_deck_lattice_and_its_throughput():
+    """The issue's smoke test: at tiny N, the JSON holds the deck's grains (its lattice at the
+    NX, NY chosen for N), the steps asked for, and throughput = N x steps / seconds."""
     out = _bench("--n", "400", "--steps", "40", "--settle", "60", "--json")
     nx, ny = lattice_size(400)
     assert out["n"] == deck_lattice(nx, ny)[0].size
+    assert (out["nx"], out["ny"]) == (nx, ny)
     assert out["threads"] == 1 and out["steps"] == 40
-    assert out["particle_steps_per_s"] > 0 and out["peak_memory_bytes"] > 0
+    assert out["particle_steps_per_s"] == pytest.approx(
+        out["n"] * out["steps"] / out["seconds"], rel=1e-9)
+    assert out["peak_memory_bytes"] > 0
     assert 0 <= out["list_builds"] <= out["steps"]  # at most one build per step
     assert 0 <= out["build_seconds"] <= out["seconds"]  # a part of the timed steps
     # the machine the figures belong to: the CPUs this process may use, as the OS says

@@ -12,6 +12,8 @@ import os
 import random
 import shutil
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -104,7 +106,10 @@ def kill_at_random(args: list[str], out: Path, rng: random.Random, longest: floa
 
 def test_a_run_killed_at_random_moments_resumes_bit_identical(reference, tmp_path):
     ref, seconds = reference
-    seed = int.from_bytes(os.urandom(4), "little")
+    # new moments on every run; pytest shows the seed with any failure, and
+    # SILODEM_KILL_SEED=<seed> replays those moments
+    seed = int(os.environ.get("SILODEM_KILL_SEED") or int.from_bytes(os.urandom(4), "little"))
+    print(f"kill moments drawn with seed {seed} (SILODEM_KILL_SEED)")
     rng = random.Random(seed)
     out = tmp_path / "run"
     longest = 0.6 * seconds  # a first guess; the runs that end first tell the real length
@@ -294,6 +299,12 @@ def test_a_damaged_checkpoint_is_refused_as_one_error(uninterrupted, tmp_path):
             assert "\n" not in str(exc) and str(path) in str(exc)
             refused += 1
     assert refused >= 6
+    # and from the command line: one line on stderr, exit code 2
+    path.write_bytes(whole[:2048] + b"\xff" * 4000 + whole[2048 + 4000:])
+    proc = subprocess.run([sys.executable, "-m", "silodem", "run", "--resume", str(tmp_path)],
+                          check=False, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("error:"), proc.stderr
 
 
 def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):

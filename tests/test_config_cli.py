@@ -73,6 +73,25 @@ def test_each_embedded_scenario_loads(name):
     assert cfg.name == name
 
 
+# the paper's Tables 1 and 2 (seed/silo-stress-dem-paper.txt): density [kg/m^3] (the table's
+# 1.607 and 0.835 are t/m^3), radii [m], k_n and k_s of grains and walls [N/m], phi_G, phi_P
+PAPER_TABLES = {
+    "paper-case1": ("flat", 1607.0, 0.09, 0.11, 5e4, 1e3, 45.0, 26.5),
+    "paper-case2": ("hopper", 835.0, 0.09, 0.11, 5e6, 5e6, 25.0, 24.0),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PAPER_TABLES))
+def test_paper_scenarios_hold_the_values_of_tables_1_and_2(name):
+    kind, rho, r_min, r_max, kn, ks, phi_g, phi_p = PAPER_TABLES[name]
+    cfg = load_config(name)
+    m, w = cfg.material, cfg.walls
+    assert cfg.silo.kind == kind
+    assert (m.density, m.radius_min, m.radius_max) == (rho, r_min, r_max)
+    assert (m.kn, m.ks, w.kn, w.ks) == (kn, ks, kn, ks)
+    assert (m.friction_deg, w.friction_deg) == (phi_g, phi_p)
+
+
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_config_to_toml_reads_back_equal(name, tmp_path):
     for cfg in (load_config(name), quick_variant(load_config(name))):

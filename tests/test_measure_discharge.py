@@ -108,7 +108,7 @@ def test_mass_flow_index_is_the_ratio_of_the_mean_velocities_while_the_band_is_c
     assert np.isnan(mass_flow_index(v_wall, v_axis, level, band_top=10.0, margin=0.5))
 
 
-def test_dead_zone_and_flow_pattern():
+def test_dead_grains_never_left_nor_moved_a_radius_and_mass_flow_needs_none():
     """Dead: never left (no exit time) and never moved a grain radius; mass flow needs both
     the index at the threshold or above and (almost) no dead grains."""
     exit_time = np.array([np.nan, np.nan, 3.0, np.nan])

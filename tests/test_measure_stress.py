@@ -139,7 +139,7 @@ def test_stress_field_of_the_compressed_box_adds_up_to_the_wall_stress(compresse
     assert (density * area).sum() == pytest.approx(fr.mass.sum(), rel=1e-12)
 
 
-def test_two_disks_pressed_together():
+def test_two_disks_pressed_together_carry_f_times_2r_over_the_area():
     # two disks of radius r touching along x with force F: sigma_xx = F * 2r / A, compression
     r, F = 0.5, 10.0
     x, z, rr = np.array([0.0, 2 * r]), np.zeros(2), np.full(2, r)

@@ -69,7 +69,7 @@ def test_wall_shear_and_floor_carry_the_weight(settled):
     assert np.sum(total[:, 1]) / steps == pytest.approx(-weight, rel=1e-3)
 
 
-def test_bins_cover_each_wall_and_the_peak_finder():
+def test_bins_cut_each_wall_into_equal_lengths_and_the_peak_is_found_in_its_zone():
     bins = wall_bins(np.array([0.0, 2.0]), np.array([3.0, 0.0]), np.array([0.0, 2.0]),
                      np.array([0.0, 1.0]), 0.4)
     for k, length in ((0, 3.0), (1, 1.0)):

@@ -805,7 +805,8 @@ def test_vtk_fields_hold_the_engine_state(recorded):
     particles: force_vector = (fx, fy, 0), normal_force_sum = the loop sum of F_n over the
     grain's contacts; contacts: one line per touching contact with kind 0 / 1, normal and shear
     force of that contact, a grain-wall line from the centre to the wall's nearest point
-    (brute force over 2^16 points of the segment, to float32 rounding); walls: every segment
+    (the orthogonal projection onto the segment's line, clamped to the segment, computed
+    here; to float32 rounding); walls: every segment
     A -> B exactly, wall_id indexing /walls/name."""
     out, _, states, walls = recorded
     vtk = out / "vtk"

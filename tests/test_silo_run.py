@@ -171,9 +171,21 @@ def test_results_folder_layout(tmp_path):
 
 
 def test_time_step_above_the_stability_limit_is_refused():
-    cfg = small(time__dt=1.0)
+    """docs/physics.md, "Time step": dt_crit = min sqrt(m_eff / k) over the contact kinds,
+    m_eff = m_min/2 and m_min/6 between grains (normal, shear), m_min and m_min/3 at a wall,
+    k the series stiffnesses; computed here for paper-case2's lightest grain. A dt just above
+    it is refused, one just below runs, and unset dt is time.safety x dt_crit."""
+    m, w = small().material, small().walls
+    assert (m.kn, m.ks, w.kn, w.ks) == (5e6, 5e6, 5e6, 5e6)
+    m_min = m.density * math.pi * m.radius_min**2 * m.thickness
+    kn, ks = 5e6 / 2, 5e6 / 2  # grains and walls alike: 5e6 N/m, in series
+    dt_crit = math.sqrt(min(m_min / 2 / kn, m_min / 6 / ks, m_min / kn, m_min / 3 / ks))
     with pytest.raises(InputError, match="exceeds the stability limit"):
-        SiloRun(cfg)
+        SiloRun(small(time__dt=dt_crit * (1 + 1e-9)))
+    assert SiloRun(small(time__dt=dt_crit * (1 - 1e-9))).dt == dt_crit * (1 - 1e-9)
+    default = SiloRun(small())
+    assert default.dt_crit == pytest.approx(dt_crit, rel=1e-12)
+    assert default.dt == pytest.approx(small().time.safety * dt_crit, rel=1e-12)
 
 
 def test_paper_case1_stiffness_warns_with_the_numbers():

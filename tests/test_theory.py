@@ -136,6 +136,10 @@ def test_paper_eq12_is_the_conical_form_with_D_1():
 def test_alpha_is_the_complement_of_theta():
     assert th.alpha_from_theta(60.0) == 30.0
     assert th.apex_below_outlet(1.0, 45.0) == pytest.approx(0.5)
+    # a steep hopper (alpha = 30 deg from the vertical): the walls from the outlet's edges,
+    # x = D/2 - h tan(alpha), meet at h = (D/2) / tan 30 = 0.866 D under the outlet; with
+    # alpha and theta swapped it would be 0.289 D
+    assert th.apex_below_outlet(1.0, 30.0) == pytest.approx(math.sqrt(3) / 2, rel=1e-12)
 
 
 # --- Walker's distribution factor -----------------------------------------------------------
@@ -184,7 +188,7 @@ def test_walker_factor_of_a_smooth_vertical_wall_is_rankine_passive():
 # --- Beverloo and EN 1991-4 -----------------------------------------------------------------------
 
 
-def test_beverloo_2d_scaling_and_inverse():
+def test_beverloo_2d_rate_scales_as_d_minus_kd_to_three_halves_and_inverts_for_c():
     w1 = th.beverloo_2d(1.0, 0.2, RHO_B, G, C=1.0, k=1.5)
     w2 = th.beverloo_2d(1.7, 0.2, RHO_B, G, C=1.0, k=1.5)
     assert w2 / w1 == pytest.approx(((1.7 - 0.3) / (1.0 - 0.3)) ** 1.5)

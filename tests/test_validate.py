@@ -161,7 +161,7 @@ def test_sticking_limit_of_a_disk_is_two_thirds():
     assert sliding_limit(0.4) == pytest.approx(3.5)
 
 
-def test_rigid_wall_impact_regimes():
+def test_rigid_wall_impact_sticks_below_psi_3_and_slides_above_continuously():
     r, e, mu, vn = 0.1, 0.8, 0.3, 1.0
     s = mu * (1 + e) * vn
     stick = rigid_wall_impact(vn, 2.0 * s, 0.0, r, e, mu)  # Psi_1 = 2 < 3: sticks

@@ -185,7 +185,9 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
             f"<li class='warn'>{html.escape(w)}</li>" for w in res.warnings) + "</ul>")
     parts.append("<h2>Key numbers</h2>")
     parts.append(_table(a.numbers, ("quantity", "value", "unit")) if a.numbers else
-                 "<p>No measurements in this results file (measure recorder absent).</p>")
+                 "<p>No measurements in this results file: the run took no measurement "
+                 "sample (measure.interval longer than the run), or it was made without the "
+                 "measurements. The figures that need them are left out.</p>")
     parts.append("<h2>Figures</h2>")
     if hopper:
         parts.append("<p>A 2D silo is a plane-strain slot with a wedge hopper: the hopper curves "
