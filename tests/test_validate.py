@@ -47,6 +47,23 @@ def test_quick_validation_exits_0_and_every_record_passes(quick_run):
         assert (out / f"{name}.png").stat().st_size > 1000
 
 
+@pytest.mark.slow
+def test_janssen_validation_passes_every_check(tmp_path):
+    """The silo-scale Janssen family of the full suite (docs/validation.md, section 4: the
+    settled column's wall stresses against Janssen's 2D slot solution, K and mu_w fitted, and
+    against the fill's own Love-Weber ratio): every check within its stated tolerance.
+    A few minutes, so marked slow (deselect with -m 'not slow'); CI runs it."""
+    proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--case", "janssen",
+                           "--json", "--out", str(tmp_path)], capture_output=True, text=True,
+                          timeout=1800, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    records = json.loads(proc.stdout)
+    assert len(records) > 5 and {r["case"].split(",")[0] for r in records}
+    for r in records:
+        assert FIELDS <= set(r), r
+        assert r["pass"] is True, r
+
+
 def _tolerances(records, quantity):
     found = {(r["tolerance_kind"], r["tolerance"]) for r in records if r["quantity"] == quantity}
     assert found, quantity

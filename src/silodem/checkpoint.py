@@ -28,18 +28,17 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import json
-import tomllib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
-from pydantic import ValidationError
 
 from silodem import __version__
 from silodem.atomic import atomic_file
 from silodem.config import Config
-from silodem.errors import InputError, format_validation_error
+from silodem.errors import InputError
+from silodem.scenario_files import config_from_text
 
 if TYPE_CHECKING:
     from silodem.silo.procedure import SiloRun
@@ -216,20 +215,6 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
 # --- loading -------------------------------------------------------------------------------
 
 
-def config_from_toml(text: str, where: str) -> Config:
-    """The validated Config of a TOML text; InputError (one line) when it is not valid."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise CheckpointError(f"{where}: malformed config TOML: {exc}") from None
-    try:
-        return Config.model_validate(data)
-    except ValidationError as exc:
-        detail = format_validation_error(exc, data, model=Config)
-        raise CheckpointError(f"{where}: the config it holds is not valid for this silodem: "
-                              f"{detail}") from None
-
-
 @dataclasses.dataclass
 class LoadedCheckpoint:
     """A checkpoint read into memory: its config and everything to restore a SiloRun."""
@@ -329,5 +314,5 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
         raise CheckpointError(f"{path} cannot be read as a checkpoint "
                               f"({type(exc).__name__}: {exc})") from None
     toml_text = data.pop("config_toml")
-    cfg = config_from_toml(toml_text, str(path))
+    cfg = config_from_text(toml_text, f"{path}: the config it holds", CheckpointError)
     return LoadedCheckpoint(path, cfg, toml_text, attrs, data)

@@ -14,8 +14,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.collections import LineCollection, PatchCollection
-from matplotlib.patches import Circle
 
 from silodem import __version__
 from silodem.atomic import atomic_file, write_atomic
@@ -101,33 +99,23 @@ def draw_pictures(folder: Path | str) -> list[Path]:
         if snap is None or walls is None:
             continue
         path = res.folder / f"{name}.png"
-        draw_state(snap["particles"], snap["contacts"], walls, snap["walls_active"], path,
+        draw_state(snap, walls, path,
                    f"{res.cfg.name}: {caption}, t = {snap['@attrs']['time']:.2f} s")
         out.append(path)
     return out
 
 
-def draw_state(particles: dict, contacts: dict, walls: dict, walls_active, path: Path,
-               title: str) -> None:
-    """A PNG of grains to scale (``particles``: x, y, radius [m]), the force network
-    (``contacts``: i, j, fn; line width ~ normal force) and the walls (``walls``: ax, ay, bx,
-    by [m]; dotted where not ``walls_active``)."""
-    p, c, w = particles, contacts, walls
+def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
+    """A PNG of a snapshot: grains to scale, the force network (every touching contact, line
+    width and colour ~ normal force; ``report.draw.draw_force_network``, as the report's
+    Fig. 5) and the walls (``walls``: ax, ay, bx, by [m]; dotted where withdrawn)."""
+    from silodem.report.draw import draw_force_network
+
+    p = snap["particles"]
     fig, ax = plt.subplots(figsize=(6, 9), dpi=110)
-    circles = [Circle((x, y), r) for x, y, r in zip(p["x"], p["y"], p["radius"])]
-    ax.add_collection(PatchCollection(circles, facecolor="#d9d2c3", edgecolor="#8a7f6a",
-                                      linewidth=0.3))
-    if c["fn"].size:
-        segs = np.stack([np.column_stack([p["x"][c["i"]], p["y"][c["i"]]]),
-                         np.column_stack([p["x"][c["j"]], p["y"][c["j"]]])], axis=1)
-        fmax = float(c["fn"].max()) or 1.0
-        ax.add_collection(LineCollection(segs, linewidths=0.2 + 3.0 * c["fn"] / fmax,
-                                         colors="#b2182b"))
-    for k in range(len(w["ax"])):
-        style = "-" if walls_active[k] else ":"
-        ax.plot([w["ax"][k], w["bx"][k]], [w["ay"][k], w["by"][k]], style, color="k", lw=1.5)
-    wall_x = np.concatenate([w["ax"], w["bx"]])
-    wall_y = np.concatenate([w["ay"], w["by"]])
+    draw_force_network(ax, snap, walls)
+    wall_x = np.concatenate([walls["ax"], walls["bx"]])
+    wall_y = np.concatenate([walls["ay"], walls["by"]])
     low = min(-0.5, float(wall_y.min()), float(np.min(p["y"] - p["radius"], initial=0.0)))
     ax.set_aspect("equal")
     ax.set_xlim(float(wall_x.min()) - 0.3, float(wall_x.max()) + 0.3)

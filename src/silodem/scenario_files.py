@@ -175,6 +175,21 @@ def apply_sets(data: dict[str, Any], sets: Iterable[str]) -> dict[str, Any]:
     return data
 
 
+def config_from_text(text: str, where: str, error: type[InputError] = InputError) -> Config:
+    """The validated Config of a saved TOML text (a results folder's or a checkpoint's);
+    ``error`` (an InputError, one line) naming ``where`` when it is not TOML or not a valid
+    config for this silodem."""
+    try:
+        data = parse_toml(text, where)
+    except InputError as exc:
+        raise error(str(exc)) from None
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        detail = format_validation_error(exc, data, model=Config)
+        raise error(f"{where} does not load: {detail}") from None
+
+
 def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
     try:
         return Config.model_validate(data)

@@ -11,6 +11,8 @@ import numpy as np
 from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.patches import Circle
 
+from silodem.measure.stress import contact_points_walls
+
 PHASE_COLORS = {0: ("#e8f0fb", "filling"), 1: ("#eef7e8", "settling"),
                 2: ("#fbeee6", "discharge")}
 
@@ -43,12 +45,11 @@ def draw_force_network(ax, snap: dict[str, Any], walls: dict[str, Any], fmax: fl
                               np.column_stack([p["x"][c["j"]], p["y"][c["j"]]])], axis=1))
         forces.append(c["fn"])
     if wc["fn"].size:
-        g, w = wc["grain"], wc["wall"]
-        ax_, ay_, bx_, by_ = (walls[k][w] for k in ("ax", "ay", "bx", "by"))
-        ux, uy = bx_ - ax_, by_ - ay_
-        s = np.clip(((p["x"][g] - ax_) * ux + (p["y"][g] - ay_) * uy) / (ux**2 + uy**2), 0, 1)
+        g = wc["grain"]
+        cx, cy = contact_points_walls(p["x"], p["y"], g, wc["wall"], walls["ax"], walls["ay"],
+                                      walls["bx"], walls["by"])
         segs.append(np.stack([np.column_stack([p["x"][g], p["y"][g]]),
-                              np.column_stack([ax_ + s * ux, ay_ + s * uy])], axis=1))
+                              np.column_stack([cx, cy])], axis=1))
         forces.append(wc["fn"])
     if not segs:
         return None, 0.0

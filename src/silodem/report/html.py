@@ -106,7 +106,8 @@ def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]
     return out
 
 
-_CSS = """
+# the style and the table of a run's report.html and a study's (study/report.py)
+PAGE_CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;
 margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;margin-bottom:.2em}h2{margin-top:1.8em;border-bottom:1px solid #ddd}
@@ -119,7 +120,8 @@ pre{background:#f7f7f7;padding:.8em;overflow:auto;font-size:.85em}
 """
 
 
-def _table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
+def html_table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
+    """An HTML table of ``rows`` under the column names ``head``, every cell escaped."""
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
                    for r in rows)
@@ -168,7 +170,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     cfg = res.cfg
     title = f"silodem report: {cfg.name}"
     head = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>")
+            f"<title>{html.escape(title)}</title><style>{PAGE_CSS}</style></head><body>")
     hopper = cfg.silo.kind == "hopper"
     angle = (f" The hopper angle of the config, theta = "
              f"{cfg.silo.hopper_angle_from_horizontal_deg:g} deg, is measured from the "
@@ -184,7 +186,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         parts.append("<h2>Warnings</h2><ul>" + "".join(
             f"<li class='warn'>{html.escape(w)}</li>" for w in res.warnings) + "</ul>")
     parts.append("<h2>Key numbers</h2>")
-    parts.append(_table(a.numbers, ("quantity", "value", "unit")) if a.numbers else
+    parts.append(html_table(a.numbers, ("quantity", "value", "unit")) if a.numbers else
                  "<p>No measurements in this results file: the run took no measurement "
                  "sample (measure.interval longer than the run), or it was made without the "
                  "measurements. The figures that need them are left out.</p>")
@@ -208,7 +210,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         parts.append(f"<figure id='{name}'><img alt='{html.escape(name)}' "
                      f"src='data:image/png;base64,{b64}'><figcaption>{html.escape(caption)}"
                      "</figcaption></figure>")
-    parts.append("<h2>Run events</h2>" + _table(_event_rows(res.events), ("event", "value")))
+    parts.append("<h2>Run events</h2>" + html_table(_event_rows(res.events), ("event", "value")))
     parts.append("<h2>Configuration</h2><pre>" + html.escape(res.config_toml) + "</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)

@@ -7,10 +7,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from silodem.config import Config
-from silodem.errors import InputError, format_validation_error, parse_toml
+from silodem.errors import InputError
+from silodem.scenario_files import config_from_text
 
 
 def _tree(group, only: tuple[str, ...] | None = None) -> dict[str, Any]:
@@ -99,12 +99,7 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
             raise InputError(f"cannot read {config_file}: {exc}") from None
     if toml_text is None:
         raise InputError(f"{path} holds no config (attribute config_toml)")
-    data_in = parse_toml(toml_text, f"the config saved in {path}")
-    try:
-        cfg = Config.model_validate(data_in)
-    except ValidationError as exc:
-        detail = format_validation_error(exc, data_in, model=Config)
-        raise InputError(f"the config saved in {path} does not load: {detail}") from None
+    cfg = config_from_text(toml_text, f"the config saved in {path}")
     events = dict(data.get("events", {}).get("@attrs", {}))
     warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
     return Results(folder, cfg, toml_text, attrs, events, warnings, data)

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from silodem.measure.stress import contact_points_walls
 from silodem.silo.recorders import PHASE_CODES, Recorder, take_snapshot
 
 if TYPE_CHECKING:
@@ -85,11 +86,8 @@ class WallGeometry:
     def closest_points(self, wall: np.ndarray, x: np.ndarray, y: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
         """The point of segment ``wall[k]`` closest to ``(x[k], y[k])`` (a grain's contact)."""
-        ax, ay = self.ax[wall], self.ay[wall]
-        dx, dy = self.bx[wall] - ax, self.by[wall] - ay
-        t = ((x - ax) * dx + (y - ay) * dy) / np.maximum(dx * dx + dy * dy, 1e-300)
-        t = np.clip(t, 0.0, 1.0)
-        return ax + t * dx, ay + t * dy
+        return contact_points_walls(x, y, np.arange(len(wall)), wall, self.ax, self.ay,
+                                    self.bx, self.by)
 
 
 @dataclass

@@ -27,7 +27,7 @@ from matplotlib.figure import Figure
 
 from silodem.atomic import write_atomic
 from silodem.report.draw import rolling_mean, shade_phases
-from silodem.report.html import _CSS, _table
+from silodem.report.html import PAGE_CSS, html_table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
@@ -311,7 +311,7 @@ def _beverloo_section(fits: list, notes: list[str], out_dir: Path) -> list[str]:
              "t fitted to the seed means of the steady discharge rate, with b = 3/2 (C, k) and, "
              "from four widths on, b free; d is the mean grain diameter, rho_b the settled "
              f"bulk density (docs/theory.md, docs/sweeps.md). Every value: {BEVERLOO_CSV}.</p>"),
-            _table(shown, ("case", "widths", "runs", "rho_b [kg/m^3]", "C (b = 3/2)",
+            html_table(shown, ("case", "widths", "runs", "rho_b [kg/m^3]", "C (b = 3/2)",
                            "k (b = 3/2)", "b free")), listed]
 
 
@@ -345,7 +345,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     spec = plan.study.spec
     title = f"silodem study: {plan.name}" + (" (--quick)" if plan.quick else "")
     parts = [(f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"),
+             f"<title>{html.escape(title)}</title><style>{PAGE_CSS}</style></head><body>"),
              f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(spec.description)}</p>"]
     n_done = len(rows)
     meta = [("base", spec.base or "the grid's", ""), ("seeds", ", ".join(map(str, spec.seeds)), ""),
@@ -357,7 +357,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             ("failed", str(len(failed)), ""),
             ("computed on", where or "n/a", ""),
             ("written", time.strftime("%Y-%m-%d %H:%M:%S"), "")]
-    parts += ["<h2>Study</h2>", _table([(a, b) for a, b, _ in meta], ("item", "value"))]
+    parts += ["<h2>Study</h2>", html_table([(a, b) for a, b, _ in meta], ("item", "value"))]
     parts.append(
         "<p>Stresses are compressive positive [Pa] per unit out-of-plane thickness. The switch "
         "zone is the cell-hopper junction; its stresses are the mean Love-Weber stress of the "
@@ -383,7 +383,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
         parts.append(f"<figure id='{name}'><img alt='{name}' src='data:image/png;base64,{b64}'>"
                      f"<figcaption><b>{html.escape(label)}</b>{html.escape(caption)}"
                      "</figcaption></figure>")
-    parts.append("<h2>Columns of results.csv</h2>" + _table(
+    parts.append("<h2>Columns of results.csv</h2>" + html_table(
         [(c, u or "-", d) for c, u, d in COLUMNS]
         + [(f"circle_<name>_{c}", u or "-", d) for c, u, d in CIRCLE_QUANTITIES],
         ("column", "unit", "meaning")))
