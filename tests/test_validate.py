@@ -58,7 +58,7 @@ def test_janssen_validation_passes_every_check(tmp_path):
                           timeout=1800, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
     records = json.loads(proc.stdout)
-    assert len(records) > 5 and {r["case"].split(",")[0] for r in records}
+    assert len(records) > 5
     for r in records:
         assert FIELDS <= set(r), r
         assert r["pass"] is True, r
