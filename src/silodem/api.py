@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -28,6 +28,10 @@ from silodem.config import Config
 from silodem.errors import InputError
 from silodem.report.load import Results as _Raw
 from silodem.report.load import load_results
+
+if TYPE_CHECKING:
+    from silodem.report.analysis import Analysis
+    from silodem.silo.frames import Frames
 
 SNAPSHOTS = ("settled", "discharge", "final")  # "discharge": mid-window of the discharge
 PHASE_NAMES = {0: "fill", 1: "settle", 2: "discharge"}  # codes of the phase columns
@@ -166,7 +170,7 @@ class RunResults:
                 df[f"{name}_sigma_{comp}"] = c["stress"][:, n, k]
         return df
 
-    def analysis(self):
+    def analysis(self) -> Analysis:
         """The report's analysis (``silodem.report.analysis.Analysis``), made once."""
         if self._analysis is None:
             from silodem.report.analysis import analyse
@@ -198,7 +202,7 @@ class RunResults:
 
         return summarise_run(self.folder)
 
-    def frames(self):
+    def frames(self) -> Frames:
         """The saved frames (``silodem.silo.frames.Frames``) for pictures and animations."""
         from silodem.silo.frames import read_frames
 

@@ -13,6 +13,8 @@
 from __future__ import annotations
 
 import types
+from collections.abc import Callable
+from typing import Any
 
 import numba
 
@@ -40,7 +42,7 @@ def _renamed(fn: types.FunctionType, suffix: str, names=None) -> types.FunctionT
 class Kernel:
     """A kernel compiled serial (``.serial``) and parallel (``.parallel``), on first use."""
 
-    def __init__(self, fn: types.FunctionType, suffix: str = "", **names) -> None:
+    def __init__(self, fn: types.FunctionType, suffix: str = "", **names: Any) -> None:
         self.__doc__ = fn.__doc__
         self.__name__ = fn.__name__ + suffix
         self._fn = fn
@@ -48,13 +50,13 @@ class Kernel:
         self.parallel = numba.njit(parallel=True, **FLAGS)(
             _renamed(fn, suffix + "_parallel", names or None))
 
-    def variant(self, suffix: str, **names) -> Kernel:
+    def variant(self, suffix: str, **names: Any) -> Kernel:
         """The same kernel compiled with the globals ``names`` bound to other values, which
         numba takes as compile-time constants (a switch such as ``HERTZ = True`` costs nothing
         in the loop, where a run-time flag let LLVM compute both sides of each branch)."""
         return Kernel(self._fn, suffix, **names)
 
-    def pick(self, n: int, threads: int | None = None):
+    def pick(self, n: int, threads: int | None = None) -> Callable[..., Any]:
         """The variant for ``n`` grains with ``threads`` threads (default: numba's current
         count; asking numba costs ~2 us, so a caller that picks many kernels at once, like
         the list build, asks once and passes it)."""
@@ -63,7 +65,7 @@ class Kernel:
             return self.parallel
         return self.serial
 
-    def __call__(self, *args):
+    def __call__(self, *args: Any) -> Any:
         return self.serial(*args)
 
 
@@ -72,7 +74,7 @@ def kernel(fn: types.FunctionType) -> Kernel:
     return Kernel(fn)
 
 
-def specialised(fn: types.FunctionType, suffix: str, **names):
+def specialised(fn: types.FunctionType, suffix: str, **names: Any) -> Callable[..., Any]:
     """``fn`` compiled (``njit``) with the globals ``names`` bound to other objects, under the
     name ``fn.__name__ + suffix``: one loop written once, compiled over the serial kernels
     and once over the parallel ones, so that a serial run neither compiles nor loads the

@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 # --- helpers ---------------------------------------------------------------------------------
 
@@ -47,7 +48,8 @@ def apex_below_outlet(outlet_width: float, alpha_deg: float) -> float:
 # --- Janssen (1895), 2D slot -----------------------------------------------------------------
 
 
-def janssen_sigma_v(depth, rho_b: float, g: float, B: float, K: float, mu_w: float):
+def janssen_sigma_v(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: float,
+                    mu_w: float) -> np.ndarray | float:
     """Mean vertical stress [Pa] at ``depth`` [m] under the free surface of a 2D slot silo.
 
     sigma_v = rho_b g B / (2 K mu_w) * (1 - exp(-2 K mu_w depth / B))
@@ -64,12 +66,14 @@ def janssen_sigma_v(depth, rho_b: float, g: float, B: float, K: float, mu_w: flo
     return rho_b * g / c * -np.expm1(-c * depth)
 
 
-def janssen_sigma_h(depth, rho_b: float, g: float, B: float, K: float, mu_w: float):
+def janssen_sigma_h(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: float,
+                    mu_w: float) -> np.ndarray | float:
     """Horizontal (wall normal) stress [Pa] of Janssen's solution: sigma_h = K sigma_v."""
     return K * janssen_sigma_v(depth, rho_b, g, B, K, mu_w)
 
 
-def janssen_wall_shear(depth, rho_b: float, g: float, B: float, K: float, mu_w: float):
+def janssen_wall_shear(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: float,
+                       mu_w: float) -> np.ndarray | float:
     """Wall shear stress [Pa] of Janssen's solution (friction fully mobilised): mu_w K sigma_v."""
     return mu_w * janssen_sigma_h(depth, rho_b, g, B, K, mu_w)
 
@@ -96,7 +100,7 @@ class JanssenFit:
 FIT_LOWER = 1e-6  # lower bound of K and mu_w in fit_janssen [-]
 
 
-def fit_janssen(depth, sigma_h, rho_b: float, g: float, B: float,
+def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: float, B: float,
                 mu_w: float | None = None) -> JanssenFit:
     """Least-squares fit of Janssen's sigma_h(depth) to a measured wall normal stress profile.
 
@@ -163,8 +167,8 @@ def walker_exponent(alpha_deg: float, mu_w: float, D: float = 1.0, planar: bool 
     return (m + 1) * (D * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 1.0)
 
 
-def hopper_sigma_v(h, H: float, q: float, gamma: float, alpha_deg: float, mu_w: float,
-                   D: float = 1.0, planar: bool = True):
+def hopper_sigma_v(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha_deg: float,
+                   mu_w: float, D: float = 1.0, planar: bool = True) -> np.ndarray | float:
     """Mean vertical stress [Pa] at height ``h`` [m] above the apex of a hopper (slice method).
 
     sigma_v(h) = gamma h / (n - 1) [1 - (h/H)^(n-1)] + q (h/H)^n      (n from walker_exponent)
@@ -189,14 +193,14 @@ def hopper_sigma_v(h, H: float, q: float, gamma: float, alpha_deg: float, mu_w: 
     return gamma * h * growth + q * np.exp(n * log_x)
 
 
-def hopper_wall_normal(h, H: float, q: float, gamma: float, alpha_deg: float, mu_w: float,
-                       D: float = 1.0, planar: bool = True):
+def hopper_wall_normal(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha_deg: float,
+                       mu_w: float, D: float = 1.0, planar: bool = True) -> np.ndarray | float:
     """Hopper wall normal stress [Pa]: sigma_n = D sigma_v (:func:`hopper_sigma_v`)."""
     return D * hopper_sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar)
 
 
-def paper_eq12(z_below_transition, h_prime: float, q: float, gamma: float, alpha_deg: float,
-               mu_w: float):
+def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamma: float,
+               alpha_deg: float, mu_w: float) -> np.ndarray | float:
     """The paper's eq. (12) as printed [Pa]:
 
     sigma = gamma [(h' - z)/n_i + (q/gamma - h'/n_i) (1 - z/h')^(n_i + 1)],
@@ -270,8 +274,8 @@ class BeverlooFit:
     k_err: float = float("nan")
 
 
-def fit_beverloo_free(D, W, W_err, d: float, rho_b: float, g: float,
-                      t: float) -> BeverlooFit:
+def fit_beverloo_free(D: npt.ArrayLike, W: npt.ArrayLike, W_err: npt.ArrayLike, d: float,
+                      rho_b: float, g: float, t: float) -> BeverlooFit:
     """C, k and the exponent b free: weighted least squares on ln W (scipy ``curve_fit``,
     sigma = W_err / W, absolute); k is bounded below min(D)/d.  Needs four outlet widths or
     more (three parameters).  D, W, W_err: arrays [m, kg/s, kg/s]; d [m], rho_b [kg/m^3],
@@ -294,8 +298,9 @@ def fit_beverloo_free(D, W, W_err, d: float, rho_b: float, g: float,
                        C_err=float(C * errs[0]), k_err=float(errs[1]))
 
 
-def fit_beverloo_three_halves(D, W, d: float, rho_b: float, g: float, t: float,
-                              W_err=None) -> BeverlooFit:
+def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_b: float,
+                              g: float, t: float,
+                              W_err: npt.ArrayLike | None = None) -> BeverlooFit:
     """C and k with the exponent held at 3/2: W^(2/3) = (C rho_b sqrt(g) t)^(2/3) (D - k d) is a
     straight line in D (least squares, weighted by the errors of W^(2/3) when ``W_err`` is
     given).  Two outlet widths determine it; the errors of C and k need three or more."""
@@ -326,7 +331,9 @@ def fit_beverloo_three_halves(D, W, d: float, rho_b: float, g: float, t: float,
 # --- EN 1991-4:2006 ------------------------------------------------------------------------------
 
 
-def en1991_4_filling(depth, gamma: float, K: float, mu: float, A_over_U: float):
+def en1991_4_filling(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
+                     A_over_U: float) -> tuple[np.ndarray | float, np.ndarray | float,
+                                               np.ndarray | float]:
     """EN 1991-4:2006 §5.2.1.1 symmetrical filling loads on vertical walls of slender silos.
 
     p_hf = p_ho Y_J(z), p_wf = mu p_hf, p_vf = p_ho / K Y_J(z), with
@@ -345,8 +352,9 @@ def en1991_4_filling(depth, gamma: float, K: float, mu: float, A_over_U: float):
     return p_h, mu * p_h, p_ho / K * yj
 
 
-def en1991_4_discharge(depth, gamma: float, K: float, mu: float, A_over_U: float,
-                       C_h: float = 1.15, C_w: float = 1.10):
+def en1991_4_discharge(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
+                       A_over_U: float, C_h: float = 1.15,
+                       C_w: float = 1.10) -> tuple[np.ndarray | float, np.ndarray | float]:
     """EN 1991-4:2006 §5.2.2.2 fixed discharge loads of slender silos: p_he = C_h p_hf,
     p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10, expressions 5.22-5.23; 1.0 for a silo emptied
     from the top).  The patch load is not included.  Returns (p_he, p_we)."""

@@ -33,6 +33,10 @@ xi'' = -xi^(3/2) - 2 sqrt(3/2) zeta_H xi^(1/4) xi', xi(0) = 0, xi'(0) = 1, whate
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def effective_modulus(e_a: float, nu_a: float, e_b: float, nu_b: float) -> float:
@@ -65,7 +69,8 @@ def impact_overlap(speed: float, m_eff: float, kn: float, r_eff: float) -> float
     return (1.25 * m_eff * speed**2 / k_hertz) ** 0.4
 
 
-def tangent_stiffness(k, r_eff: float, overlap: float):
+def tangent_stiffness(k: float | np.ndarray, r_eff: float,
+                      overlap: float) -> float | np.ndarray:
     """S = k sqrt(R* delta) [N/m]: S_n for k = 2 E*, S_s for k = 8 G* (a number or an array
     of them, one per wall)."""
     return k * math.sqrt(r_eff * overlap)

@@ -23,6 +23,7 @@ by looking through the few old candidates of grain min(old a, old b), O(P) in al
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -30,6 +31,10 @@ import numpy as np
 from silodem.engine.contact import closest_point
 from silodem.errors import UnstableRunError
 from silodem.jit import kernel, njit, prange
+
+if TYPE_CHECKING:
+    from silodem.engine.particles import Particles
+    from silodem.engine.walls import Walls
 
 _MAX_CELLS_PER_GRAIN = 64
 # the test by cells keeps each cell's first grain from the build; with more cells than this
@@ -331,7 +336,7 @@ def strip_rows(cell_start, ncx, ncy, n_strips=STRIPS):
     return rows[: count + 1].copy()
 
 
-def first_grains(cell_start, ncx, rows):
+def first_grains(cell_start: np.ndarray, ncx: int, rows: np.ndarray) -> np.ndarray:
     """Strips of cell rows (``strip_rows``) as grain ranges: the first grain of each strip,
     and n at the end."""
     return cell_start[rows.astype(np.int64) * ncx].astype(INDEX)
@@ -342,7 +347,7 @@ def first_grains(cell_start, ncx, rows):
 PAIR_WORK = 2.5
 
 
-def thread_blocks(strip_start, i_start, n_blocks):
+def thread_blocks(strip_start: np.ndarray, i_start: np.ndarray, n_blocks: int) -> np.ndarray:
     """Cut the strips into ``n_blocks`` runs of consecutive strips, one per thread, of about
     equal work (grains + ``PAIR_WORK`` x candidate pairs): returns the first strip of each run
     and the number of strips at the end.  Runs of consecutive strips keep each grain on one
@@ -471,7 +476,7 @@ class NeighborList:
         (compact or _compact.pick(n, threads))(n, self._buf, stride, start, out)
         return start, out
 
-    def rebuild(self, particles, walls) -> None:
+    def rebuild(self, particles: Particles, walls: Walls) -> None:
         """Sort the grains by cell, list the candidates, carry the contact history over."""
         p = particles
         n = p.n

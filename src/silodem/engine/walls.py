@@ -27,6 +27,8 @@ fast impacts), instead of letting it tunnel through; silo walls are one-sided.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 _JOIN_TOL = 1e-9  # [m] end points closer than this are the same point
@@ -105,7 +107,8 @@ class Walls:
         self.active[self.index(name)] = active
         self.update_caps()
 
-    def update_caps(self, walls=None, ends=None) -> None:
+    def update_caps(self, walls: Iterable[int] | None = None,
+                    ends: np.ndarray | None = None) -> None:
         """Cap the free ends and, at a convex corner of two segments, the first one's end with
         a guard (module docstring); at a straight or concave joint close the first one's face
         with the shared point and leave both uncapped.  ``walls``:

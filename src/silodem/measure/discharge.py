@@ -19,6 +19,7 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,7 @@ class RateEstimate:
     t1: float
 
 
-def mean_of_runs(rates, errs) -> tuple[float, float]:
+def mean_of_runs(rates: npt.ArrayLike, errs: npt.ArrayLike) -> tuple[float, float]:
     """Mean [kg/s] of the steady rates of runs that differ only by their seed, and its standard
     error: the runs' errors combined, sqrt(sum err^2) / n, or the seeds' standard error of the
     mean, std / sqrt(n), if that is larger (the fills differ by more than one run's noise)."""
@@ -44,7 +45,8 @@ def mean_of_runs(rates, errs) -> tuple[float, float]:
     return float(rates.mean()), err
 
 
-def steady_rate(t, m, lo: float = 0.15, hi: float = 0.75, blocks: int = 5) -> RateEstimate:
+def steady_rate(t: npt.ArrayLike, m: npt.ArrayLike, lo: float = 0.15, hi: float = 0.75,
+                blocks: int = 5) -> RateEstimate:
     """Steady discharge rate from the discharged mass m(t) [kg] at times t [s] (see module)."""
     t = np.asarray(t, dtype=float)
     m = np.asarray(m, dtype=float)
@@ -70,7 +72,8 @@ def steady_rate(t, m, lo: float = 0.15, hi: float = 0.75, blocks: int = 5) -> Ra
     return RateEstimate(rate, err, float(ts[0]), float(ts[-1]))
 
 
-def flow_rate_series(t, m, width: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+def flow_rate_series(t: npt.ArrayLike, m: npt.ArrayLike,
+                     width: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
     """Mass flow rate [kg/s] against time: slope of m(t) [kg] over a sliding window of
     ``width`` seconds (a difference of the mass at the window's ends)."""
     t = np.asarray(t, dtype=float)
@@ -86,7 +89,8 @@ def flow_rate_series(t, m, width: float = 0.25) -> tuple[np.ndarray, np.ndarray]
     return t, rate
 
 
-def mass_flow_index(v_wall, v_axis, level, band_top: float, margin: float) -> float:
+def mass_flow_index(v_wall: npt.ArrayLike, v_axis: npt.ArrayLike, level: npt.ArrayLike,
+                    band_top: float, margin: float) -> float:
     """MFI = mean(v_wall) / mean(v_axis) [-] over the samples whose free surface ``level`` [m]
     is above ``band_top + margin`` and where both velocities are measured (NaN if none)."""
     v_wall, v_axis, level = (np.asarray(v, dtype=float) for v in (v_wall, v_axis, level))
@@ -97,7 +101,8 @@ def mass_flow_index(v_wall, v_axis, level, band_top: float, margin: float) -> fl
     return float(np.mean(v_wall[ok]) / va) if va != 0 else float("nan")
 
 
-def dead_zone(exit_time, max_displacement, radius) -> np.ndarray:
+def dead_zone(exit_time: npt.ArrayLike, max_displacement: npt.ArrayLike,
+              radius: float) -> np.ndarray:
     """True for the grains that never left and never moved more than ``radius`` [m]."""
     return np.isnan(np.asarray(exit_time)) & (np.asarray(max_displacement) < radius)
 

@@ -24,6 +24,7 @@ centres outside the silo.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -55,7 +56,8 @@ def cell_area_inside(shape: SiloShape, x_edges: np.ndarray, z_edges: np.ndarray)
     return frac * np.outer(np.diff(x_edges), np.diff(z_edges))
 
 
-def cell_sums(x, z, mass, moments, x_edges, z_edges) -> tuple[np.ndarray, np.ndarray]:
+def cell_sums(x: np.ndarray, z: np.ndarray, mass: np.ndarray, moments: np.ndarray,
+              x_edges: np.ndarray, z_edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sums over the grains centred in each cell: mass [kg], shape (nx, nz), and the moments'
     (xx, zz, xz) components [N m], shape (nx, nz, 3), xz symmetrised.  Grains outside the grid
     are left out."""
@@ -69,7 +71,8 @@ def cell_sums(x, z, mass, moments, x_edges, z_edges) -> tuple[np.ndarray, np.nda
     return mass_sum, moment_sum
 
 
-def fields_of(mass_sum, moment_sum, area_inside, thickness: float, samples: int):
+def fields_of(mass_sum: np.ndarray, moment_sum: np.ndarray, area_inside: np.ndarray,
+              thickness: float, samples: int) -> tuple[np.ndarray, np.ndarray]:
     """(bulk density [kg/m^3], stress (xx, zz, xz) [Pa], compression positive) per cell from
     sums over ``samples`` samples; NaN in cells without area inside the silo or samples.
     (Gaussian sums are already per unit area: ``area_inside`` is then 1 inside, 0 outside.)"""
@@ -132,7 +135,7 @@ class FieldsPart:
                 self.moments[w] = np.array(state[f"fields.{w}.moments"])
                 self.samples[w] = int(state[f"fields.{w}.samples"])
 
-    def write(self, g: h5py.Group, dataset) -> None:
+    def write(self, g: h5py.Group, dataset: Callable[..., None]) -> None:
         """Group ``fields``: the grid, each cell's area inside the silo, and per window the
         bulk density and stress (``dataset`` writes one array with its unit)."""
         f = g.create_group("fields")

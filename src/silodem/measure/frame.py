@@ -5,11 +5,16 @@ Copies only; the simulation is never changed."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from silodem.measure.coordination import contacts_per_grain
 from silodem.measure.stress import contact_points_walls, grain_moments
+
+if TYPE_CHECKING:
+    from silodem.engine.simulation import Simulation
+    from silodem.engine.walls import Walls
 
 
 @dataclass
@@ -45,8 +50,11 @@ class Frame:
         return int(self.x.size)
 
 
-def make_frame(time, step, x, z, r, vx, vz, mass, uid, i, j, fx, fz, w_grain, w_wall, w_fx,
-               w_fz, walls) -> Frame:
+def make_frame(time: float, step: int, x: np.ndarray, z: np.ndarray, r: np.ndarray,
+               vx: np.ndarray, vz: np.ndarray, mass: np.ndarray, uid: np.ndarray,
+               i: np.ndarray, j: np.ndarray, fx: np.ndarray, fz: np.ndarray,
+               w_grain: np.ndarray, w_wall: np.ndarray, w_fx: np.ndarray, w_fz: np.ndarray,
+               walls: Walls) -> Frame:
     """Build a frame from plain arrays; ``walls`` has segment arrays ax, ay, bx, by."""
     n = int(np.asarray(x).size)
     w_cx, w_cz = contact_points_walls(x, z, w_grain, w_wall, walls.ax, walls.ay, walls.bx,
@@ -57,7 +65,7 @@ def make_frame(time, step, x, z, r, vx, vz, mass, uid, i, j, fx, fz, w_grain, w_
                  w_wall, w_fx, w_fz, w_cx, w_cz, moments, counts)
 
 
-def frame_from_sim(sim) -> Frame:
+def frame_from_sim(sim: Simulation) -> Frame:
     """A frame of an engine ``Simulation`` (its contact lists must be current: read it after a
     step, as recorders do)."""
     from silodem.engine import quantities as q

@@ -27,10 +27,14 @@ about 2 w, since the wall has no grains behind it (Weinhart et al. 2012, section
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from silodem.jit import njit
+
+if TYPE_CHECKING:
+    from silodem.measure.frame import Frame
 
 CUTOFF = 5.0  # terms are summed where the kernel is within this many widths [-]
 
@@ -99,7 +103,7 @@ def add_segments(ax, az, lx, lz, fx, fz, x0, hx, nx, z0, hz, nz, w, out):
                 out[kx, kz, 2] += txz * s
 
 
-def gaussian_sums(fr, x_edges: np.ndarray, z_edges: np.ndarray,
+def gaussian_sums(fr: Frame, x_edges: np.ndarray, z_edges: np.ndarray,
                   width: float) -> tuple[np.ndarray, np.ndarray]:
     """sum_p m_p phi [kg/m^2], shape (nx, nz), and sum_c f (x) l int phi [N/m], shape
     (nx, nz, 3) (xx, zz, xz), at the cell centres of the (uniform) grid, for one frame

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from silodem.config import Config
 from silodem.silo.geometry import SiloShape
@@ -31,7 +32,7 @@ def mean_diameter(cfg: Config) -> float:
     return cfg.material.radius_min + cfg.material.radius_max
 
 
-def inside_silo(shape: SiloShape, x, z) -> np.ndarray:
+def inside_silo(shape: SiloShape, x: npt.ArrayLike, z: npt.ArrayLike) -> np.ndarray:
     """True where the points (x, z) lie inside the silo (0 <= z <= wall top) [bool]."""
     x = np.asarray(x, dtype=float)
     z = np.asarray(z, dtype=float)
@@ -45,7 +46,8 @@ def inside_silo(shape: SiloShape, x, z) -> np.ndarray:
     return (z >= 0.0) & (z <= shape.wall_top) & (x >= lo) & (x <= hi)
 
 
-def edge_distance(shape: SiloShape, x, z) -> tuple[np.ndarray, np.ndarray]:
+def edge_distance(shape: SiloShape, x: npt.ArrayLike,
+                  z: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Horizontal distance [m] of points from the left and from the right edge of the silo at
     their height (vertical wall above the junction, hopper wall below)."""
     x = np.asarray(x, dtype=float)
@@ -148,7 +150,8 @@ def grid_edges(shape: SiloShape, cell: float) -> tuple[np.ndarray, np.ndarray]:
     return even_edges(0.0, shape.width, cell), even_edges(0.0, shape.wall_top, cell)
 
 
-def grid_cell_index(x, z, x_edges, z_edges) -> tuple[np.ndarray, np.ndarray]:
+def grid_cell_index(x: np.ndarray, z: np.ndarray, x_edges: np.ndarray,
+                    z_edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(flat cell index ix * nz + iz of the points inside the grid, mask of those points)."""
     nx, nz = x_edges.size - 1, z_edges.size - 1
     ix = np.searchsorted(x_edges, x, side="right") - 1

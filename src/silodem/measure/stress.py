@@ -22,9 +22,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 
-def contact_points_pairs(x, y, r, i, j):
+def contact_points_pairs(x: np.ndarray, y: np.ndarray, r: np.ndarray, i: np.ndarray,
+                         j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Contact points of grain-grain contacts [m]: x_i + (r_i - overlap/2) n, n from i to j."""
     dx, dy = x[j] - x[i], y[j] - y[i]
     d = np.hypot(dx, dy)
@@ -33,7 +35,9 @@ def contact_points_pairs(x, y, r, i, j):
     return x[i] + reach * dx / d, y[i] + reach * dy / d
 
 
-def contact_points_walls(x, y, grain, wall, ax, ay, bx, by):
+def contact_points_walls(x: np.ndarray, y: np.ndarray, grain: np.ndarray, wall: np.ndarray,
+                         ax: np.ndarray, ay: np.ndarray, bx: np.ndarray,
+                         by: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Contact points of grain-wall contacts: the point of the wall segment closest to the
     grain's centre [m]."""
     px, py = x[grain], y[grain]
@@ -43,7 +47,10 @@ def contact_points_walls(x, y, grain, wall, ax, ay, bx, by):
     return ax[wall] + s * ux, ay[wall] + s * uy
 
 
-def grain_moments(n, x, y, r, i, j, fx, fy, w_grain, w_cx, w_cy, w_fx, w_fy) -> np.ndarray:
+def grain_moments(n: int, x: np.ndarray, y: np.ndarray, r: np.ndarray, i: np.ndarray,
+                  j: np.ndarray, fx: np.ndarray, fy: np.ndarray, w_grain: np.ndarray,
+                  w_cx: np.ndarray, w_cy: np.ndarray, w_fx: np.ndarray,
+                  w_fy: np.ndarray) -> np.ndarray:
     """M[p] = sum over the contacts of grain p of f (x) (x_c - x_p), shape (n, 2, 2) [N m].
 
     Grain-grain contacts (i, j) with ``fx, fy`` the force on j [N]; grain-wall contacts with
@@ -80,7 +87,7 @@ def region_stress(moments: np.ndarray, mask: np.ndarray, area: float,
     return _symmetric(moments[mask].sum(axis=0), 1.0 / (area * thickness))
 
 
-def lens_area(d, r, R):
+def lens_area(d: npt.ArrayLike, r: npt.ArrayLike, R: float) -> np.ndarray:
     """Area [m^2] of the intersection of a disk of radius r whose centre is at distance d from
     the centre of a circle of radius R (vectorised over d, r)."""
     d = np.asarray(d, dtype=float)
@@ -97,7 +104,8 @@ def lens_area(d, r, R):
     return out
 
 
-def circle_measure(x, y, r, moments, counts, cx: float, cz: float, R: float,
+def circle_measure(x: np.ndarray, y: np.ndarray, r: np.ndarray, moments: np.ndarray,
+                   counts: np.ndarray, cx: float, cz: float, R: float,
                    area_inside: float | None = None, thickness: float = 1.0) -> dict:
     """PFC2D-style measurement circle at (cx, cz) of radius R [m].
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,8 @@ class WallBins:
         return self.s1 - self.s0
 
 
-def wall_bins(ax, ay, bx, by, bin_len: float) -> WallBins:
+def wall_bins(ax: npt.ArrayLike, ay: npt.ArrayLike, bx: npt.ArrayLike, by: npt.ArrayLike,
+              bin_len: float) -> WallBins:
     """Cut each wall into round(L / bin_len) (at least 1) equal bins."""
     ax, ay, bx, by = (np.asarray(v, dtype=float) for v in (ax, ay, bx, by))
     length = np.hypot(bx - ax, by - ay)
@@ -60,7 +62,8 @@ def wall_bins(ax, ay, bx, by, bin_len: float) -> WallBins:
                     ay[wall_a] + mid * tangent[wall_a, 1], tangent, normal)
 
 
-def contact_bins(bins: WallBins, ax, ay, w_wall, w_cx, w_cy) -> np.ndarray:
+def contact_bins(bins: WallBins, ax: np.ndarray, ay: np.ndarray, w_wall: np.ndarray,
+                 w_cx: np.ndarray, w_cy: np.ndarray) -> np.ndarray:
     """Bin index of each grain-wall contact (contact point (w_cx, w_cy) on wall w_wall)."""
     t = bins.tangent[w_wall]
     s = (w_cx - ax[w_wall]) * t[:, 0] + (w_cy - ay[w_wall]) * t[:, 1]
@@ -71,7 +74,8 @@ def contact_bins(bins: WallBins, ax, ay, w_wall, w_cx, w_cy) -> np.ndarray:
     return first[w_wall] + np.clip(k, 0, count[w_wall] - 1)
 
 
-def wall_stress(bins: WallBins, ax, ay, w_wall, w_cx, w_cy, w_fx, w_fy,
+def wall_stress(bins: WallBins, ax: np.ndarray, ay: np.ndarray, w_wall: np.ndarray,
+                w_cx: np.ndarray, w_cy: np.ndarray, w_fx: np.ndarray, w_fy: np.ndarray,
                 thickness: float) -> tuple[np.ndarray, np.ndarray]:
     """(sigma_n, tau) per bin [Pa] from the grain-wall contacts (force ON the grain, [N])."""
     nb = bins.wall.size
@@ -86,7 +90,8 @@ def wall_stress(bins: WallBins, ax, ay, w_wall, w_cx, w_cy, w_fx, w_fy,
             np.bincount(b, weights=ft, minlength=nb) / area)
 
 
-def wall_force_from_profile(bins: WallBins, sigma_n, tau, thickness: float) -> np.ndarray:
+def wall_force_from_profile(bins: WallBins, sigma_n: np.ndarray, tau: np.ndarray,
+                            thickness: float) -> np.ndarray:
     """Force of the grains on each wall (n_walls, 2) [N] rebuilt from binned stresses."""
     area = bins.length * thickness
     fx = (-sigma_n * bins.normal[bins.wall, 0] + tau * bins.tangent[bins.wall, 0]) * area
@@ -96,7 +101,8 @@ def wall_force_from_profile(bins: WallBins, sigma_n, tau, thickness: float) -> n
                             np.bincount(bins.wall, weights=fy, minlength=nw)])
 
 
-def binned_stress(moments, z, mask, z_edges, areas, thickness: float) -> np.ndarray:
+def binned_stress(moments: np.ndarray, z: np.ndarray, mask: np.ndarray, z_edges: np.ndarray,
+                  areas: np.ndarray, thickness: float) -> np.ndarray:
     """Love-Weber stress (xx, zz, xz) [Pa] of the grains in ``mask`` binned by centre height
     ``z`` into ``z_edges``; ``areas`` [m^2] is the area of each bin's region.  Shape (nbins, 3);
     NaN where a bin has no area."""
@@ -114,7 +120,8 @@ def binned_stress(moments, z, mask, z_edges, areas, thickness: float) -> np.ndar
     return out
 
 
-def peak_in_zone(z, values, z_lo: float, z_hi: float) -> tuple[float, float]:
+def peak_in_zone(z: npt.ArrayLike, values: npt.ArrayLike, z_lo: float,
+                 z_hi: float) -> tuple[float, float]:
     """(largest value, its z) among the points with z_lo <= z <= z_hi; (nan, nan) if none."""
     z = np.asarray(z, dtype=float)
     v = np.asarray(values, dtype=float)

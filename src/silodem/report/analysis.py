@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,10 @@ from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report.load import Results
 from silodem.report.numbers import significant
 from silodem.silo.geometry import silo_shape
+
+if TYPE_CHECKING:
+    from silodem.config import Config
+    from silodem.silo.geometry import SiloShape
 
 SETTLE, DISCHARGE = 1, 2
 
@@ -86,7 +90,8 @@ def surface_height(snap: dict[str, Any] | None, width: float, d: float) -> float
     return float(np.mean(tops))
 
 
-def bulk_density(snap: dict[str, Any] | None, cfg, shape, surface: float) -> float:
+def bulk_density(snap: dict[str, Any] | None, cfg: Config, shape: SiloShape,
+                 surface: float) -> float:
     """Mass per volume of the grains in the cell [kg/m^3], between the junction (+1 diameter)
     and the surface (-1 diameter); in the whole silo if that band is too thin."""
     if snap is None:

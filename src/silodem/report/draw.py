@@ -2,22 +2,27 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import numpy as np
+import numpy.typing as npt
 from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.patches import Circle
 
 from silodem.measure.stress import contact_points_walls
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.colors import Colormap
+
 PHASE_COLORS = {0: ("#e8f0fb", "filling"), 1: ("#eef7e8", "settling"),
                 2: ("#fbeee6", "discharge")}
 
 
-def draw_walls(ax, walls: dict[str, Any], active=None) -> None:
+def draw_walls(ax: Axes, walls: dict[str, Any], active: np.ndarray | None = None) -> None:
     """Wall segments; withdrawn walls (the open gate) dotted."""
     act = walls["active"] if active is None else active
     for k in range(len(walls["ax"])):
@@ -25,14 +30,16 @@ def draw_walls(ax, walls: dict[str, Any], active=None) -> None:
                 "-" if act[k] else ":", color="k", lw=1.6, zorder=5)
 
 
-def draw_grains(ax, p: dict[str, np.ndarray], color="#e4ddcf", edge="#9c9280", **kw) -> None:
+def draw_grains(ax: Axes, p: dict[str, np.ndarray], color: str = "#e4ddcf",
+                edge: str = "#9c9280", **kw: Any) -> None:
     circles = [Circle((x, y), r) for x, y, r in zip(p["x"], p["y"], p["radius"])]
     ax.add_collection(PatchCollection(circles, facecolor=color, edgecolor=edge, linewidth=0.3,
                                       **kw))
 
 
-def draw_force_network(ax, snap: dict[str, Any], walls: dict[str, Any], fmax: float | None = None,
-                       cmap="inferno_r", max_width: float = 4.0):
+def draw_force_network(ax: Axes, snap: dict[str, Any], walls: dict[str, Any],
+                       fmax: float | None = None, cmap: str | Colormap = "inferno_r",
+                       max_width: float = 4.0) -> tuple[LineCollection | None, float]:
     """Grains, and every touching contact as a line whose width and colour grow with its normal
     force (grain-grain: between the centres; grain-wall: from the centre to the wall).
     Returns the line collection (for a colour bar) and the force scale [N]."""
@@ -63,7 +70,7 @@ def draw_force_network(ax, snap: dict[str, Any], walls: dict[str, Any], fmax: fl
     return lc, scale
 
 
-def shade_phases(ax, x, phase) -> None:
+def shade_phases(ax: Axes, x: npt.ArrayLike, phase: npt.ArrayLike) -> None:
     """Shade the filling, settling and discharge periods along the x axis (time or steps)."""
     x = np.asarray(x)
     phase = np.asarray(phase)
@@ -81,7 +88,7 @@ def shade_phases(ax, x, phase) -> None:
             start = k
 
 
-def rolling_mean(y, n: int) -> np.ndarray:
+def rolling_mean(y: npt.ArrayLike, n: int) -> np.ndarray:
     """Centred running mean over n samples (NaN-aware)."""
     y = np.asarray(y, dtype=float)
     if n <= 1 or y.size < n:
@@ -94,7 +101,7 @@ def rolling_mean(y, n: int) -> np.ndarray:
         return np.where(den > 0, num / den, np.nan)
 
 
-def silo_axes(ax, geom: dict[str, float], margin: float = 0.3) -> None:
+def silo_axes(ax: Axes, geom: dict[str, float], margin: float = 0.3) -> None:
     ax.set_aspect("equal")
     ax.set_xlim(-margin, geom["B"] + margin)
     ax.set_ylim(-0.6, geom["top"] + margin)

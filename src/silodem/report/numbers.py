@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 
-def significant(value, digits: int = 3) -> str:
+def significant(value: float | None, digits: int = 3) -> str:
     """``value`` to ``digits`` significant digits, but every integer digit of a value under 1e9
     that would otherwise take an exponent (2053.4 -> '2053', 999.6 -> '1000'); 'n/a' for None,
     NaN or infinity."""

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from silodem.config import Config
 from silodem.engine import hertz
@@ -26,6 +27,9 @@ from silodem.errors import InputError
 from silodem.silo.geometry import silo_shape
 from silodem.silo.materials import contact_constants, linearised
 from silodem.theory import janssen_sigma_v
+
+if TYPE_CHECKING:
+    import numpy as np
 
 PACKING_FRACTION = 0.82  # area fraction of a random packing of disks [-]
 JANSSEN_K = 0.4  # lateral pressure ratio during filling (the paper, section 4.2) [-]
@@ -50,7 +54,8 @@ def grain_law(cfg: Config) -> GrainLaw:
     )
 
 
-def choose_time_step(cfg: Config, law: GrainLaw, wall_kn, wall_ks) -> tuple[float, float]:
+def choose_time_step(cfg: Config, law: GrainLaw, wall_kn: np.ndarray,
+                     wall_ks: np.ndarray) -> tuple[float, float]:
     """(dt, dt_crit) [s]; raises InputError if the user's dt exceeds dt_crit.  A Hertz-Mindlin
     law is judged by its stiffest expected contacts (``materials.linearised``)."""
     m = cfg.material

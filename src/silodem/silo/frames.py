@@ -19,6 +19,7 @@ Layout of ``/frames`` (docs/output.md): the frames are *concatenated*.  Frame ``
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -315,7 +316,7 @@ class Frames:
     def __getitem__(self, k: int) -> Frame:
         return self.frames[k]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         return iter(self.frames)
 
     @property

@@ -6,7 +6,7 @@ import contextlib
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from silodem.output import write_text
 from silodem.study.execute import (
@@ -19,6 +19,9 @@ from silodem.study.execute import (
     run_serial,
 )
 from silodem.study.plan import PlannedRun, StudyPlan
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 TABLE_NAME = "results.csv"
 
@@ -98,7 +101,7 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
 
 
 def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = None,
-              workers: int | None = None, client=None, serial: bool = False,
+              workers: int | None = None, client: Client | None = None, serial: bool = False,
               progress: bool = False, report: bool = True) -> StudyOutcome:
     """Run every planned run that has no finished folder in ``out_dir/runs``, then write
     ``out_dir/results.csv`` and ``out_dir/report.html``.

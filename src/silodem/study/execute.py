@@ -29,11 +29,14 @@ import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from silodem.errors import InputError, one_line
 from silodem.output import write_text
 from silodem.study.plan import PlannedRun, StudyPlan
+
+if TYPE_CHECKING:
+    from distributed import Client, LocalCluster
 
 SUMMARY_NAME = "summary.json"
 ATTEMPT_NAME = "attempt.json"
@@ -230,7 +233,7 @@ def run_serial(plan: StudyPlan, out_dir: Path, on_done: Callback | None = None) 
     return outcome
 
 
-def run_on_client(plan: StudyPlan, out_dir: Path, client,
+def run_on_client(plan: StudyPlan, out_dir: Path, client: Client,
                   on_done: Callback | None = None) -> StudyOutcome:
     """Submit the runs still to do to a dask.distributed ``client`` and wait for them.
 
@@ -274,7 +277,7 @@ def run_on_client(plan: StudyPlan, out_dir: Path, client,
     return outcome
 
 
-def local_cluster(workers: int):
+def local_cluster(workers: int) -> LocalCluster:
     """A LocalCluster of ``workers`` single-threaded worker processes (each under a nanny
     that restarts it if it dies), no dashboard, and only critical log records: a worker
     that loses the scheduler while a sweep is stopped logs a traceback at ERROR, and every
@@ -299,7 +302,8 @@ def local_cluster(workers: int):
             signal.signal(signal.SIGINT, before)
 
 
-def connect(scheduler: str | None, workers: int | None):
+def connect(scheduler: str | None,
+            workers: int | None) -> tuple[Client, LocalCluster | None, str]:
     """(client, cluster or None, description): a LocalCluster by default, else a client of
     the running scheduler at ``scheduler`` (``--workers`` then waits for that many workers)."""
     from distributed import Client

@@ -19,9 +19,12 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from silodem.study.plan import StudyPlan
 
 SETTLE, DISCHARGE = 1, 2
 WALL_CIRCLES = ("switch_left", "switch_right")
@@ -219,7 +222,8 @@ def table_columns(grid_keys: list[str], rows: list[dict[str, Any]]) -> list[str]
     return fixed + extra
 
 
-def table_rows(plan, summaries: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+def table_rows(plan: StudyPlan,
+               summaries: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per planned run that has a summary, in plan order."""
     rows = []
     for run in plan.runs:

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from silodem.config import Config
-from silodem.measure.discharge import mean_of_runs, steady_rate
+from silodem.measure.discharge import RateEstimate, mean_of_runs, steady_rate
 from silodem.silo.procedure import SiloRun
 from silodem.theory import fit_beverloo_free, fit_beverloo_three_halves
 from silodem.validate.records import Record, absolute, info, rel
@@ -126,7 +126,7 @@ def discharge_curve(run: SiloRun) -> tuple[np.ndarray, np.ndarray]:
     return ts["time"][sel] - t0, ts["discharged_mass"][sel]
 
 
-def rate_of(t: np.ndarray, m: np.ndarray):
+def rate_of(t: np.ndarray, m: np.ndarray) -> RateEstimate:
     """The steady rate of a discharge curve: the slope from 20 % to 95 % of the mass that left
     (``measure.discharge.steady_rate``; ``.rate``, ``.err`` in kg/s)."""
     return steady_rate(t, m, lo=0.2, hi=0.95)

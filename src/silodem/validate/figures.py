@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +37,7 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def impacts(data, path: Path) -> Path:
+def impacts(data: dict[str, Any], path: Path) -> Path:
     """Restitution and contact duration against e, analytic curves; error against dt."""
     from silodem.engine.contact import damping_ratio_from_restitution
     from silodem.validate.impacts import spring_dashpot
@@ -85,7 +86,7 @@ def impacts(data, path: Path) -> Path:
     return _save(fig, path)
 
 
-def chung_ooi(data, path: Path) -> Path:
+def chung_ooi(data: dict[str, Any], path: Path) -> Path:
     from silodem.validate.chung_ooi import (
         KAPPA_DISK,
         rigid_wall_impact,
@@ -149,7 +150,7 @@ def chung_ooi(data, path: Path) -> Path:
     return _save(fig, path)
 
 
-def hertz_mindlin(data, path: Path) -> Path:
+def hertz_mindlin(data: dict[str, Any], path: Path) -> Path:
     """F_n against the overlap of the undamped impacts with Hertz's law; restitution against
     impact speed."""
     plt = _plt()
@@ -177,7 +178,7 @@ def hertz_mindlin(data, path: Path) -> Path:
     return _save(fig, path)
 
 
-def statics(data, path: Path) -> Path:
+def statics(data: dict[str, Any], path: Path) -> Path:
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(8, 5), gridspec_kw={"width_ratios": [1, 2]})
     from matplotlib.collections import PatchCollection
@@ -199,7 +200,7 @@ def statics(data, path: Path) -> Path:
     return _save(fig, path)
 
 
-def janssen(data, path: Path) -> Path:
+def janssen(data: dict[str, Any], path: Path) -> Path:
     """Wall normal stress against depth with the Janssen curves; friction and K profiles."""
     from silodem import theory as th
 
@@ -249,7 +250,7 @@ def janssen(data, path: Path) -> Path:
     return _save(fig, path)
 
 
-def beverloo(data, path: Path) -> Path:
+def beverloo(data: dict[str, Any], path: Path) -> Path:
     """Discharged mass against time; W^(2/3) against D (straight for the 3/2 law); log-log."""
     plt = _plt()
     fig, ax = plt.subplots(1, 3, figsize=(13, 4.2))
@@ -291,7 +292,7 @@ def beverloo(data, path: Path) -> Path:
     return _save(fig, path)
 
 
-def lammps(data, path: Path) -> Path:
+def lammps(data: dict[str, Any], path: Path) -> Path:
     """The largest position difference between silodem and LAMMPS against the step."""
     from silodem.validate.lammps import TOLERANCE
 

@@ -35,6 +35,7 @@ from silodem.validate.impacts import (
     RESTITUTION_TOL,
     RHO,
     THICKNESS,
+    ContactTrace,
     _pair_force,
     _wall_force,
     disk_mass,
@@ -95,7 +96,8 @@ def _wall_constants() -> tuple[float, float]:
     return hertz.kernel_constants(E_GRAIN, NU_GRAIN, E_WALL, NU_WALL)
 
 
-def impact(geometry: str, v: float, e: float = 1.0, tension: bool = False):
+def impact(geometry: str, v: float, e: float = 1.0,
+           tension: bool = False) -> tuple[ContactTrace, float, float, float, float]:
     """One head-on impact at closing speed ``v`` [m/s] (disk-disk: v/2 each): the trace of
     ``impacts.follow_contact``, the measured restitution, and Hertz's (d_max, t_c)."""
     zeta = hertz.damping_ratio_from_restitution(e)

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from silodem.engine.contact import GrainLaw, damping_ratio_from_restitution
 from silodem.engine.particles import Particles
@@ -253,7 +254,7 @@ STEPS_CONVERGENCE = (50, 100, 200, 500, 1000)  # the convergence study (tension 
 ORDER_TOL = 0.15  # absolute, on a convergence order
 
 
-def convergence_order(steps, errors) -> float:
+def convergence_order(steps: npt.ArrayLike, errors: npt.ArrayLike) -> float:
     """Least-squares slope of log|error| against log(dt), dt ~ 1/steps."""
     x = -np.log(np.asarray(steps, dtype=float))
     y = np.log(np.abs(np.asarray(errors, dtype=float)))

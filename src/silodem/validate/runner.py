@@ -23,12 +23,16 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from importlib import import_module
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from silodem.validate.records import Record
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 
 @dataclass(frozen=True)
@@ -54,7 +58,7 @@ FAMILIES = (
 NAMES = tuple(name for name, _title, _quick in FAMILIES)
 
 
-def check_cases(names) -> None:
+def check_cases(names: Iterable[str]) -> None:
     """Raise ValueError naming the names that are not families (of ``NAMES``)."""
     unknown = sorted(set(names) - set(NAMES))
     if unknown:
@@ -131,7 +135,7 @@ def _tol(r: Record) -> str:
     return f"+- {r.tolerance:g}"
 
 
-def print_table(result: Validation, console) -> None:
+def print_table(result: Validation, console: Console) -> None:
     """The records as a rich table, then a one-line verdict."""
     from rich.table import Table
 

@@ -10,10 +10,11 @@ The submodules import matplotlib / meshio / imageio only when used.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 
 def force_network_png(results_h5: Path | str, which: str | float = "end-of-filling",
-                      **kwargs) -> bytes:
+                      **kwargs: Any) -> bytes:
     """PNG bytes of the force network at ``which``: "end-of-filling", "early-discharge",
     "late-discharge", "final" or a time [s] (see :mod:`silodem.viz.network`)."""
     from silodem.viz.network import force_network_png as impl

@@ -91,7 +91,8 @@ def walls_mesh(walls: WallGeometry, active: np.ndarray) -> meshio.Mesh:
     return meshio.Mesh(_points(x, y), [("line", lines)], cell_data=cell_data)
 
 
-def fields_mesh(x_edges, z_edges, density, stress) -> meshio.Mesh:
+def fields_mesh(x_edges: np.ndarray, z_edges: np.ndarray, density: np.ndarray,
+                stress: np.ndarray) -> meshio.Mesh:
     """The grid of a density and stress field as quads (cell (i, k) spans x_edges[i:i+2] x
     z_edges[k:k+2]), its values as cell data, in the order i * nz + k."""
     nx, nz = x_edges.size - 1, z_edges.size - 1
