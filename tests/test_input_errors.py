@@ -25,8 +25,8 @@ from silodem.checkpoint import FORMAT
 from silodem.cli import main
 from silodem.config import Config
 from silodem.errors import InputError, schema_keys
-from silodem.safety import check_numbers
 from silodem.scenario_files import config_to_toml, load_config
+from silodem.silo.checks import check_numbers
 from silodem.silo.procedure import SiloRun
 
 

@@ -15,7 +15,7 @@ from reliability_helpers import quick_config, run_args
 from silodem.checkpoint import read_checkpoint
 from silodem.cli import main
 from silodem.errors import InputError
-from silodem.safety import check_numbers
+from silodem.silo.checks import check_numbers
 from silodem.silo.procedure import SiloRun
 
 INJECT_AT_CHUNK = 14  # settling: some checkpoints are behind, the run has far to go

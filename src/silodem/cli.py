@@ -178,7 +178,7 @@ def run(
     cfg = _config(source, sets, quick)
     out_dir = out if out is not None else Path("runs") / cfg.name
     from silodem.run import run_simulation  # imports numba: only when running
-    from silodem.safety import check_numbers
+    from silodem.silo.checks import check_numbers
 
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     _check_out(out_dir)
@@ -340,7 +340,7 @@ def sweep(
                "again to retry them", 1)
 
 
-_MAX_BENCH_STEPS = 10**12  # as safety.MAX_STEPS; a 64-bit step count beyond is an overflow
+_MAX_BENCH_STEPS = 10**12  # as silo.checks.MAX_STEPS; a 64-bit step count beyond is an overflow
 
 
 @app.command()

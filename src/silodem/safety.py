@@ -1,6 +1,7 @@
-"""Run safety (docs/reliability.md): numbers that give no usable run are refused before it
-starts; a run that becomes unphysical is stopped with a diagnosis; checkpoints are written
-every ``checkpoint.every_steps`` steps and when SIGINT or SIGTERM asks the run to stop.
+"""Run safety (docs/reliability.md): a run that becomes unphysical is stopped with a
+diagnosis; checkpoints are written every ``checkpoint.every_steps`` steps and when SIGINT or
+SIGTERM asks the run to stop. (Numbers that give no usable run are refused before it starts
+by ``silo.checks.check_numbers``.)
 
 :class:`RunGuard` drives a ``SiloRun`` and is its chunk hook: between two chunks it checks the
 state, then saves results.h5 and checkpoint.h5 when they are due or when a signal came.
@@ -45,105 +46,16 @@ from silodem.checkpoint import (
     save_checkpoint,
 )
 from silodem.config import Config
-from silodem.errors import InputError, RunInterrupted, UnstableRunError, one_line
+from silodem.errors import RunInterrupted, UnstableRunError, one_line
+from silodem.silo.checks import law_key_names
 
 if TYPE_CHECKING:
     from silodem.silo.procedure import SiloRun
 
 ENERGY_FACTOR = 100.0
-MAX_STEPS = 1e12  # a run allowed more steps than this is refused
-STIFFNESS_RANGE = (1e-100, 1e100)  # contact stiffnesses outside are refused [N/m]
 DIAGNOSTIC_NAME = "diagnostic.json"
 RESULTS_NAME = "results.h5"
 _STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
-
-
-# --- before the run ------------------------------------------------------------------------
-
-
-def law_key_names(cfg: Config) -> str:
-    """The keys of ``cfg``'s contact law, for messages: "material.kn, material.ks, ..." """
-    from silodem.config import LAW_KEYS
-
-    names = LAW_KEYS[cfg.material.contact_model]
-    return ", ".join(f"{section}.{key}" for section in ("material", "walls") for key in names)
-
-
-def check_numbers(cfg: Config) -> tuple[float, float]:
-    """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
-    run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, or a
-    loose fill with more grains than fit in the silo)."""
-    from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
-    from silodem.silo.geometry import build_walls
-
-    law_keys = law_key_names(cfg)
-    keys = f"{law_keys}, material.density, material.radius_min, material.thickness and time.dt"
-    hertz = cfg.material.contact_model == "hertz_mindlin"
-    what, unit = (("contact moduli 2 E*, 8 G*", "Pa") if hertz
-                  else ("contact stiffnesses", "N/m"))
-    try:
-        with np.errstate(all="ignore"):
-            law = grain_law(cfg)
-            walls = build_walls(cfg)
-            stiffness = [law.kn, law.ks, *walls.kn.tolist(), *walls.ks.tolist()]
-            if not all(STIFFNESS_RANGE[0] <= k <= STIFFNESS_RANGE[1] for k in stiffness):
-                raise InputError(
-                    f"the {what} ({law_keys} combined) come out as {min(stiffness):.3g} to "
-                    f"{max(stiffness):.3g} {unit}; they must lie in {STIFFNESS_RANGE[0]:.0e} to "
-                    f"{STIFFNESS_RANGE[1]:.0e} {unit}")
-            dt, dt_crit = choose_time_step(cfg, law, walls.kn, walls.ks)
-            estimate_overlap(cfg)
-    except InputError:
-        raise
-    except (ArithmeticError, ValueError) as exc:
-        raise InputError(f"the grain and wall values give no usable time step ({exc}); "
-                         f"check {keys}") from None
-    if not (math.isfinite(dt) and math.isfinite(dt_crit) and dt > 0):
-        raise InputError(f"the grain and wall values give a time step of {dt:.3g} s (stability "
-                         f"limit {dt_crit:.3g} s), which cannot be used; check {keys}")
-    check_sizes(cfg)
-    if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
-        from silodem.silo.geometry import silo_shape
-        from silodem.silo.procedure import loose_sites
-
-        loose_sites(silo_shape(cfg), cfg.material.radius_max, cfg.fill.n_particles)
-    total = cfg.fill.max_time + cfg.settle.max_time
-    if cfg.discharge.enabled:
-        total += cfg.discharge.max_time
-    if total / dt > MAX_STEPS:
-        raise InputError(
-            f"a time step of {dt:.3g} s would allow {total / dt:.2g} steps in the phase time "
-            f"limits ({total:g} s = fill.max_time + settle.max_time + discharge.max_time), more "
-            f"than {MAX_STEPS:.0e}; check {keys}")
-    return dt, dt_crit
-
-
-MAX_GRID_CELLS = 1e7  # velocity-field cells (3 sums each) [-]
-MAX_FIELD_CELLS = 1e6  # density and stress field cells (2 x 4 sums, 256 quadrature points) [-]
-MAX_WALL_BINS = 1e6  # wall-stress bins [-]
-MAX_KERNEL_CELLS = 1e4  # field cells a grain's or contact's Gaussian is summed over [-]
-MAX_SEARCH_CELLS = 1e8  # cells of the neighbour search over the silo [-]
-
-
-def _check_circles(cfg: Config, shape, size: str) -> None:
-    """InputError for a configured measurement circle larger than the silo's diagonal (its
-    area quadrature would overflow) or with no part inside the silo (it would measure
-    nothing); the circles placed as the recorder places them (``regions.circles_for``)."""
-    from silodem.measure.regions import circles_for
-
-    if cfg.measure.circle_names is None:
-        return
-    reach = math.hypot(shape.width, shape.wall_top)
-    for name, r in zip(cfg.measure.circle_names, cfg.measure.circle_radius):
-        if r > reach:
-            raise InputError(f"measure.circle_radius of circle '{name}' = {r:.3g} m is larger "
-                             f"than {size} (diagonal {reach:.3g} m)")
-    m = cfg.measure
-    for c, z in zip(circles_for(cfg, shape), m.circle_z):
-        if c.area_inside == 0.0:
-            raise InputError(f"measurement circle '{c.name}' (x = {c.x:.3g} m, z = {z:.3g} m "
-                             f"from the {m.circle_z_from}, radius {c.radius:.3g} m) has no "
-                             f"part inside {size}")
 
 
 # what a run and its pictures write into the folder (the VTK writer clears its own files)
@@ -162,56 +74,6 @@ def clear_previous_run(out: Path) -> None:
     if figures.is_dir():
         for png in figures.glob("*.png"):
             png.unlink()
-
-
-def check_sizes(cfg: Config) -> None:
-    """InputError when a length, valid by itself, is so small against the silo that the
-    arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
-    density and stress fields (``measure.field_cell``), the wall bins (``measure.wall_bin``),
-    the neighbour search's cells (2 r_max + skin)."""
-    from silodem.measure.gaussian import CUTOFF
-    from silodem.measure.regions import bin_length, field_cell, field_width, grid_cell
-    from silodem.silo.geometry import silo_shape
-    from silodem.silo.procedure import neighbour_skin
-
-    shape = silo_shape(cfg)
-    width, height = shape.width, shape.wall_top
-    size = f"the silo ({width:.3g} m x {height:.3g} m)"
-    grids = [("grid_cell", grid_cell(cfg), "one mean grain diameter", "velocity",
-              MAX_GRID_CELLS),
-             ("field_cell", field_cell(cfg), "four mean grain diameters", "field",
-              MAX_FIELD_CELLS)]
-    for name, cell, default, what, limit in grids:
-        # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
-        cells = max(1.0, width / cell) * max(1.0, height / cell)
-        if not cells <= limit:
-            key = f"measure.{name}" if getattr(cfg.measure, name) else \
-                f"measure.{name} (unset: {default})"
-            raise InputError(f"{key} = {cell:.3g} m cuts {size} into {cells:.3g} {what} "
-                             f"cells, more than {limit:.0e}; give a larger measure.{name}")
-    bins = 2.0 * (width + height) / bin_length(cfg)
-    if not bins <= MAX_WALL_BINS:
-        key = "measure.wall_bin" if cfg.measure.wall_bin else \
-            "measure.wall_bin (unset: two mean grain diameters)"
-        raise InputError(f"{key} = {bin_length(cfg):.3g} m cuts the walls of {size} into "
-                         f"{bins:.3g} bins, more than {MAX_WALL_BINS:.0e}; give a larger "
-                         "measure.wall_bin")
-    if cfg.measure.field_kernel == "gaussian":
-        reach = 2.0 * CUTOFF * field_width(cfg) / field_cell(cfg)  # cells across one kernel
-        if not reach**2 <= MAX_KERNEL_CELLS:
-            raise InputError(
-                f"measure.field_width = {field_width(cfg):.3g} m spreads each grain and contact "
-                f"over {reach**2:.3g} field cells of {field_cell(cfg):.3g} m, more than "
-                f"{MAX_KERNEL_CELLS:.0e} (a slow measurement); give a smaller "
-                "measure.field_width or a larger measure.field_cell")
-    _check_circles(cfg, shape, size)
-    search = 2.0 * cfg.material.radius_max + neighbour_skin(cfg)  # as NeighborList.rebuild
-    cells = (width / search + 1) * (height / search + 1)
-    if not cells <= MAX_SEARCH_CELLS:
-        raise InputError(f"material.radius_max = {cfg.material.radius_max:.3g} m is so small "
-                         f"against {size} that its neighbour search needs {cells:.3g} cells, "
-                         f"more than {MAX_SEARCH_CELLS:.0e}; give larger grains or a smaller "
-                         "silo")
 
 
 # --- finding what went wrong ---------------------------------------------------------------

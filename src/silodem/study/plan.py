@@ -156,7 +156,7 @@ def _base_config(study: LoadedStudy, name: str) -> Config:
 def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> StudyPlan:
     """Every run of ``study`` (seeds outermost, then the grid product in the order of its
     keys, the first key slowest).  ``check``: also refuse values that validate one by one but
-    give no usable run together (``silodem.safety.check_numbers``).  InputError, one line,
+    give no usable run together (``silodem.silo.checks.check_numbers``).  InputError, one line,
     naming the grid point, for a run that is not valid."""
     spec = study.spec
     names = spec.grid.get(GRID_BASE, [spec.base])
@@ -185,7 +185,7 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
                 except InputError as exc:
                     raise InputError(f"{where}: {exc}") from None
             if check:
-                from silodem.safety import check_numbers
+                from silodem.silo.checks import check_numbers
 
                 try:
                     check_numbers(cfg)
