@@ -109,7 +109,7 @@ def test_strips_make_the_pair_loop_race_free(seed):
     has its second grain in the first grain's strip or the next one (so strip s writes to s and
     s + 1 only).  Checked on every pair of a random packing with many strips; the strips must
     also tile the grains, cut at cell-row boundaries, and hold similar numbers of grains."""
-    from silodem.engine.neighbors import STRIPS
+    from silodem.engine.cells import STRIPS
 
     rng = np.random.default_rng(seed)
     p = _random_grains(rng, 6000, 20.0)
@@ -137,7 +137,7 @@ def test_thread_blocks_cut_the_strips_nearest_to_equal_work(threads):
     """Each thread gets a run of consecutive strips; the cut between runs k - 1 and k must be
     a strip boundary whose work so far (grains + PAIR_WORK x candidates) is nearest to
     k / threads of the total, found here by trying every boundary."""
-    from silodem.engine.neighbors import PAIR_WORK, thread_blocks
+    from silodem.engine.cells import PAIR_WORK, thread_blocks
 
     rng = np.random.default_rng(threads)
     n_strips = 40

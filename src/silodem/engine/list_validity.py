@@ -49,8 +49,8 @@ from __future__ import annotations
 
 import math
 
+from silodem.engine.cells import cell_of
 from silodem.engine.contact import pair_offset
-from silodem.engine.neighbors import cell_of
 from silodem.jit import njit
 
 
