@@ -185,10 +185,16 @@ def test_ctrl_c_in_a_terminal_stops_the_sweep_without_worker_tracebacks(tmp_path
     study = tmp_path / "tiny.toml"
     study.write_text(TINY, encoding="utf-8")
     runs = tmp_path / "study" / "runs"
+    # as from a terminal: SIGINT at its default, which Python turns into KeyboardInterrupt.
+    # A test run started in the background by a non-interactive shell inherits SIGINT
+    # ignored, and a Python started so keeps ignoring it (the sweep then ran to its end)
     proc = subprocess.Popen(command("sweep", str(study), "--workers", "2", "--out",
                                     str(tmp_path / "study")),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=env(), start_new_session=True)
+                            env=env(), start_new_session=True,
+                            # one signal() call in the child before exec: safe with threads
+                            preexec_fn=lambda: signal.signal(  # noqa: PLW1509
+                                signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 120
         while not (runs.is_dir() and any(runs.glob(".*.tmp-*/attempt.json"))):

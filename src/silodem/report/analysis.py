@@ -233,6 +233,13 @@ def _fit_theory(a: Analysis, shape) -> None:
     a.hopper = hop
 
 
+def _window_mean(values: np.ndarray) -> float:
+    """Mean of the finite values; NaN, without numpy's warning, when there are none (a
+    circle that held no contact in the whole window)."""
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else float("nan")
+
+
 def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
     c = a.res.group("measure", "circles")
     if c is None:
@@ -241,10 +248,9 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
     for k, name in enumerate(c["name"]):
         row = {}
         for comp, label in ((0, "sigma_h"), (1, "sigma_v")):
-            f = np.nanmean(stress[masks["fill"], k, comp]) if masks["fill"].any() else np.nan
-            dd = np.nanmean(stress[masks["discharge"], k, comp]) if masks[
-                "discharge"].any() else np.nan
-            row[label + "_fill"], row[label + "_discharge"] = float(f), float(dd)
+            f = _window_mean(stress[masks["fill"], k, comp])
+            dd = _window_mean(stress[masks["discharge"], k, comp])
+            row[label + "_fill"], row[label + "_discharge"] = f, dd
             row[label + "_change_pct"] = float(100.0 * (dd - f) / f) if f else float("nan")
         a.change[str(name)] = row
     if "fill" in a.peaks and "discharge" in a.peaks:
