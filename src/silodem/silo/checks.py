@@ -142,7 +142,7 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
                            c.hertz)
 
 
-# --- values that give no usable run together, and arrays too large ------------------------------------------------------------------------
+# --- values that give no usable run together, and arrays too large -------------------------------
 
 
 def law_key_names(cfg: Config) -> str:
