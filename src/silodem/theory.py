@@ -2,7 +2,8 @@
 
 Units are SI throughout: lengths [m], densities [kg/m^3], g [m/s^2], stresses [Pa], angles in
 degrees where the argument name ends in ``_deg``.  Stresses are compressive positive (soil
-mechanics).  Every function works on NumPy arrays.
+mechanics).  The depth and height arguments (and the data of the fits) may be NumPy arrays;
+the material and geometry parameters are scalars.
 
 Angles: the config gives the hopper wall slope theta FROM THE HORIZONTAL
 (``silo.hopper_angle_from_horizontal_deg``); hopper theory (Walker, Jenike, Nedderman) uses the
@@ -80,7 +81,8 @@ def janssen_wall_shear(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K
 
 @dataclass(frozen=True)
 class JanssenFit:
-    """Result of :func:`fit_janssen`: K [-], mu_w [-], their standard errors, rms residual [Pa]."""
+    """Result of :func:`fit_janssen`: K [-], mu_w [-], their standard errors (``mu_w_err`` is 0
+    when mu_w was given, not fitted), rms residual [Pa]."""
 
     K: float
     mu_w: float
@@ -106,7 +108,8 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
 
     sigma_h = rho_b g B / (2 mu_w) (1 - exp(-2 K mu_w depth / B)): the asymptote gives mu_w, the
     curvature K mu_w.  With ``mu_w`` given (e.g. the mobilised wall friction measured as
-    sum(tau)/sum(sigma_n)) only K is fitted.  NaN points are ignored.  Units as in
+    sum(tau)/sum(sigma_n)) only K is fitted.  NaN points and points at depth <= 0 (above the
+    free surface) are left out.  Units as in
     :func:`janssen_sigma_v`.  Uses scipy.optimize.curve_fit (trust-region reflective, bounds
     K, mu_w > 0).
     """
@@ -161,7 +164,7 @@ def walker_exponent(alpha_deg: float, mu_w: float, D: float = 1.0, planar: bool 
     sigma_v, Walker's distribution factor (wall normal stress over mean vertical stress) [-].
     With D = 1 and m = 1, n = 2 (1 + mu_w/tan(alpha)) - 2 = n_i + 1 with the paper's
     n_i = 2 (1 + tan(phi_P)/tan(alpha)) - 3.  Source: Walker (1966), Chem. Eng. Sci. 21, 975;
-    Nedderman (1992) ch. 4 (the method of differential slices).
+    Nedderman (1992), the method of differential slices.
     """
     m = 0 if planar else 1
     return (m + 1) * (D * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 1.0)
@@ -178,7 +181,8 @@ def hopper_sigma_v(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha_deg
     tan(alpha), P = 2 (wedge, per unit thickness) or A = pi (h tan(alpha))^2, P = 2 pi h
     tan(alpha) (cone).  H: height of the transition above the apex [m]; q: mean vertical stress
     on the transition from the cell above [Pa]; gamma = rho_b g [N/m^3]; n = 1 is the limit
-    gamma h ln(H/h) + q h/H.  Source: Walker (1966); Nedderman (1992) ch. 4.
+    gamma h ln(H/h) + q h/H.  Source: Walker (1966); Nedderman (1992), the method of
+    differential slices.
     """
     h = np.asarray(h, dtype=float)
     n = walker_exponent(alpha_deg, mu_w, D, planar)
@@ -201,7 +205,9 @@ def hopper_wall_normal(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha
 
 def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamma: float,
                alpha_deg: float, mu_w: float) -> np.ndarray | float:
-    """The paper's eq. (12) as printed [Pa]:
+    """The paper's eq. (12) as printed [Pa], with its hopper angle read as alpha, the half-angle
+    from the vertical (DESIGN.md section 4; the paper writes one theta for this angle and for
+    the hopper slopes of its cases, which the config reads from the horizontal):
 
     sigma = gamma [(h' - z)/n_i + (q/gamma - h'/n_i) (1 - z/h')^(n_i + 1)],
     n_i = 2 (1 + tan(phi_P)/tan(alpha)) - 3,
@@ -225,8 +231,10 @@ def walker_distribution_factor(delta_deg: float, phi_w_deg: float, alpha_deg: fl
     the passive (flowing) state at a wall of friction angle phi_w, with the vertical stress at
     the wall taken as the mean vertical stress (Walker's assumption).  alpha: half-angle from
     the vertical [deg].  For alpha = 0 it is the vertical-wall K of Walker/Nedderman; for a
-    smooth wall (phi_w = 0) Rankine's passive K = (1 + sin delta)/(1 - sin delta).
-    Source: Walker (1966); Nedderman (1992) ch. 4.
+    vertical smooth wall (alpha = 0 and phi_w = 0) Rankine's passive K =
+    (1 + sin delta)/(1 - sin delta).  The passive state only: it is the stress distribution
+    of a flowing hopper, not of one being filled.
+    Source: Walker (1966); Nedderman (1992), the method of differential slices.
     """
     s = math.sin(math.radians(delta_deg))
     pw = math.radians(phi_w_deg)
@@ -277,7 +285,8 @@ class BeverlooFit:
 def fit_beverloo_free(D: npt.ArrayLike, W: npt.ArrayLike, W_err: npt.ArrayLike, d: float,
                       rho_b: float, g: float, t: float) -> BeverlooFit:
     """C, k and the exponent b free: weighted least squares on ln W (scipy ``curve_fit``,
-    sigma = W_err / W, absolute); k is bounded below min(D)/d.  Needs four outlet widths or
+    sigma = W_err / W, absolute); k is bounded above by 0.95 min(D)/d (so that D - k d > 0 at
+    every width).  Needs four outlet widths or
     more (three parameters).  D, W, W_err: arrays [m, kg/s, kg/s]; d [m], rho_b [kg/m^3],
     g [m/s^2], t [m] as in :func:`beverloo_2d`."""
     from scipy.optimize import curve_fit
@@ -314,10 +323,13 @@ def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_
     cov = np.full((2, 2), np.nan)
     if w is not None and D.size >= 3:  # the given errors: absolute
         (slope, intercept), cov = np.polyfit(D, y, 1, w=w, cov="unscaled")
-    elif D.size >= 4:  # errors from the scatter (numpy needs two points more than parameters)
-        (slope, intercept), cov = np.polyfit(D, y, 1, cov=True)
     else:
         slope, intercept = np.polyfit(D, y, 1)
+        if D.size >= 3:  # errors from the scatter about the line, N - 2 degrees of freedom
+            # (written out: numpy's cov=True scaled by N - 4 before numpy 2)
+            A = np.column_stack([D, np.ones_like(D)])
+            resid = y - (slope * D + intercept)
+            cov = np.linalg.inv(A.T @ A) * float(resid @ resid) / (D.size - 2)
     scale = rho_b * math.sqrt(g) * t
     C = slope**1.5 / scale
     k = -intercept / slope / d
@@ -356,7 +368,6 @@ def en1991_4_discharge(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
                        A_over_U: float, C_h: float = 1.15,
                        C_w: float = 1.10) -> tuple[np.ndarray | float, np.ndarray | float]:
     """EN 1991-4:2006 §5.2.2.2 fixed discharge loads of slender silos: p_he = C_h p_hf,
-    p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10, expressions 5.22-5.23; 1.0 for a silo emptied
-    from the top).  The patch load is not included.  Returns (p_he, p_we)."""
+    p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10; 1.0 for a silo emptied from the top).  The patch load is not included.  Returns (p_he, p_we)."""
     p_h, p_w, _ = en1991_4_filling(depth, gamma, K, mu, A_over_U)
     return C_h * p_h, C_w * p_w
