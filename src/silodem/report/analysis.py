@@ -233,11 +233,13 @@ def _fit_theory(a: Analysis, shape) -> None:
     a.hopper = hop
 
 
-def _window_mean(values: np.ndarray) -> float:
-    """Mean of the finite values; NaN, without numpy's warning, when there are none (a
-    circle that held no contact in the whole window)."""
-    finite = values[np.isfinite(values)]
-    return float(finite.mean()) if finite.size else float("nan")
+def window_mean(values: np.ndarray) -> float:
+    """Mean of the finite values (``np.nanmean``); NaN, without numpy's warning, when there
+    are none (a circle that held no contact in the whole window).  The report and a study's
+    table (``study.table``) both take their window means here, so they agree to the bit."""
+    if not np.isfinite(values).any():
+        return float("nan")
+    return float(np.nanmean(values))
 
 
 def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
@@ -248,8 +250,8 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
     for k, name in enumerate(c["name"]):
         row = {}
         for comp, label in ((0, "sigma_h"), (1, "sigma_v")):
-            f = _window_mean(stress[masks["fill"], k, comp])
-            dd = _window_mean(stress[masks["discharge"], k, comp])
+            f = window_mean(stress[masks["fill"], k, comp])
+            dd = window_mean(stress[masks["discharge"], k, comp])
             row[label + "_fill"], row[label + "_discharge"] = f, dd
             row[label + "_change_pct"] = float(100.0 * (dd - f) / f) if f else float("nan")
         a.change[str(name)] = row

@@ -148,7 +148,7 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
     """The per-run quantities of :data:`COLUMNS` (and per-circle ones) from a results folder."""
-    from silodem.report.analysis import analyse
+    from silodem.report.analysis import analyse, window_mean
     from silodem.report.load import load_results
 
     res = load_results(folder)
@@ -174,10 +174,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
 
         def window_stats(sh: np.ndarray, sv: np.ndarray, prefix: str) -> None:
             for key, mask in masks.items():
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", RuntimeWarning)
-                    h = float(np.nanmean(sh[mask])) if mask.any() else NAN
-                    v = float(np.nanmean(sv[mask])) if mask.any() else NAN
+                h, v = window_mean(sh[mask]), window_mean(sv[mask])
                 out[f"{prefix}sigma_h_{key}"], out[f"{prefix}sigma_v_{key}"] = h, v
                 ratio, cv = _ratio_stats(sh[mask], sv[mask])
                 if prefix == "switch_":
