@@ -11,7 +11,7 @@ from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.engine.walls import Walls
 from silodem.measure.coordination import contacts_per_grain, coordination_number
-from silodem.measure.frame import frame_from_sim
+from silodem.measure.reading import read_simulation
 from silodem.measure.stress import circle_measure
 
 R = 0.05
@@ -39,12 +39,12 @@ def _packing(kind: str, n: int = 14):
 @pytest.mark.parametrize("kind,expected", [("square", 4), ("triangular", 6)])
 def test_coordination_number_of_regular_packings(kind, expected):
     sim, cx, cz = _packing(kind)
-    fr = frame_from_sim(sim)
-    m = circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, cx, cz, 0.3)
+    rd = read_simulation(sim)
+    m = circle_measure(rd.x, rd.z, rd.r, rd.moments, rd.counts, cx, cz, 0.3)
     assert m["count"] > 20
     assert m["coordination"] == expected
-    inner = np.hypot(fr.x - cx, fr.z - cz) < 0.3
-    assert coordination_number(fr.counts, inner) == expected
+    inner = np.hypot(rd.x - cx, rd.z - cz) < 0.3
+    assert coordination_number(rd.counts, inner) == expected
 
 
 def test_contacts_per_grain_counts_pairs_twice_and_walls_once():

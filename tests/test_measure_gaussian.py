@@ -13,8 +13,8 @@ from measure_helpers import tiny_hopper_config
 from scipy.integrate import quad
 
 from silodem.measure.fields import fields_of
-from silodem.measure.frame import frame_from_sim
 from silodem.measure.gaussian import gaussian_sums, segment_weight
+from silodem.measure.reading import read_simulation
 from silodem.measure.recorders import MeasureRecorder, recorders_for
 from silodem.silo.procedure import SiloRun
 from silodem.silo.recorders import Recorder
@@ -41,7 +41,7 @@ def test_line_integral_equals_quadrature():
 
 
 def _frame(rng, n=60, contacts=120, walls=20):
-    """Random grains, grain-grain and wall contacts (the fields of ``measure.frame.Frame``
+    """Random grains, grain-grain and wall contacts (the fields of ``measure.reading.Reading``
     that ``gaussian_sums`` reads)."""
     x, z = rng.uniform(0.4, 0.6, n), rng.uniform(0.4, 0.6, n)
     i = rng.integers(0, n, contacts)
@@ -60,18 +60,18 @@ def test_fields_integrate_to_the_mass_and_the_love_weber_total():
     h^2 rho t is the total mass and that of h^2 sigma t is sum f (x) l over the contacts
     (grain-grain: f on j, l = r_j - r_i; wall: minus the force on the grain, l = contact point
     - centre), to the cut at 5 w (4e-6)."""
-    fr = _frame(np.random.default_rng(11))
+    rd = _frame(np.random.default_rng(11))
     w = 0.04
     h = w / 3
     edges = np.arange(0.4 - 6 * w - 0.2, 0.6 + 6 * w + 0.2 + h, h)
-    mass, stress = gaussian_sums(fr, edges, edges, w)
-    assert mass.sum() * h * h == pytest.approx(fr.mass.sum(), rel=1e-5)
-    lx, lz = fr.x[fr.j] - fr.x[fr.i], fr.z[fr.j] - fr.z[fr.i]
-    wx, wz = fr.w_cx - fr.x[fr.w_grain], fr.w_cz - fr.z[fr.w_grain]
+    mass, stress = gaussian_sums(rd, edges, edges, w)
+    assert mass.sum() * h * h == pytest.approx(rd.mass.sum(), rel=1e-5)
+    lx, lz = rd.x[rd.j] - rd.x[rd.i], rd.z[rd.j] - rd.z[rd.i]
+    wx, wz = rd.w_cx - rd.x[rd.w_grain], rd.w_cz - rd.z[rd.w_grain]
     total = np.array([
-        np.sum(fr.fx * lx) - np.sum(fr.w_fx * wx),
-        np.sum(fr.fz * lz) - np.sum(fr.w_fz * wz),
-        0.5 * (np.sum(fr.fx * lz + fr.fz * lx) - np.sum(fr.w_fx * wz + fr.w_fz * wx))])
+        np.sum(rd.fx * lx) - np.sum(rd.w_fx * wx),
+        np.sum(rd.fz * lz) - np.sum(rd.w_fz * wz),
+        0.5 * (np.sum(rd.fx * lz + rd.fz * lx) - np.sum(rd.w_fx * wz + rd.w_fz * wx))])
     scale = np.abs(total).max()
     np.testing.assert_allclose(stress.sum(axis=(0, 1)) * h * h, total, rtol=0,
                                atol=1e-5 * scale)
@@ -86,11 +86,11 @@ def test_density_of_a_triangular_lattice_is_its_packing_fraction():
     rows, cols = 40, 40
     x = np.array([2 * r * c + (r if k % 2 else 0.0) for k in range(rows) for c in range(cols)])
     z = np.array([math.sqrt(3) * r * k for k in range(rows) for c in range(cols)])
-    fr = SimpleNamespace(x=x, z=z, mass=np.full(x.size, rho * math.pi * r * r * t),
+    rd = SimpleNamespace(x=x, z=z, mass=np.full(x.size, rho * math.pi * r * r * t),
                          i=np.zeros(0, int), w_grain=np.zeros(0, int))
     w = 2 * r
     xe, ze = np.linspace(0, x.max(), 31), np.linspace(0, z.max(), 31)
-    mass, stress = gaussian_sums(fr, xe, ze, w)
+    mass, stress = gaussian_sums(rd, xe, ze, w)
     density, _ = fields_of(mass, -stress, np.ones(mass.shape), t, 1)
     xc, zc = 0.5 * (xe[1:] + xe[:-1]), 0.5 * (ze[1:] + ze[:-1])
     inner = np.ix_((xc > 5 * w) & (xc < x.max() - 5 * w), (zc > 5 * w) & (zc < z.max() - 5 * w))
@@ -112,7 +112,7 @@ class _SettledFrame(Recorder):
 
     def phase_ended(self, run, phase: str) -> None:
         if phase == "settle":
-            self.frame = frame_from_sim(run.sim)
+            self.frame = read_simulation(run.sim)
 
 
 def test_a_gaussian_run_records_the_fields_of_its_settled_packing():

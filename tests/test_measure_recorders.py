@@ -153,7 +153,7 @@ def test_recorded_circles_and_band_equal_a_recount_from_the_raw_contacts(runs):
     the circle's area inside the silo as integrals of chord lengths (adaptive quadrature, error
     ~1e-10; the recorder's area inside the silo is a grid quadrature documented to 1e-4), the
     Love-Weber moments one contact at a time. The recorder takes all of this through
-    ``frame_from_sim``, ``circle_measure`` and ``region_stress``."""
+    ``read_simulation``, ``circle_measure`` and ``region_stress``."""
     cfg, _, measured = runs
     rec = next(r for r in measured.recorders if isinstance(r, MeasureRecorder))
     snap = rec.flow.snapshot

@@ -16,7 +16,7 @@ from silodem.engine.contact import GrainLaw, damping_ratio_from_restitution
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.engine.walls import Walls
-from silodem.measure.frame import frame_from_sim
+from silodem.measure.reading import read_simulation
 from silodem.measure.stress import circle_measure, grain_moments, lens_area, region_stress
 
 P_X, P_Z = 3000.0, 1500.0  # applied stresses [Pa]
@@ -88,8 +88,8 @@ def test_stress_of_a_packing_compressed_between_walls_equals_the_wall_stress(com
     f = q.force_on_walls(sim)
     applied_x, applied_z = f[1, 0] / height, f[2, 1] / width  # [Pa], thickness 1 m
     assert applied_x > 1.3 * applied_z > 0  # an anisotropic load (it relaxes a little)
-    fr = frame_from_sim(sim)
-    whole = region_stress(fr.moments, np.ones(fr.n, bool), width * height, 1.0)
+    rd = read_simulation(sim)
+    whole = region_stress(rd.moments, np.ones(rd.n, bool), width * height, 1.0)
     reference, bound = boundary_stress(sim)
     assert bound < 1e-5 * applied_z  # at rest: the comparison below is sharp
     assert abs(reference[2]) > 100 * bound  # a shear stress, not zero, is what is checked
@@ -98,10 +98,10 @@ def test_stress_of_a_packing_compressed_between_walls_equals_the_wall_stress(com
     assert whole[0] == pytest.approx(applied_x, abs=bound)
     assert whole[1] == pytest.approx(applied_z, abs=bound)
     # a PFC measurement circle enclosing the box, porosity taken over the box area
-    m = circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, width / 2, height / 2,
+    m = circle_measure(rd.x, rd.z, rd.r, rd.moments, rd.counts, width / 2, height / 2,
                        0.75 * max(width, height), area_inside=width * height)
     np.testing.assert_allclose(m["stress"], reference, rtol=0, atol=bound)
-    solid = np.sum(np.pi * fr.r**2)
+    solid = np.sum(np.pi * rd.r**2)
     assert m["porosity"] == pytest.approx(1.0 - solid / (width * height), abs=1e-9)
     # circles inside the packing (about 70 grains each): the same stress on average. Each
     # circle's value scatters with the grains it holds; the mean of the five is within one
@@ -109,7 +109,7 @@ def test_stress_of_a_packing_compressed_between_walls_equals_the_wall_stress(com
     # s / sqrt 5, for these overlapping ones between that and s): |mean - applied| < s
     xs = []
     for cx, cz in [(0.35, 0.35), (0.35, 0.65), (0.65, 0.35), (0.65, 0.65), (0.5, 0.5)]:
-        xs.append(circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, cx * width,
+        xs.append(circle_measure(rd.x, rd.z, rd.r, rd.moments, rd.counts, cx * width,
                                  cz * height, 0.3 * width)["stress"])
     mean, scatter = np.mean(xs, axis=0), np.std(xs, axis=0, ddof=1)
     assert abs(mean[0] - applied_x) < scatter[0]
@@ -126,17 +126,17 @@ def test_stress_field_of_the_compressed_box_adds_up_to_the_wall_stress(compresse
     sim = compressed_box
     w = sim.walls
     width, height = w.ax[1], w.ay[2]
-    fr = frame_from_sim(sim)
+    rd = read_simulation(sim)
     xe, ze = np.linspace(0, width, 5), np.linspace(0, height, 5)
-    mass, moments = cell_sums(fr.x, fr.z, fr.mass, fr.moments, xe, ze)
+    mass, moments = cell_sums(rd.x, rd.z, rd.mass, rd.moments, xe, ze)
     area = np.outer(np.diff(xe), np.diff(ze))
     density, stress = fields_of(mass, moments, area, 1.0, 1)
-    whole = region_stress(fr.moments, np.ones(fr.n, bool), width * height, 1.0)
+    whole = region_stress(rd.moments, np.ones(rd.n, bool), width * height, 1.0)
     np.testing.assert_allclose((stress * area[..., None]).sum(axis=(0, 1)) / (width * height),
                                whole, rtol=1e-12, atol=1e-12 * abs(whole).max())
     reference, bound = boundary_stress(sim)
     np.testing.assert_allclose(whole, reference, rtol=0, atol=bound)
-    assert (density * area).sum() == pytest.approx(fr.mass.sum(), rel=1e-12)
+    assert (density * area).sum() == pytest.approx(rd.mass.sum(), rel=1e-12)
 
 
 def test_two_disks_pressed_together_carry_f_times_2r_over_the_area():
@@ -189,13 +189,13 @@ def test_gaussian_stress_of_the_compressed_box_integrates_to_the_wall_stress(com
     sim = compressed_box
     w = sim.walls
     width, height = w.ax[1], w.ay[2]
-    fr = frame_from_sim(sim)
+    rd = read_simulation(sim)
     kernel = 0.2
     h = kernel / 3
     edges = np.arange(-6 * kernel, max(width, height) + 6 * kernel, h)
-    _, stress = gaussian_sums(fr, edges, edges, kernel)  # thickness 1 m: sigma = the sums
+    _, stress = gaussian_sums(rd, edges, edges, kernel)  # thickness 1 m: sigma = the sums
     mean = stress.sum(axis=(0, 1)) * h * h / (width * height)
-    whole = region_stress(fr.moments, np.ones(fr.n, bool), width * height, 1.0)
+    whole = region_stress(rd.moments, np.ones(rd.n, bool), width * height, 1.0)
     np.testing.assert_allclose(mean, whole, rtol=0, atol=1e-5 * abs(whole).max())
     reference, bound = boundary_stress(sim)
     np.testing.assert_allclose(mean, reference, rtol=0, atol=bound + 1e-5 * abs(whole).max())

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from silodem.config import Config, Discharge, Fill, Material, Settle, Silo, WallMaterial
-from silodem.measure.frame import frame_from_sim
+from silodem.measure.reading import read_simulation
 from silodem.measure.wall_profiles import (
     peak_in_zone,
     wall_bins,
@@ -51,8 +51,8 @@ def test_wall_shear_and_floor_carry_the_weight(settled):
     t = cfg.material.thickness
     for _ in range(steps):
         sim.step()
-        fr = frame_from_sim(sim)
-        sn, tau = wall_stress(bins, w.ax, w.ay, fr.w_wall, fr.w_cx, fr.w_cz, fr.w_fx, fr.w_fz, t)
+        rd = read_simulation(sim)
+        sn, tau = wall_stress(bins, w.ax, w.ay, rd.w_wall, rd.w_cx, rd.w_cz, rd.w_fx, rd.w_fz, t)
         area = bins.length * t
         for k in vertical:  # vertical walls: the downward part of the shear traction
             b = bins.wall == k

@@ -10,6 +10,6 @@ Pure functions over arrays:
 * ``discharge``     mass flow rate, mass flow index, flow classification;
 * ``regions``       where the measurements are made (circles, junction band, switch zone).
 
-Sampling during a run: ``recorders`` (``recorders_for(cfg)``), built on ``frame`` (one read
+Sampling during a run: ``recorders`` (``recorders_for(cfg)``), built on ``reading`` (one read
 of a run's arrays between two steps).
 """

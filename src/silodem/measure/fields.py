@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem.measure import regions
-from silodem.measure.frame import Frame
 from silodem.measure.gaussian import gaussian_sums
+from silodem.measure.reading import Reading
 
 if TYPE_CHECKING:
     import h5py
@@ -108,13 +108,13 @@ class FieldsPart:
         self.moments = {w: np.zeros((*size, 3)) for w in self.WINDOWS}
         self.samples = dict.fromkeys(self.WINDOWS, 0)
 
-    def add(self, window: str, fr: Frame) -> None:
-        """Add one sample (a frame) to ``window``."""
+    def add(self, window: str, rd: Reading) -> None:
+        """Add one sample (a reading) to ``window``."""
         if self.kernel == "gaussian":
-            mass, stress = gaussian_sums(fr, self.x_edges, self.z_edges, self.width)
+            mass, stress = gaussian_sums(rd, self.x_edges, self.z_edges, self.width)
             moments = -stress  # as the box's sums: stress = -moments / volume
         else:
-            mass, moments = cell_sums(fr.x, fr.z, fr.mass, fr.moments, self.x_edges,
+            mass, moments = cell_sums(rd.x, rd.z, rd.mass, rd.moments, self.x_edges,
                                       self.z_edges)
         self.mass[window] += mass
         self.moments[window] += moments

@@ -34,7 +34,7 @@ import numpy as np
 from silodem.jit import njit
 
 if TYPE_CHECKING:
-    from silodem.measure.frame import Frame
+    from silodem.measure.reading import Reading
 
 CUTOFF = 5.0  # terms are summed where the kernel is within this many widths [-]
 
@@ -103,22 +103,22 @@ def add_segments(ax, az, lx, lz, fx, fz, x0, hx, nx, z0, hz, nz, w, out):
                 out[kx, kz, 2] += txz * s
 
 
-def gaussian_sums(fr: Frame, x_edges: np.ndarray, z_edges: np.ndarray,
+def gaussian_sums(rd: Reading, x_edges: np.ndarray, z_edges: np.ndarray,
                   width: float) -> tuple[np.ndarray, np.ndarray]:
     """sum_p m_p phi [kg/m^2], shape (nx, nz), and sum_c f (x) l int phi [N/m], shape
-    (nx, nz, 3) (xx, zz, xz), at the cell centres of the (uniform) grid, for one frame
-    ``fr`` (``measure.frame.Frame``): divided by t they are rho and sigma."""
+    (nx, nz, 3) (xx, zz, xz), at the cell centres of the (uniform) grid, for one reading
+    ``rd`` (``measure.reading.Reading``): divided by t they are rho and sigma."""
     nx, nz = x_edges.size - 1, z_edges.size - 1
     grid = (float(x_edges[0]), float(x_edges[1] - x_edges[0]), nx,
             float(z_edges[0]), float(z_edges[1] - z_edges[0]), nz, float(width))
     mass = np.zeros((nx, nz))
-    add_points(fr.x, fr.z, fr.mass, *grid, mass)
+    add_points(rd.x, rd.z, rd.mass, *grid, mass)
     stress = np.zeros((nx, nz, 3))
-    if fr.i.size:
-        add_segments(fr.x[fr.i], fr.z[fr.i], fr.x[fr.j] - fr.x[fr.i], fr.z[fr.j] - fr.z[fr.i],
-                     fr.fx, fr.fz, *grid, stress)
-    if fr.w_grain.size:
-        g = fr.w_grain
-        add_segments(fr.x[g], fr.z[g], fr.w_cx - fr.x[g], fr.w_cz - fr.z[g], -fr.w_fx,
-                     -fr.w_fz, *grid, stress)
+    if rd.i.size:
+        add_segments(rd.x[rd.i], rd.z[rd.i], rd.x[rd.j] - rd.x[rd.i], rd.z[rd.j] - rd.z[rd.i],
+                     rd.fx, rd.fz, *grid, stress)
+    if rd.w_grain.size:
+        g = rd.w_grain
+        add_segments(rd.x[g], rd.z[g], rd.w_cx - rd.x[g], rd.w_cz - rd.z[g], -rd.w_fx,
+                     -rd.w_fz, *grid, stress)
     return mass, stress

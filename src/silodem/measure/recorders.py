@@ -2,7 +2,7 @@
 
 ``recorders_for(cfg)`` gives the recorders ``SiloRun`` samples; here one ``MeasureRecorder``
 (group ``/measure`` of results.h5) every ``measure.interval`` seconds of simulated time.  Each
-sample reads the run once (:mod:`silodem.measure.frame`) and feeds four parts:
+sample reads the run once (:mod:`silodem.measure.reading`) and feeds four parts:
 
 * circles:  Love-Weber stress, porosity, coordination number in each measurement circle, and
             the coordination number of the band across the junction (Fig. 2);
@@ -28,7 +28,7 @@ import numpy as np
 from silodem.config import Config
 from silodem.measure import regions
 from silodem.measure.fields import FieldsPart
-from silodem.measure.frame import Frame, frame_from_sim
+from silodem.measure.reading import Reading, read_simulation
 from silodem.measure.stress import circle_measure, region_stress
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
 from silodem.silo.geometry import build_walls, silo_shape
@@ -65,19 +65,19 @@ class _CirclesPart:
         self.rows: dict[str, list] = {k: [] for k in ("stress", "porosity", "coordination",
                                                       "count", "band")}
 
-    def record(self, fr: Frame) -> None:
+    def record(self, rd: Reading) -> None:
         nc = len(self.circles)
         stress, por, coord, cnt = np.full((nc, 3), np.nan), np.full(nc, np.nan), \
             np.full(nc, np.nan), np.zeros(nc)
         for k, c in enumerate(self.circles):
-            m = circle_measure(fr.x, fr.z, fr.r, fr.moments, fr.counts, c.x, c.z, c.radius,
+            m = circle_measure(rd.x, rd.z, rd.r, rd.moments, rd.counts, c.x, c.z, c.radius,
                                c.area_inside, self.thickness)
             stress[k], por[k], coord[k], cnt[k] = m["stress"], m["porosity"], \
                 m["coordination"], m["count"]
-        inb = (fr.z >= self.band[0]) & (fr.z < self.band[1])
+        inb = (rd.z >= self.band[0]) & (rd.z < self.band[1])
         nb = int(inb.sum())
-        band_stress = region_stress(fr.moments, inb, self.band_area, self.thickness)
-        band = [fr.counts[inb].mean() if nb else np.nan, nb, *band_stress]
+        band_stress = region_stress(rd.moments, inb, self.band_area, self.thickness)
+        band = [rd.counts[inb].mean() if nb else np.nan, nb, *band_stress]
         for key, val in zip(self.rows, (stress, por, coord, cnt, band)):
             self.rows[key].append(val)
 
@@ -131,19 +131,19 @@ class _ProfilesPart:
         self.right: list = []
         self.slices: list = []
 
-    def record(self, fr: Frame) -> None:
+    def record(self, rd: Reading) -> None:
         w = self.walls
-        sn, tau = wall_stress(self.bins, w.ax, w.ay, fr.w_wall, fr.w_cx, fr.w_cz, fr.w_fx,
-                              fr.w_fz, self.thickness)
+        sn, tau = wall_stress(self.bins, w.ax, w.ay, rd.w_wall, rd.w_cx, rd.w_cz, rd.w_fx,
+                              rd.w_fz, self.thickness)
         self.normal.append(sn)
         self.shear.append(tau)
-        dl, dr = regions.edge_distance(self.shape, fr.x, fr.z)
-        args = (fr.moments, fr.z)
+        dl, dr = regions.edge_distance(self.shape, rd.x, rd.z)
+        args = (rd.moments, rd.z)
         self.left.append(binned_stress(*args, dl < self.width, self.z_edges, self.strip_area,
                                        self.thickness))
         self.right.append(binned_stress(*args, dr < self.width, self.z_edges, self.strip_area,
                                         self.thickness))
-        self.slices.append(binned_stress(*args, np.ones(fr.n, bool), self.z_edges,
+        self.slices.append(binned_stress(*args, np.ones(rd.n, bool), self.z_edges,
                                          self.slice_area, self.thickness))
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -209,52 +209,52 @@ class _FlowPart:
         self.exit_time = np.full(self.uid0.size, np.nan)
         self.max_disp = np.zeros(self.uid0.size)
 
-    def record(self, run: SiloRun, fr: Frame) -> None:
+    def record(self, run: SiloRun, rd: Reading) -> None:
         if not np.isfinite(self.t_open):
             return
-        t = fr.time - self.t_open
-        order = np.argsort(fr.uid)
-        pos = np.searchsorted(fr.uid[order], self.uid0)
-        pos = np.clip(pos, 0, max(fr.n - 1, 0))
-        idx = order[pos] if fr.n else pos
-        present = (fr.uid[idx] == self.uid0) if fr.n else np.zeros(self.uid0.size, bool)
-        present &= fr.z[idx] >= 0.0 if fr.n else present
+        t = rd.time - self.t_open
+        order = np.argsort(rd.uid)
+        pos = np.searchsorted(rd.uid[order], self.uid0)
+        pos = np.clip(pos, 0, max(rd.n - 1, 0))
+        idx = order[pos] if rd.n else pos
+        present = (rd.uid[idx] == self.uid0) if rd.n else np.zeros(self.uid0.size, bool)
+        present &= rd.z[idx] >= 0.0 if rd.n else present
         gone = ~present & np.isnan(self.exit_time)
         self.exit_time[gone] = t
-        if fr.n:
+        if rd.n:
             k = idx[present]
-            disp = np.hypot(fr.x[k] - self.x0[present], fr.z[k] - self.z0[present])
+            disp = np.hypot(rd.x[k] - self.x0[present], rd.z[k] - self.z0[present])
             self.max_disp[present] = np.maximum(self.max_disp[present], disp)
-        if fr.n == 0:
+        if rd.n == 0:
             return
-        if self.in_window(fr):
-            self._grid(fr)
+        if self.in_window(rd):
+            self._grid(rd)
             if self.snapshot is None and t >= self.delay + 0.5 * self.window:
                 self.snapshot = take_snapshot(run)
-        self._mfi(fr, t)
+        self._mfi(rd, t)
 
-    def in_window(self, fr: Frame) -> bool:
-        """Whether the sample ``fr`` is in the discharge window (and holds grains)."""
-        t = fr.time - self.t_open
-        return fr.n > 0 and bool(self.delay <= t <= self.delay + self.window)
+    def in_window(self, rd: Reading) -> bool:
+        """Whether the sample ``rd`` is in the discharge window (and holds grains)."""
+        t = rd.time - self.t_open
+        return rd.n > 0 and bool(self.delay <= t <= self.delay + self.window)
 
-    def _grid(self, fr: Frame) -> None:
-        flat, ok = regions.grid_cell_index(fr.x, fr.z, self.x_edges, self.z_edges)
+    def _grid(self, rd: Reading) -> None:
+        flat, ok = regions.grid_cell_index(rd.x, rd.z, self.x_edges, self.z_edges)
         size = self.grid.shape[1] * self.grid.shape[2]
-        for c, w in enumerate((fr.vx[ok], fr.vz[ok], np.ones(int(ok.sum())))):
+        for c, w in enumerate((rd.vx[ok], rd.vz[ok], np.ones(int(ok.sum())))):
             self.grid[c] += np.bincount(flat, weights=w, minlength=size).reshape(
                 self.grid.shape[1:])
         self.grid_samples += 1
 
-    def _mfi(self, fr: Frame, t: float) -> None:
+    def _mfi(self, rd: Reading, t: float) -> None:
         lo, hi = self.mfi_band
-        band = (fr.z >= lo) & (fr.z < hi)
-        dl, dr = regions.edge_distance(self.shape, fr.x, fr.z)
+        band = (rd.z >= lo) & (rd.z < hi)
+        dl, dr = regions.edge_distance(self.shape, rd.x, rd.z)
         near = band & ((dl < self.d) | (dr < self.d))
-        axis = band & (np.abs(fr.x - 0.5 * self.shape.width) < self.d)
-        tops = np.sort(fr.z + fr.r)[-min(5, fr.n):]
-        self.mfi_rows.append((t, fr.vz[near].mean() if near.any() else np.nan,
-                              fr.vz[axis].mean() if axis.any() else np.nan, near.sum(),
+        axis = band & (np.abs(rd.x - 0.5 * self.shape.width) < self.d)
+        tops = np.sort(rd.z + rd.r)[-min(5, rd.n):]
+        self.mfi_rows.append((t, rd.vz[near].mean() if near.any() else np.nan,
+                              rd.vz[axis].mean() if axis.any() else np.nan, near.sum(),
                               axis.sum(), float(np.mean(tops))))
 
     def state(self) -> dict[str, Any]:
@@ -346,19 +346,19 @@ class MeasureRecorder(Recorder):
         self.rows: list[tuple[float, float, float]] = []  # time, step, phase
 
     def record(self, run: SiloRun) -> None:
-        fr = frame_from_sim(run.sim)
+        rd = read_simulation(run.sim)
         phase = PHASE_CODES[run.phase]
-        self.rows.append((fr.time, fr.step, phase))
-        self.circles.record(fr)
-        self.profiles.record(fr)
+        self.rows.append((rd.time, rd.step, phase))
+        self.circles.record(rd)
+        self.profiles.record(rd)
         if phase == DISCHARGE:
-            self.flow.record(run, fr)
-            if self.flow.in_window(fr):
-                self.fields.add("discharge", fr)
+            self.flow.record(run, rd)
+            if self.flow.in_window(rd):
+                self.fields.add("discharge", rd)
 
     def phase_ended(self, run: SiloRun, phase: str) -> None:
         if phase == "settle":
-            self.fields.add("settled", frame_from_sim(run.sim))
+            self.fields.add("settled", read_simulation(run.sim))
             if run.cfg.discharge.enabled:
                 self.flow.start(run)
 

@@ -13,7 +13,7 @@ sum_c f_a l_b, up to the sign convention); a wall contact contributes with the b
 grain's centre to the contact point on the wall.  Statics without body forces is assumed (the
 weight and the inertia of the grains are left out, as in PFC); the tensor is symmetrised.
 
-Grain moments M_p = sum_c f^c (x) l^(c,p) are computed once per frame (:func:`grain_moments`)
+Grain moments M_p = sum_c f^c (x) l^(c,p) are computed once per reading (:func:`grain_moments`)
 and summed over any region (:func:`region_stress`, :func:`circle_measure`).
 """
 

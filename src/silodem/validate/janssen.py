@@ -40,7 +40,7 @@ import numpy as np
 from silodem import theory as th
 from silodem.config import Config
 from silodem.measure import regions
-from silodem.measure.frame import frame_from_sim
+from silodem.measure.reading import read_simulation
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
 from silodem.silo.procedure import SiloRun
 from silodem.validate.records import Record, info, rel
@@ -121,15 +121,15 @@ def fill_column(seed: int) -> Column:
     t = cfg.material.thickness
     for _ in range(SAMPLES):
         sim.run(SAMPLE_STEPS)
-        fr = frame_from_sim(sim)
-        sn, tau = wall_stress(bins, walls.ax, walls.ay, fr.w_wall, fr.w_cx, fr.w_cz, fr.w_fx,
-                              fr.w_fz, t)
+        rd = read_simulation(sim)
+        sn, tau = wall_stress(bins, walls.ax, walls.ay, rd.w_wall, rd.w_cx, rd.w_cz, rd.w_fx,
+                              rd.w_fz, t)
         sn_sum += sn
         tau_sum += tau
-        dl, dr = regions.edge_distance(run.shape, fr.x, fr.z)
+        dl, dr = regions.edge_distance(run.shape, rd.x, rd.z)
         for mask in (dl < STRIP, dr < STRIP):
-            near_sum += 0.5 * binned_stress(fr.moments, fr.z, mask, z_edges, STRIP * dz, t)
-        slice_sum += binned_stress(fr.moments, fr.z, np.ones(fr.n, bool), z_edges,
+            near_sum += 0.5 * binned_stress(rd.moments, rd.z, mask, z_edges, STRIP * dz, t)
+        slice_sum += binned_stress(rd.moments, rd.z, np.ones(rd.n, bool), z_edges,
                                    cfg.silo.cell_width * dz, t)
     sn, tau = sn_sum / SAMPLES, tau_sum / SAMPLES
     side = np.isin(bins.wall, [walls.index("left_wall"), walls.index("right_wall")])

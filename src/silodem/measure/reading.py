@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 
 @dataclass
-class Frame:
+class Reading:
     """Grains (x, z = y, r [m], vx, vz [m/s], mass [kg], uid), grain-grain contacts (i, j,
     force on j fx, fz [N]), grain-wall contacts (grain, wall, force on the grain [N], contact
     point [m]), moments (n, 2, 2) [N m] and contacts per grain."""
@@ -50,30 +50,30 @@ class Frame:
         return int(self.x.size)
 
 
-def make_frame(time: float, step: int, x: np.ndarray, z: np.ndarray, r: np.ndarray,
-               vx: np.ndarray, vz: np.ndarray, mass: np.ndarray, uid: np.ndarray,
-               i: np.ndarray, j: np.ndarray, fx: np.ndarray, fz: np.ndarray,
-               w_grain: np.ndarray, w_wall: np.ndarray, w_fx: np.ndarray, w_fz: np.ndarray,
-               walls: Walls) -> Frame:
-    """Build a frame from plain arrays; ``walls`` has segment arrays ax, ay, bx, by."""
+def make_reading(time: float, step: int, x: np.ndarray, z: np.ndarray, r: np.ndarray,
+                 vx: np.ndarray, vz: np.ndarray, mass: np.ndarray, uid: np.ndarray,
+                 i: np.ndarray, j: np.ndarray, fx: np.ndarray, fz: np.ndarray,
+                 w_grain: np.ndarray, w_wall: np.ndarray, w_fx: np.ndarray, w_fz: np.ndarray,
+                 walls: Walls) -> Reading:
+    """Build a reading from plain arrays; ``walls`` has segment arrays ax, ay, bx, by."""
     n = int(np.asarray(x).size)
     w_cx, w_cz = contact_points_walls(x, z, w_grain, w_wall, walls.ax, walls.ay, walls.bx,
                                       walls.by)
     moments = grain_moments(n, x, z, r, i, j, fx, fz, w_grain, w_cx, w_cz, w_fx, w_fz)
     counts = contacts_per_grain(n, i, j, w_grain)
-    return Frame(float(time), int(step), x, z, r, vx, vz, mass, uid, i, j, fx, fz, w_grain,
-                 w_wall, w_fx, w_fz, w_cx, w_cz, moments, counts)
+    return Reading(float(time), int(step), x, z, r, vx, vz, mass, uid, i, j, fx, fz, w_grain,
+                   w_wall, w_fx, w_fz, w_cx, w_cz, moments, counts)
 
 
-def frame_from_sim(sim: Simulation) -> Frame:
-    """A frame of an engine ``Simulation`` (its contact lists must be current: read it after a
+def read_simulation(sim: Simulation) -> Reading:
+    """A reading of an engine ``Simulation`` (its contact lists must be current: read it after a
     step, as recorders do)."""
     from silodem.engine import quantities as q
 
     p = sim.particles
     gc = q.grain_contacts(sim)
     wc = q.wall_contacts(sim)
-    return make_frame(sim.time, sim.steps, p.view("x").copy(), p.view("y").copy(),
-                      p.view("radius").copy(), p.view("vx").copy(), p.view("vy").copy(),
-                      p.view("mass").copy(), p.view("uid").copy(), gc.i, gc.j, gc.fx, gc.fy,
-                      wc.grain, wc.wall, wc.fx, wc.fy, sim.walls)
+    return make_reading(sim.time, sim.steps, p.view("x").copy(), p.view("y").copy(),
+                        p.view("radius").copy(), p.view("vx").copy(), p.view("vy").copy(),
+                        p.view("mass").copy(), p.view("uid").copy(), gc.i, gc.j, gc.fx, gc.fy,
+                        wc.grain, wc.wall, wc.fx, wc.fy, sim.walls)
