@@ -203,13 +203,29 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     complete results.h5.  Files silodem does not write are left alone."""
     out = tmp_path / "run"
     (out / "figures").mkdir(parents=True)
-    for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png"):
+    (out / "vtk").mkdir()
+    for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png",
+                 "vtk/particles_000000.vtu", "vtk/contacts.pvd", "vtk/fields_settled.vtu"):
         (out / name).write_bytes(b"old run")
     (out / "notes.txt").write_text("mine")
-    result = cli(*run_args(out))  # output.png and measure.report are off in SETS
+    result = cli(*run_args(out))  # output.png, measure.report and VTK output are off in SETS
     assert result.returncode == 0, result.stderr[-2000:]
     left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     assert left == ["config.toml", "notes.txt", "results.h5"]
+    assert not (out / "vtk").exists()  # an empty vtk/ would make the views write fields there
+
+
+def test_a_new_run_keeps_files_it_did_not_write_in_vtk(tmp_path):
+    """Only the VTK writer's own names are removed from an old run's vtk/ folder."""
+    from silodem.safety import clear_previous_run
+
+    vtk = tmp_path / "vtk"
+    vtk.mkdir()
+    for name in ("walls_000003.vtu", "walls.pvd", "fields_discharge.vtu", "my_view.pvsm",
+                 "particles_old.vtu"):
+        (vtk / name).write_bytes(b"x")
+    clear_previous_run(tmp_path)
+    assert sorted(p.name for p in vtk.iterdir()) == ["my_view.pvsm", "particles_old.vtu"]
 
 
 # --- in process: a checkpoint in each phase -----------------------------------------------

@@ -65,15 +65,19 @@ _RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTI
 
 def clear_previous_run(out: Path) -> None:
     """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
-    report, a failed run's diagnosis; only these names, and ``figures/*.png``), so that a
-    fresh run's folder never shows the old run's results beside the new config, even if the
-    new run is stopped before its first save."""
+    report, a failed run's diagnosis; only these names, ``figures/*.png`` and the VTK writer's
+    own files in ``vtk/``), so that a fresh run's folder never shows the old run's results
+    beside the new config, even if the new run is stopped before its first save or writes no
+    VTK files."""
+    from silodem.viz.vtk import remove_written
+
     for name in _RUN_FILES:
         (out / name).unlink(missing_ok=True)
     figures = out / "figures"
     if figures.is_dir():
         for png in figures.glob("*.png"):
             png.unlink()
+    remove_written(out / "vtk")
 
 
 # --- finding what went wrong ---------------------------------------------------------------
