@@ -66,6 +66,24 @@ def test_state_and_restore_carry_everything(runs, tmp_path):
         np.testing.assert_array_equal(files[0][key], files[1][key], err_msg=key)
 
 
+def test_every_number_under_measure_carries_its_unit(runs, tmp_path):
+    """docs/output.md: datasets of numbers under /measure carry a ``unit`` attribute (the
+    discharge snapshot's columns had none); names and the walls-in-place flags do not."""
+    _, _, measured = runs
+    rec = next(r for r in measured.recorders if isinstance(r, MeasureRecorder))
+    with h5py.File(tmp_path / "m.h5", "w") as h5:
+        rec.write(h5.create_group("measure"))
+    with h5py.File(tmp_path / "m.h5") as h5:
+        missing = []
+        h5["measure"].visititems(lambda name, item: missing.append(name) if (
+            isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf"
+            and "unit" not in item.attrs) else None)
+        assert missing == []
+        snap = h5["measure/discharge_snapshot"]
+        assert snap["particles/vx"].attrs["unit"] == "m/s"
+        assert snap["contacts/fn"].attrs["unit"] == "N"
+
+
 def _half_chord(radius, dx):
     """Half the length of the vertical chord of a disk at horizontal offset dx from its centre."""
     return math.sqrt(max(radius * radius - dx * dx, 0.0))

@@ -17,21 +17,12 @@ import numpy as np
 
 from silodem import __version__
 from silodem.atomic import atomic_file, write_atomic
-from silodem.silo.procedure import SiloRun, Snapshot
+from silodem.silo.procedure import SiloRun
+from silodem.silo.recorders import write_snapshot
 
 
 def write_text(path: Path, text: str) -> None:
     write_atomic(path, text)
-
-
-def _write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
-    group.attrs["time"] = snap.time
-    group.create_dataset("walls_active", data=snap.walls_active)
-    for sub, data in (("particles", snap.particles), ("contacts", snap.contacts),
-                      ("wall_contacts", snap.wall_contacts)):
-        g = group.create_group(sub)
-        for key, arr in data.items():
-            g.create_dataset(key, data=arr)
 
 
 def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "complete") -> None:
@@ -64,7 +55,7 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
             ev.attrs[key] = val
         h5.create_dataset("warnings", data=np.array(run.warnings, dtype=h5py.string_dtype()))
         for name, snap in run.snapshots.items():
-            _write_snapshot(h5.create_group(name), snap)
+            write_snapshot(h5.create_group(name), snap)
 
 
 PICTURES = {"settled": "end of settling", "final": "end of run"}  # file stem: caption

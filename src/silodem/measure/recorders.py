@@ -32,7 +32,7 @@ from silodem.measure.reading import Reading, read_simulation
 from silodem.measure.stress import circle_measure, region_stress
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
 from silodem.silo.geometry import build_walls, silo_shape
-from silodem.silo.recorders import PHASE_CODES, Recorder, Snapshot, take_snapshot
+from silodem.silo.recorders import PHASE_CODES, Recorder, Snapshot, take_snapshot, write_snapshot
 
 if TYPE_CHECKING:
     import h5py
@@ -320,14 +320,7 @@ class _FlowPart:
                                          ("n_wall", "-"), ("n_axis", "-"), ("level", "m"))):
             _dataset(m, key, mfi[:, k], unit)
         if self.snapshot is not None:
-            s = self.snapshot
-            sg = g.create_group("discharge_snapshot")
-            sg.attrs["time"] = s.time
-            sg.create_dataset("walls_active", data=s.walls_active)
-            for sub in ("particles", "contacts", "wall_contacts"):
-                h = sg.create_group(sub)
-                for key, arr in getattr(s, sub).items():
-                    h.create_dataset(key, data=arr)
+            write_snapshot(g.create_group("discharge_snapshot"), self.snapshot)
 
 
 class MeasureRecorder(Recorder):

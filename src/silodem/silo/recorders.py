@@ -103,6 +103,22 @@ class Snapshot:
     walls_active: np.ndarray  # which walls were in place [bool per wall]
 
 
+SNAPSHOT_UNITS = {"x": "m", "y": "m", "vx": "m/s", "vy": "m/s", "omega": "rad/s", "radius": "m",
+                  "uid": "-", "i": "-", "j": "-", "grain": "-", "wall": "-", "fn": "N",
+                  "fs": "N", "fx": "N", "fy": "N"}  # the columns of a snapshot's tables
+
+
+def write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
+    """``snap`` into ``group``: attr ``time`` [s], ``walls_active`` and the groups particles,
+    contacts, wall_contacts, each column with its ``unit`` (docs/output.md, /settled)."""
+    group.attrs["time"] = snap.time
+    group.create_dataset("walls_active", data=snap.walls_active)
+    for sub in ("particles", "contacts", "wall_contacts"):
+        g = group.create_group(sub)
+        for key, arr in getattr(snap, sub).items():
+            g.create_dataset(key, data=arr).attrs["unit"] = SNAPSHOT_UNITS[key]
+
+
 def take_snapshot(run: SiloRun) -> Snapshot:
     """Grains (position, velocity, spin, radius, uid, contact force), touching contacts with
     their forces (indices into the snapshot's grain arrays) and the walls in place."""
