@@ -202,7 +202,8 @@ def test_a_results_folder_name_the_system_refuses_is_one_line(capsys, tmp_path, 
     (["measure.grid_cell=1e-5"], "measure.grid_cell"),
     (["measure.field_cell=1e-3"], "measure.field_cell"),
     (["measure.wall_bin=1e-7"], "measure.wall_bin"),
-    (["measure.field_kernel=\"gaussian\"", "measure.field_width=50.0"], "measure.field_width"),
+    (["measure.field_kernel=\"gaussian\"", "measure.field_cell=0.02", "measure.field_width=1.0"],
+     "measure.field_width"),
     (["material.radius_min=2e-5", "material.radius_max=2e-5", "fill.band_height=0.5",
       "measure.grid_cell=0.1", "measure.field_cell=0.1", "measure.wall_bin=0.1"],
      "material.radius_max"),
@@ -216,6 +217,31 @@ def test_lengths_too_small_for_the_memory_are_refused_naming_the_key(capsys, tmp
     line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"), *args)
     assert_names(line, key, "more than")
 
+
+@pytest.mark.parametrize("key", ["wall_bin", "strip_width", "coordination_band",
+                                 "switch_zone_half_height", "grid_cell", "field_cell",
+                                 "field_width"])
+@pytest.mark.parametrize("value", ["7.0", "1e20", "1e300"])
+def test_measurement_lengths_larger_than_the_silo_are_refused(capsys, tmp_path, key, value):
+    """paper-case1 --quick is 2.04 m x 3.6 m: a band, bin or kernel larger than that measures
+    nothing (1e20 m made the report's figures fail with a singular matrix, and a Gaussian of
+    1e300 m overflowed the kernel-size check)."""
+    sets = ["--set", f"measure.{key}={value}"]
+    if key == "field_width":
+        sets += ["--set", "measure.field_kernel=\"gaussian\""]
+    line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"), *sets)
+    assert_names(line, f"measure.{key}", "larger than the silo")
+    assert not (tmp_path / "r").exists()
+
+@pytest.mark.parametrize("speed", ["400.0", "1e300"])
+def test_a_pouring_speed_that_jumps_a_radius_per_step_is_refused(capsys, tmp_path, speed):
+    """paper-case2 --quick: dt = 2.38e-4 s and r_min = 0.09 m, so 378 m/s is the most; 1e300
+    m/s ran until the guard stopped it and then overflowed in the energy bound (a traceback,
+    no diagnostic.json, and a checkpoint that held the folder)."""
+    line = refused(capsys, "run", "paper-case2", "--quick", "--out", str(tmp_path / "r"),
+                   "--set", f"fill.initial_speed={speed}")
+    assert_names(line, "fill.initial_speed", "more than its radius", "at most 378 m/s")
+    assert not (tmp_path / "r").exists()
 
 def test_a_loose_fill_that_cannot_fit_is_refused_before_the_run(capsys, tmp_path):
     """Refused before the run starts: no checkpoint is left, so the folder is not held by an

@@ -113,7 +113,7 @@ def energy_bound(run: SiloRun) -> float:
     g = max(run.cfg.gravity, 9.81)
     height = run.shape.wall_top - run.z_remove
     v0 = run.cfg.fill.initial_speed
-    return ENERGY_FACTOR * run.sim.particles.total_mass() * (g * height + 0.5 * v0**2)
+    return ENERGY_FACTOR * run.sim.particles.total_mass() * (g * height + 0.5 * v0 * v0)
 
 
 def grain_record(run: SiloRun, index: int) -> dict[str, Any]:

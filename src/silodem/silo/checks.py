@@ -155,8 +155,9 @@ def law_key_names(cfg: Config) -> str:
 
 def check_numbers(cfg: Config) -> tuple[float, float]:
     """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
-    run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, or a
-    loose fill with more grains than fit in the silo)."""
+    run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, a pouring
+    speed that carries a grain more than its radius in one step, or a loose fill with more
+    grains than fit in the silo)."""
     from silodem.silo.geometry import build_walls
 
     law_keys = law_key_names(cfg)
@@ -185,6 +186,13 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
         raise InputError(f"the grain and wall values give a time step of {dt:.3g} s (stability "
                          f"limit {dt_crit:.3g} s), which cannot be used; check {keys}")
     check_sizes(cfg)
+    step = cfg.fill.initial_speed * dt  # a poured grain's travel in one step [m]
+    if cfg.fill.method == "pour" and not step <= cfg.material.radius_min:
+        raise InputError(
+            f"fill.initial_speed = {cfg.fill.initial_speed:.3g} m/s carries a poured grain "
+            f"{step:.3g} m in one time step of {dt:.3g} s, more than its radius "
+            f"(material.radius_min = {cfg.material.radius_min:.3g} m): contacts would be "
+            f"missed; give at most {cfg.material.radius_min / dt:.3g} m/s")
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
         from silodem.silo.geometry import silo_shape
         from silodem.silo.procedure import loose_sites
@@ -231,11 +239,17 @@ def _check_circles(cfg: Config, shape, size: str) -> None:
                              f"part inside {size}")
 
 
+MEASURE_LENGTHS = ("wall_bin", "strip_width", "coordination_band", "switch_zone_half_height",
+                   "grid_cell", "field_cell", "field_width")  # each at most the silo's size
+
+
 def check_sizes(cfg: Config) -> None:
     """InputError when a length, valid by itself, is so small against the silo that the
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
     density and stress fields (``measure.field_cell``), the wall bins (``measure.wall_bin``),
-    the neighbour search's cells (2 r_max + skin)."""
+    the neighbour search's cells (2 r_max + skin); and when a measurement length is larger
+    than the silo itself (``MEASURE_LENGTHS``: a band or bin wider than the silo measures
+    nothing, and its figures cannot be drawn)."""
     from silodem.measure.gaussian import CUTOFF
     from silodem.measure.regions import bin_length, field_cell, field_width, grid_cell
     from silodem.silo.geometry import silo_shape
@@ -248,6 +262,13 @@ def check_sizes(cfg: Config) -> None:
               MAX_GRID_CELLS),
              ("field_cell", field_cell(cfg), "four mean grain diameters", "field",
               MAX_FIELD_CELLS)]
+    extent = max(width, height)
+    for name in MEASURE_LENGTHS:
+        value = getattr(cfg.measure, name)
+        if value is not None and not value <= extent:
+            raise InputError(f"measure.{name} = {value:.3g} m is larger than {size}: it "
+                             f"would measure nothing the silo holds; give at most "
+                             f"{extent:.3g} m")
     for name, cell, default, what, limit in grids:
         # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
         cells = max(1.0, width / cell) * max(1.0, height / cell)
@@ -265,10 +286,11 @@ def check_sizes(cfg: Config) -> None:
                          "measure.wall_bin")
     if cfg.measure.field_kernel == "gaussian":
         reach = 2.0 * CUTOFF * field_width(cfg) / field_cell(cfg)  # cells across one kernel
-        if not reach**2 <= MAX_KERNEL_CELLS:
+        kernel_cells = reach * reach  # a float product: inf, not an OverflowError, for 1e300
+        if not kernel_cells <= MAX_KERNEL_CELLS:
             raise InputError(
                 f"measure.field_width = {field_width(cfg):.3g} m spreads each grain and contact "
-                f"over {reach**2:.3g} field cells of {field_cell(cfg):.3g} m, more than "
+                f"over {kernel_cells:.3g} field cells of {field_cell(cfg):.3g} m, more than "
                 f"{MAX_KERNEL_CELLS:.0e} (a slow measurement); give a smaller "
                 "measure.field_width or a larger measure.field_cell")
     _check_circles(cfg, shape, size)
