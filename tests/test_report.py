@@ -180,6 +180,40 @@ def test_plot_with_a_config_file_that_is_not_text_is_one_line(run_dir, tmp_path,
     assert err.count("\n") == 1 and "config.toml" in err
 
 
+def _edit_config_attr(h5):
+    h5.attrs["config_toml"] = 7
+
+
+def _shorten_stress(h5):
+    data = h5["measure/circles/stress"][:10]
+    del h5["measure/circles/stress"]
+    h5["measure/circles/stress"] = data
+
+
+def _slices_as_text(h5):  # valid shapes, but a figure cannot use the numbers
+    data = h5["measure/profiles/slices"][()]
+    del h5["measure/profiles/slices"]
+    h5["measure/profiles/slices"] = data.astype("S8")
+
+
+@pytest.mark.parametrize("damage, needle", [(_edit_config_attr, "config_toml"),
+                                            (_shorten_stress, "/measure/circles/stress"),
+                                            (_slices_as_text, "could not be drawn")])
+def test_plot_of_a_results_file_edited_inconsistently_is_one_line(run_dir, tmp_path, capsys,
+                                                                  damage, needle):
+    """Valid HDF5 with wrong contents (an AttributeError, IndexError or other traceback
+    before, from the figures): one line naming the problem, exit 2."""
+    folder = tmp_path / "x"
+    folder.mkdir()
+    shutil.copy(run_dir / "results.h5", folder / "results.h5")
+    with h5py.File(folder / "results.h5", "r+") as h5:
+        damage(h5)
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(folder)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err and needle in err, err
+
 def test_plot_of_a_run_with_no_measurement_sample(tmp_path):
     """measure.interval longer than the run: not one sample.  The report is drawn without the
     measurements (it failed on an empty time array, during the run and in 'silodem plot')."""

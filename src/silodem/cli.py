@@ -250,8 +250,14 @@ def plot(
     from silodem.output import write_views  # matplotlib, scipy: only when plotting
     from silodem.report import write_report
 
-    path = write_report(run_dir)
-    write_views(run_dir)
+    try:
+        path = write_report(run_dir)
+        write_views(run_dir)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a results.h5 that cannot be drawn: say so, once
+        raise InputError(f"{run_dir}: its results.h5 could not be drawn "
+                         f"({type(exc).__name__}: {one_line(exc)})") from None
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 

@@ -68,6 +68,28 @@ class Results:
         return self.group(name)
 
 
+SAMPLED = ("step", "phase", "circles/stress", "circles/porosity", "circles/coordination",
+           "circles/count", "band/coordination", "band/count", "band/stress", "wall_bins/normal",
+           "wall_bins/shear", "profiles/left", "profiles/right", "profiles/slices")
+"""The datasets of /measure with one row per sample (docs/output.md: shape (S, ...))."""
+
+
+def _check_samples(measure: dict[str, Any], path: Path) -> None:
+    """InputError when a per-sample dataset of /measure has another number of rows than
+    /measure/time (a damaged or hand-edited file), before a figure trips over it."""
+    samples = np.size(measure.get("time"))
+    for name in SAMPLED:
+        node: Any = measure
+        for part in name.split("/"):
+            node = node.get(part) if isinstance(node, dict) else None
+        if node is None:
+            continue
+        rows = np.shape(node)[0] if np.ndim(node) else 0
+        if rows != samples:
+            raise InputError(f"{path}: /measure/{name} has {rows} rows where /measure/time "
+                             f"has {samples} (damaged?)")
+
+
 def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Results:
     """Load ``folder``/results.h5 (its attributes and config, and of its groups only those
     named ``only``, if given); InputError (one line) when it is missing or unreadable."""
@@ -89,6 +111,8 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     measure = data.get("measure")
     if isinstance(measure, dict) and np.size(measure.get("time", ())) == 0:
         del data["measure"]  # not one sample (measure.interval longer than the run): none
+    elif isinstance(measure, dict):
+        _check_samples(measure, path)
     attrs = data.get("@attrs", {})
     toml_text = attrs.get("config_toml")
     config_file = folder / "config.toml"
@@ -99,6 +123,9 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
             raise InputError(f"cannot read {config_file}: {exc}") from None
     if toml_text is None:
         raise InputError(f"{path} holds no config (attribute config_toml)")
+    if not isinstance(toml_text, str):
+        raise InputError(f"{path}: its attribute config_toml is a {type(toml_text).__name__}, "
+                         "not the config's TOML text (damaged?)")
     cfg = config_from_text(toml_text, f"the config saved in {path}")
     events = dict(data.get("events", {}).get("@attrs", {}))
     warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
