@@ -323,6 +323,47 @@ def test_a_damaged_checkpoint_is_refused_as_one_error(uninterrupted, tmp_path):
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("error:"), proc.stderr
 
 
+def _delete(name):
+    def damage(h5):
+        del h5[name]
+    return damage
+
+
+def _set(name, value):
+    def damage(h5):  # keeps the attributes by which the checkpoint reads the value back
+        attrs = dict(h5[name].attrs)
+        del h5[name]
+        h5[name] = value
+        h5[name].attrs.update(attrs)
+    return damage
+
+
+def _shorten_x(h5):
+    _set("particles/x", h5["particles/x"][:5])(h5)
+
+
+@pytest.mark.parametrize("damage, needle", [
+    (lambda h5: h5.pop("config_toml"), "holds no config"),
+    (_delete("particles"), "lacks /particles"),
+    (_delete("run/state"), "lacks /run/state"),
+    (_shorten_x, "disagree"),
+    (_set("particles/n", 10**9), "disagree"),
+    (_set("run/state/phase", '"zzz"'), "phase 'zzz'"),  # stored as JSON
+    (_set("run/rng", '{"bit_generator": "PCG64"}'), "cannot take"),
+])
+def test_a_checkpoint_with_wrong_contents_is_refused_in_one_line(uninterrupted, tmp_path,
+                                                                 damage, needle):
+    """Valid HDF5 in the checkpoint's format, hand-edited: a KeyError, IndexError or broadcast
+    traceback before (one after 42 s of a run at 5 steps/s, with a billion grains)."""
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(quick_config()),
+                    reason="test")
+    with h5py.File(path, "r+") as h5:
+        damage(h5)
+    with pytest.raises(CheckpointError) as exc:
+        read_checkpoint(path).restore(SiloRun(quick_config()))
+    assert "\n" not in str(exc.value) and needle in str(exc.value), exc.value
+
 def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):
     out = tmp_path / "run"
     proc = start(*run_args(out, "checkpoint.enabled=false"))

@@ -37,7 +37,7 @@ import numpy as np
 from silodem import __version__
 from silodem.atomic import atomic_file
 from silodem.config import Config
-from silodem.errors import InputError
+from silodem.errors import InputError, one_line
 from silodem.scenario_files import config_from_text
 
 if TYPE_CHECKING:
@@ -236,11 +236,21 @@ class LoadedCheckpoint:
     def restore(self, run: SiloRun) -> None:
         """Put the saved state into ``run``, a fresh ``SiloRun`` built from ``self.config``
         (with the same recorders): afterwards it continues exactly as the saved run would."""
-        from silodem.silo.recorders import Snapshot
-
         if run.cfg != self.config:
             raise ValueError("restore: the run was built from another config than the "
                              "checkpoint's")
+        try:
+            self._restore(run)
+        except CheckpointError:
+            raise
+        except (KeyError, IndexError, ValueError, TypeError) as exc:  # what _check_parts missed
+            raise CheckpointError(f"{self.path} holds a state this run cannot take "
+                                  f"({type(exc).__name__}: {one_line(exc)}); it cannot be "
+                                  "resumed") from None
+
+    def _restore(self, run: SiloRun) -> None:
+        from silodem.silo.recorders import Snapshot
+
         d, sim = self.data, run.sim
         restore_object(sim.particles, d["particles"])
         restore_object(sim.walls, d["walls"])
@@ -313,6 +323,42 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
     except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
         raise CheckpointError(f"{path} cannot be read as a checkpoint "
                               f"({type(exc).__name__}: {exc})") from None
-    toml_text = data.pop("config_toml")
+    toml_text = data.pop("config_toml", None)
+    if not isinstance(toml_text, str):
+        raise CheckpointError(f"{path} holds no config (its config_toml is "
+                              f"{type(toml_text).__name__}, not TOML text)")
+    _check_parts(data, path)
     cfg = config_from_text(toml_text, f"{path}: the config it holds", CheckpointError)
     return LoadedCheckpoint(path, cfg, toml_text, attrs, data)
+
+
+REQUIRED = {"particles": ("n", "x", "y", "vx", "vy", "omega", "radius", "mass", "uid"),
+            "walls": ("ax", "ay", "bx", "by"), "neighbors": (), "simulation": ("time", "steps"),
+            "run": ("state", "rng", "radii", "events", "warnings", "snapshots")}
+"""The parts of a checkpoint that :meth:`LoadedCheckpoint.restore` reads, and some members."""
+
+
+def _check_parts(data: dict[str, Any], path: Path) -> None:
+    """CheckpointError when a part that a resume needs is missing, or the grains' arrays and
+    count or the phase disagree (a hand-edited or foreign file read as a checkpoint): found
+    here, in one line, not as a KeyError or a broadcast error in the middle of a run."""
+    from silodem.silo.procedure import PHASES
+
+    for part, members in REQUIRED.items():
+        node = data.get(part)
+        if not isinstance(node, dict):
+            raise CheckpointError(f"{path} lacks /{part}: it cannot be resumed")
+        for member in members:
+            if member not in node:
+                raise CheckpointError(f"{path} lacks /{part}/{member}: it cannot be resumed")
+    grains = data["particles"]
+    arrays = {k: v for k, v in grains.items() if isinstance(v, np.ndarray) and v.ndim == 1}
+    lengths = {v.size for v in arrays.values()}
+    n = grains["n"]
+    if len(lengths) != 1 or not isinstance(n, int | np.integer) or not 0 <= n <= min(lengths):
+        raise CheckpointError(f"{path}: its {n} grains and their arrays of lengths "
+                              f"{sorted(lengths)} disagree: it cannot be resumed")
+    phase = data["run"]["state"].get("phase") if isinstance(data["run"]["state"], dict) else None
+    if phase not in PHASES:
+        raise CheckpointError(f"{path}: its phase {phase!r} is not one of {', '.join(PHASES)}: "
+                              "it cannot be resumed")
