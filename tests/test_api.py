@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from measure_helpers import tiny_hopper_config
 
-from silodem import api
+from silodem import api, study
 from silodem.errors import InputError
 
 
@@ -105,6 +105,10 @@ def test_numpy_scalars_are_values_too():
     assert (cfg.fill.n_particles, cfg.output.png, cfg.material.kn) == (200, False, 6e6)
 
 
+def _plan():
+    return study.expand(study.load_study("paper-study"), quick=True)
+
+
 def _unfinished(parent):
     folder = parent / "unfinished"
     folder.mkdir(exist_ok=True)
@@ -125,6 +129,15 @@ def _unfinished(parent):
     (lambda r: api.run(r.config, r.folder / "results.h5"), "is a file, not a folder"),
     (lambda r: api.run(r.config, r.folder / "again", threads=0), "threads must be"),
     (lambda r: api.run(r.config, _unfinished(r.folder.parent)), "holds an unfinished run"),
+    # model_copy(update=...) skips pydantic's checks: a numpy or TypeError traceback before
+    (lambda r: api.run(r.config.model_copy(update={"seed": -5}), r.folder / "n"), "seed"),
+    (lambda r: api.run(r.config.model_copy(update={"fill": r.config.fill.model_copy(
+        update={"n_particles": 2.5})}), r.folder / "n"), "fill.n_particles"),
+    (lambda r: api.run(r.config, out=3), "out must be a results folder's path"),
+    (lambda r: study.expand("paper-study"), "expand takes a study from load_study"),
+    (lambda r: study.run_study("paper-study", r.folder / "s"), "run_study takes a plan"),
+    (lambda r: study.run_study(_plan(), None), "out_dir must be"),
+    (lambda r: study.run_study(_plan(), r.folder / "s", workers=0), "workers must be"),
 ])
 def test_bad_requests_are_one_line_input_errors(res, call, needle):
     with pytest.raises(InputError, match=needle):

@@ -444,3 +444,33 @@ def test_a_wall_too_soft_to_limit_the_time_step_gives_the_grains_limit_without_a
         run = SiloRun(cfg)
     assert dt_crit == pytest.approx(expected, rel=1e-12)
     assert run.dt == dt
+
+
+@pytest.mark.parametrize("scheme", ["tls", "ucx"])
+def test_a_scheduler_address_dask_cannot_open_is_refused(capsys, tmp_path, scheme):
+    """tls:// without certificates and ucx:// without UCX raise a TypeError in Dask's Client
+    (a traceback before)."""
+    line = refused(capsys, "sweep", "paper-study", "--quick", "--scheduler",
+                   f"{scheme}://127.0.0.1:1", "--out", str(tmp_path / "s"))
+    assert_names(line, "cannot reach the Dask scheduler", f"{scheme}://127.0.0.1:1")
+
+
+@pytest.mark.parametrize("args", [["run", "--quick", "--out", ""], ["run", "--quick", "--out="],
+                                  ["run", "--resume", " "], ["plot", ""],
+                                  ["animate", "", "--format", "gif"],
+                                  ["validate", "--quick", "-o", ""]])
+def test_an_empty_path_is_refused_not_read_as_this_folder(capsys, tmp_path, monkeypatch, args):
+    """click reads '' as '.': `--out ''` wrote a run into the working folder, and first
+    removed the results, report and figures of any run already there."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "report.html").write_text("someone's report")
+    line = refused(capsys, *args)
+    assert_names(line, "an empty path")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+
+
+def test_a_set_value_holding_a_second_toml_line_is_not_split(capsys):
+    """`--set $'material.kn=1e7\\nseed = 3'` set kn and dropped `seed = 3` without a word: the
+    value is now taken whole, and the schema refuses it as a number."""
+    line = refused(capsys, "show", "paper-case2", "--set", "material.kn=1e7\nseed = 3")
+    assert_names(line, "material.kn", "valid number")

@@ -70,9 +70,13 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     """Run ``cfg`` into the folder ``out`` (default ``runs/<name>``), as ``silodem run`` does,
     and open its results."""
     from silodem.run import check_out, check_threads, run_simulation
+    from silodem.scenario_files import revalidated
 
     if not isinstance(cfg, Config):
         raise InputError(f"cfg must be a Config (from api.scenario); got {type(cfg).__name__}")
+    cfg = revalidated(cfg)  # a model_copy(update=...) of it skipped the schema's checks
+    if out is not None and (not isinstance(out, str | Path) or not str(out).strip()):
+        raise InputError(f"out must be a results folder's path; got {out!r}")
     check_threads(threads)
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run

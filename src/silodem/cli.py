@@ -562,8 +562,31 @@ def _interrupted() -> None:
     _error("interrupted", 130)
 
 
+PATH_FLAGS = ("--out", "-o", "--resume")  # options that take a path
+FOLDER_COMMANDS = ("plot", "animate")  # commands whose argument is a results folder
+
+
+def _empty_path(args: list[str]) -> str | None:
+    """The option or argument given an empty path, if any: click reads '' as the current
+    folder, so `--out ''` (an unset shell variable) would write, and first clear, a run's
+    files in the working folder."""
+    for k, arg in enumerate(args):
+        if arg in PATH_FLAGS and k + 1 < len(args) and not args[k + 1].strip():
+            return arg
+        if arg.startswith(tuple(f"{flag}=" for flag in PATH_FLAGS)) and \
+                not arg.partition("=")[2].strip():
+            return arg.partition("=")[0]
+    if args and args[0] in FOLDER_COMMANDS and any(not a.strip() for a in args[1:]):
+        return f"{args[0]} DIR"
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    empty = _empty_path(args)
+    if empty is not None:
+        _error(f"error: {empty}: an empty path (give a folder or file name; '.' for this one)")
     command = typer.main.get_command(app)
     no_args = _click_types("NoArgsIsHelpError")
     usage = _click_types("UsageError")
@@ -571,7 +594,7 @@ def main(argv: list[str] | None = None) -> None:
     abort = _click_types("Abort") + (typer.Abort, KeyboardInterrupt)
     previous = _stop_on_sigterm()
     try:
-        result = command.main(args=argv, prog_name="silodem", standalone_mode=False)
+        result = command.main(args=args, prog_name="silodem", standalone_mode=False)
     except InputError as exc:
         message = str(exc)
         _error(message if message.startswith("config error:") else f"error: {message}")

@@ -119,12 +119,14 @@ def _read_source(source: str) -> dict[str, Any]:
 def parse_value(text: str) -> Any:
     """A ``--set`` value: a TOML value (``3``, ``2.5``, ``true``, ``"x"``).
 
-    Text that is not a TOML value is taken as the plain string.
+    Text that is not one TOML value is taken as the plain string (``1e7\nseed = 3`` parsed
+    as TOML is two keys: the second was dropped without a word before).
     """
     try:
-        return tomllib.loads(f"v = {text}")["v"]
+        table = tomllib.loads(f"v = {text}")
     except (ValueError, RecursionError):  # whatever tomllib rejects is taken literally
         return text
+    return table["v"] if table.keys() == {"v"} else text
 
 
 def _short(item: str, limit: int = 60) -> str:
@@ -203,6 +205,12 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
                 message += f" (from --set {_short(item)})"
                 break
         raise InputError(message) from None
+
+
+def revalidated(cfg: Config) -> Config:
+    """``cfg`` validated again (pydantic's ``model_copy(update=...)`` and attribute
+    assignment skip the checks): InputError, one line, naming the key that is out of range."""
+    return _validate(cfg.model_dump(warnings=False))
 
 
 def load_config(source: str, sets: Iterable[str] = ()) -> Config:

@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from silodem.errors import InputError
 from silodem.output import write_text
 from silodem.study.execute import (
     StudyOutcome,
@@ -110,6 +111,13 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     given; else on the scheduler at ``scheduler``; else on a new LocalCluster of ``workers``
     single-threaded processes (default one per core), closed at the end.  Nothing is started
     when every run is finished already."""
+    if not isinstance(plan, StudyPlan):
+        raise InputError(f"run_study takes a plan from expand(load_study(...)); got a "
+                         f"{type(plan).__name__}")
+    if not isinstance(out_dir, str | Path) or not str(out_dir).strip():
+        raise InputError(f"out_dir must be the study's folder path; got {out_dir!r}")
+    if workers is not None and (not isinstance(workers, int) or not 1 <= workers <= 4096):
+        raise InputError(f"workers must be an integer from 1 to 4096, got {workers!r}")
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()
     todo = prepare(plan, out_dir)

@@ -314,7 +314,7 @@ def connect(scheduler: str | None,
         return Client(cluster), cluster, f"LocalCluster of {n} single-threaded workers"
     try:
         client = Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError, ValueError) as exc:
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:  # TypeError: tls://, ucx://
         raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(exc)}); "
                          "start one with 'dask scheduler' or leave out --scheduler for a "
                          "local cluster") from None

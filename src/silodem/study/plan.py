@@ -158,6 +158,8 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
     keys, the first key slowest).  ``check``: also refuse values that validate one by one but
     give no usable run together (``silodem.silo.checks.check_numbers``).  InputError, one line,
     naming the grid point, for a run that is not valid."""
+    if not isinstance(study, LoadedStudy):
+        raise InputError(f"expand takes a study from load_study(...); got a {type(study).__name__}")
     spec = study.spec
     names = spec.grid.get(GRID_BASE, [spec.base])
     bases = {name: _base_config(study, name).model_dump() for name in names}
