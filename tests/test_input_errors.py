@@ -474,3 +474,11 @@ def test_a_set_value_holding_a_second_toml_line_is_not_split(capsys):
     value is now taken whole, and the schema refuses it as a number."""
     line = refused(capsys, "show", "paper-case2", "--set", "material.kn=1e7\nseed = 3")
     assert_names(line, "material.kn", "valid number")
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "abc"])
+def test_a_numba_thread_count_numba_cannot_use_is_refused(capsys, monkeypatch, value):
+    """NUMBA_NUM_THREADS=0 ended in numba's ValueError traceback at the first parallel kernel."""
+    monkeypatch.setenv("NUMBA_NUM_THREADS", value)
+    line = refused(capsys, "run", "--quick", "--threads", "1")
+    assert_names(line, "NUMBA_NUM_THREADS", repr(value))

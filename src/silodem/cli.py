@@ -7,6 +7,8 @@ stderr and exit code 2, never a traceback: see :func:`main`.
 from __future__ import annotations
 
 import importlib
+import math
+import os
 import signal
 import sys
 import threading
@@ -320,7 +322,13 @@ def sweep(
     from silodem.study import expand, load_study, run_study
     from silodem.study.execute import default_workers
 
-    plan = expand(load_study(study), quick=quick)
+    loaded = load_study(study)
+    planned = len(loaded.spec.seeds) * math.prod(len(v) for v in loaded.spec.grid.values())
+    if planned >= PLAN_NOTICE_RUNS:  # each run's config is built and checked: ~3 ms a run
+        Console(stderr=True).print(f"silodem: checking the {planned} runs of the study "
+                                   f"(about {planned * 3e-3:.0f} s)...", markup=False,
+                                   highlight=False, soft_wrap=True)
+    plan = expand(loaded, quick=quick)
     out_dir = out if out is not None else Path("studies") / (plan.name + ("-quick" if quick
                                                                            else ""))
     if out_dir.exists() and not out_dir.is_dir():
@@ -562,6 +570,7 @@ def _interrupted() -> None:
     _error("interrupted", 130)
 
 
+PLAN_NOTICE_RUNS = 1000  # a study this large says so before it plans (seconds of checks)
 PATH_FLAGS = ("--out", "-o", "--resume")  # options that take a path
 FOLDER_COMMANDS = ("plot", "animate")  # commands whose argument is a results folder
 
@@ -584,6 +593,10 @@ def _empty_path(args: list[str]) -> str | None:
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     args = list(sys.argv[1:] if argv is None else argv)
+    numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
+    if not numba_threads.isdigit() or int(numba_threads) < 1:
+        _error(f"error: NUMBA_NUM_THREADS={numba_threads!r}: must be a whole number of threads "
+               "from 1 (or unset)")
     empty = _empty_path(args)
     if empty is not None:
         _error(f"error: {empty}: an empty path (give a folder or file name; '.' for this one)")

@@ -102,6 +102,19 @@ class JanssenFit:
 FIT_LOWER = 1e-6  # lower bound of K and mu_w in fit_janssen [-]
 
 
+def _curve_fit(*args, **kwargs):
+    """scipy.optimize.curve_fit without its OptimizeWarning: when the covariance cannot be
+    estimated it comes back infinite and the fits below report NaN errors, which say so in
+    the result instead of on the user's terminal (a sweep printed the warning per run)."""
+    import warnings
+
+    from scipy.optimize import OptimizeWarning, curve_fit
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", OptimizeWarning)
+        return curve_fit(*args, **kwargs)
+
+
 def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: float, B: float,
                 mu_w: float | None = None) -> JanssenFit:
     """Least-squares fit of Janssen's sigma_h(depth) to a measured wall normal stress profile.
@@ -113,7 +126,6 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
     :func:`janssen_sigma_v`.  Uses scipy.optimize.curve_fit (trust-region reflective, bounds
     K, mu_w > 0).
     """
-    from scipy.optimize import curve_fit
 
     z = np.asarray(depth, dtype=float)
     s = np.asarray(sigma_h, dtype=float)
@@ -129,7 +141,7 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
         def model_k(zz, K):
             return janssen_sigma_h(zz, rho_b, g, B, K, mu_w)
 
-        popt, pcov = curve_fit(model_k, z, s, p0=[k0], bounds=([FIT_LOWER], [50.0]))
+        popt, pcov = _curve_fit(model_k, z, s, p0=[k0], bounds=([FIT_LOWER], [50.0]))
         K, mu = float(popt[0]), float(mu_w)
         errs = np.sqrt(np.clip(np.diag(pcov), 0.0, np.inf)) if np.all(np.isfinite(pcov)) else [
             np.nan]
@@ -140,7 +152,7 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
         def model(zz, K, mu):
             return janssen_sigma_h(zz, rho_b, g, B, K, mu)
 
-        popt, pcov = curve_fit(model, z, s, p0=[k0, mu0],
+        popt, pcov = _curve_fit(model, z, s, p0=[k0, mu0],
                                bounds=([FIT_LOWER, FIT_LOWER], [50.0, 50.0]), maxfev=20000)
         K, mu = float(popt[0]), float(popt[1])
         if np.all(np.isfinite(pcov)):
@@ -289,7 +301,6 @@ def fit_beverloo_free(D: npt.ArrayLike, W: npt.ArrayLike, W_err: npt.ArrayLike, 
     every width).  Needs four outlet widths or
     more (three parameters).  D, W, W_err: arrays [m, kg/s, kg/s]; d [m], rho_b [kg/m^3],
     g [m/s^2], t [m] as in :func:`beverloo_2d`."""
-    from scipy.optimize import curve_fit
 
     D, W, W_err = (np.asarray(a, dtype=float) for a in (D, W, W_err))
     scale = rho_b * math.sqrt(g) * t
@@ -299,7 +310,7 @@ def fit_beverloo_free(D: npt.ArrayLike, W: npt.ArrayLike, W_err: npt.ArrayLike, 
 
     p0 = [math.log(0.6), 1.0, 1.5]
     bounds = ([-10.0, -5.0, 0.5], [10.0, 0.95 * D.min() / d, 3.0])
-    popt, pcov = curve_fit(model, D, np.log(W), p0=p0, sigma=W_err / W, absolute_sigma=True,
+    popt, pcov = _curve_fit(model, D, np.log(W), p0=p0, sigma=W_err / W, absolute_sigma=True,
                            bounds=bounds, maxfev=20000)
     errs = np.sqrt(np.diag(pcov)) if np.all(np.isfinite(pcov)) else np.full(3, np.nan)
     C = float(math.exp(popt[0]))
