@@ -127,18 +127,22 @@ def test_interrupt_while_drawing_loses_nothing_and_says_so(tmp_path, monkeypatch
     assert (out / "final.png").is_file() and (out / "report.html").is_file()
 
 
-@pytest.mark.parametrize("what", ["missing", "empty", "garbage"])
+@pytest.mark.parametrize("what", ["missing", "empty", "garbage", "the file"])
 def test_plot_of_a_bad_folder_is_one_line_and_exit_2(what, tmp_path, capsys):
     folder = tmp_path / "x"
     if what != "missing":
         folder.mkdir()
-    if what == "garbage":
+    if what in ("garbage", "the file"):
         (folder / "results.h5").write_text("not hdf5")
+    if what == "the file":  # results.h5 itself given: it was "no such directory"
+        folder = folder / "results.h5"
     with pytest.raises(SystemExit) as exc:
         main(["plot", str(folder)])
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err and str(folder) in err
+    if what == "the file":
+        assert "is a file; give the results folder" in err
 
 
 def test_plot_of_a_damaged_results_file_is_one_line_and_exit_2(run_dir, tmp_path, capsys):

@@ -97,6 +97,8 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
 
     folder = Path(folder)
     path = folder / "results.h5"
+    if folder.is_file():
+        raise InputError(f"{folder} is a file; give the results folder that holds it")
     if not folder.is_dir():
         raise InputError(f"{folder} is not a results folder (no such directory)")
     if path.exists() and not path.is_file():
