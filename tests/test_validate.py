@@ -4,6 +4,7 @@ independently."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import shutil
@@ -62,6 +63,36 @@ def test_janssen_validation_passes_every_check(tmp_path):
     for r in records:
         assert FIELDS <= set(r), r
         assert r["pass"] is True, r
+
+
+
+@pytest.mark.slow
+def test_beverloo_validation_exponent_and_rates(tmp_path):
+    """The silo-scale Beverloo family of the full suite (docs/validation.md, section 5): five
+    outlet widths D/d = 6..30 in one silo, two fills each. The exponent b of W = A (D - k d)^b
+    fitted with A, k, b free is the 2D Beverloo law's 3/2 within 0.1 (Mankoc et al. 2007,
+    Janda et al. 2012), and the rate grows with the outlet. The family's fill-height check is
+    known to fail with this contact law (issue 6, blocked on the owner's choice; section 5):
+    the test asserts every other check. About 20 minutes, so marked slow; CI runs it."""
+    proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--case", "beverloo",
+                           "--json", "--out", str(tmp_path)], capture_output=True, text=True,
+                          timeout=3600, check=False)
+    assert proc.returncode in (0, 1), proc.stderr[-2000:]
+    records = json.loads(proc.stdout)
+    for r in records:
+        assert FIELDS <= set(r), r
+    exponent = [r for r in records if r["quantity"].startswith("exponent b of W")]
+    assert len(exponent) == 1
+    assert exponent[0]["expected"] == 1.5 and exponent[0]["tolerance"] == 0.1
+    assert abs(exponent[0]["got"] - 1.5) <= 0.1, exponent[0]
+    assert exponent[0]["pass"] is True
+    rates = [r["got"] for r in records if r["quantity"] == "steady discharge rate W"]
+    assert len(rates) == 5
+    assert all(b > a > 0 for a, b in itertools.pairwise(rates)), rates
+    checked = [r for r in records if r["tolerance_kind"] != "info"]
+    height = [r for r in checked if "fill height" in r["quantity"]]
+    assert len(height) == 1 and height[0]["tolerance"] == 0.05
+    assert all(r["pass"] is True for r in checked if r not in height), checked
 
 
 def _tolerances(records, quantity):
