@@ -228,6 +228,21 @@ def test_a_new_run_keeps_files_it_did_not_write_in_vtk(tmp_path):
     assert sorted(p.name for p in vtk.iterdir()) == ["my_view.pvsm", "particles_old.vtu"]
 
 
+def test_a_linked_vtk_folder_is_emptied_of_old_files_and_kept(tmp_path):
+    """vtk/ as a link to another disk: its old files go, the link stays (rmdir of the link
+    raised 'Not a directory' and stopped every new run)."""
+    from silodem.safety import clear_previous_run
+
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    (scratch / "particles_000000.vtu").write_bytes(b"x")
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "vtk").symlink_to(scratch, target_is_directory=True)
+    clear_previous_run(out)
+    assert (out / "vtk").is_symlink() and list(scratch.iterdir()) == []
+
+
 # --- in process: a checkpoint in each phase -----------------------------------------------
 
 

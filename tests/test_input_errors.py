@@ -218,20 +218,38 @@ def test_lengths_too_small_for_the_memory_are_refused_naming_the_key(capsys, tmp
     assert_names(line, key, "more than")
 
 
-@pytest.mark.parametrize("key", ["wall_bin", "strip_width", "coordination_band",
-                                 "switch_zone_half_height", "grid_cell", "field_cell",
-                                 "field_width"])
-@pytest.mark.parametrize("value", ["7.0", "1e20", "1e300"])
-def test_measurement_lengths_larger_than_the_silo_are_refused(capsys, tmp_path, key, value):
-    """paper-case1 --quick is 2.04 m x 3.6 m: a band, bin or kernel larger than that measures
-    nothing (1e20 m made the report's figures fail with a singular matrix, and a Gaussian of
-    1e300 m overflowed the kernel-size check)."""
-    sets = ["--set", f"measure.{key}={value}"]
-    if key == "field_width":
-        sets += ["--set", "measure.field_kernel=\"gaussian\""]
-    line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"), *sets)
-    assert_names(line, f"measure.{key}", "larger than the silo")
+@pytest.mark.parametrize("key, limit", [("strip_width", "1.02 m"),
+                                        ("coordination_band", "3.6 m"),
+                                        ("switch_zone_half_height", "3.6 m")])
+@pytest.mark.parametrize("value", ["3.61", "1e20", "1e300"])
+def test_measurement_bands_larger_than_the_silo_are_refused(capsys, tmp_path, key, limit,
+                                                             value):
+    """paper-case1 --quick is 2.04 m x 3.6 m: a near-wall strip wider than half of it, or a
+    band or zone taller than its walls, divides stresses by areas the silo does not have
+    (a zone of 1e20 m made the report's figures fail with a singular matrix)."""
+    line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"),
+                   "--set", f"measure.{key}={value}")
+    assert_names(line, f"measure.{key}", f"give at most {limit}")
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("sets", [["measure.wall_bin=10.0"], ["measure.grid_cell=1e300"],
+                                  ["measure.field_cell=50.0"],
+                                  ["measure.field_kernel=\"gaussian\"", "measure.field_width=1e300",
+                                   "measure.field_cell=1e300"]])
+def test_lengths_that_give_one_bin_are_accepted(sets):
+    """A bin or cell larger than the silo is one bin over all of it (the grids clamp to at
+    least one): a valid, coarse measurement; 1e300 m neither overflows nor is refused."""
+    cfg = load_config("paper-case1", sets)
+    assert check_numbers(cfg)[0] > 0
+
+
+def test_a_gaussian_of_1e300_m_is_refused_without_overflow(capsys, tmp_path):
+    """reach**2 of a 1e300 m kernel raised OverflowError (a traceback) in the size check."""
+    line = refused(capsys, "run", "paper-case1", "--quick", "--out", str(tmp_path / "r"),
+                   "--set", "measure.field_kernel=\"gaussian\"",
+                   "--set", "measure.field_width=1e300")
+    assert_names(line, "measure.field_width", "more than")
 
 @pytest.mark.parametrize("speed", ["400.0", "1e300"])
 def test_a_pouring_speed_that_jumps_a_radius_per_step_is_refused(capsys, tmp_path, speed):
@@ -467,6 +485,11 @@ def test_an_empty_path_is_refused_not_read_as_this_folder(capsys, tmp_path, monk
     line = refused(capsys, *args)
     assert_names(line, "an empty path")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+
+
+def test_an_empty_option_value_after_the_folder_is_not_blamed_on_the_folder(capsys, tmp_path):
+    line = refused(capsys, "animate", str(tmp_path), "--color", "")
+    assert "DIR" not in line and "empty path" not in line
 
 
 def test_a_set_value_holding_a_second_toml_line_is_not_split(capsys):

@@ -218,6 +218,27 @@ def test_plot_of_a_results_file_edited_inconsistently_is_one_line(run_dir, tmp_p
     assert exc.value.code == 2, err
     assert err.count("\n") == 1 and "Traceback" not in err and needle in err, err
 
+def test_plot_on_a_full_disk_says_so_not_that_the_results_are_bad(run_dir, tmp_path, capsys,
+                                                                   monkeypatch):
+    """A system error while writing stays a system error (a catch-all had blamed results.h5)."""
+    import errno
+
+    import silodem.report.html
+
+    folder = tmp_path / "x"
+    shutil.copytree(run_dir, folder)
+
+    def full(path, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(silodem.report.html, "write_atomic", full)
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(folder)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert "No space left on device" in err and "could not be drawn" not in err
+
+
 def test_plot_of_a_run_with_no_measurement_sample(tmp_path):
     """measure.interval longer than the run: not one sample.  The report is drawn without the
     measurements (it failed on an empty time array, during the run and in 'silodem plot')."""

@@ -255,9 +255,9 @@ def plot(
     try:
         path = write_report(run_dir)
         write_views(run_dir)
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - a results.h5 that cannot be drawn: say so, once
+    except (ValueError, IndexError, KeyError, TypeError, AttributeError) as exc:
+        # what numbers of the wrong shape or kind raise in the figures (LinAlgError is a
+        # ValueError); a disk or memory error stays what it is
         raise InputError(f"{run_dir}: its results.h5 could not be drawn "
                          f"({type(exc).__name__}: {one_line(exc)})") from None
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
@@ -585,8 +585,10 @@ def _empty_path(args: list[str]) -> str | None:
         if arg.startswith(tuple(f"{flag}=" for flag in PATH_FLAGS)) and \
                 not arg.partition("=")[2].strip():
             return arg.partition("=")[0]
-    if args and args[0] in FOLDER_COMMANDS and any(not a.strip() for a in args[1:]):
-        return f"{args[0]} DIR"
+    if args and args[0] in FOLDER_COMMANDS:  # their options all take a value: DIR is the
+        for k in range(1, len(args)):       # argument that follows no option
+            if not args[k].strip() and not args[k - 1].startswith("-"):
+                return f"{args[0]} DIR"
     return None
 
 

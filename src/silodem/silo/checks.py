@@ -192,7 +192,7 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"fill.initial_speed = {cfg.fill.initial_speed:.3g} m/s carries a poured grain "
             f"{step:.3g} m in one time step of {dt:.3g} s, more than its radius "
             f"(material.radius_min = {cfg.material.radius_min:.3g} m): contacts would be "
-            f"missed; give at most {cfg.material.radius_min / dt:.3g} m/s")
+            f"missed; give at most {floor_3(cfg.material.radius_min / dt):.3g} m/s")
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
         from silodem.silo.geometry import silo_shape
         from silodem.silo.procedure import loose_sites
@@ -239,17 +239,23 @@ def _check_circles(cfg: Config, shape, size: str) -> None:
                              f"part inside {size}")
 
 
-MEASURE_LENGTHS = ("wall_bin", "strip_width", "coordination_band", "switch_zone_half_height",
-                   "grid_cell", "field_cell", "field_width")  # each at most the silo's size
+def floor_3(x: float) -> float:
+    """``x`` rounded down to 3 significant digits: a limit quoted with ``:.3g`` that the value
+    quoted then meets (378.6 -> 378, not 379)."""
+    if not (math.isfinite(x) and x > 0):
+        return x
+    unit = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.floor(x / unit * (1 + 1e-12)) * unit  # 3.6 / 0.01 is 359.99...
 
 
 def check_sizes(cfg: Config) -> None:
     """InputError when a length, valid by itself, is so small against the silo that the
     arrays it sizes would not fit in memory: the velocity grid (``measure.grid_cell``), the
     density and stress fields (``measure.field_cell``), the wall bins (``measure.wall_bin``),
-    the neighbour search's cells (2 r_max + skin); and when a measurement length is larger
-    than the silo itself (``MEASURE_LENGTHS``: a band or bin wider than the silo measures
-    nothing, and its figures cannot be drawn)."""
+    the neighbour search's cells (2 r_max + skin); and when a band or strip of the
+    measurements is larger than the silo (a near-wall strip wider than half the cell, a
+    junction band or switch zone taller than the walls: their stresses would be divided by
+    areas the silo does not have, and a zone of 1e20 m made the figures fail)."""
     from silodem.measure.gaussian import CUTOFF
     from silodem.measure.regions import bin_length, field_cell, field_width, grid_cell
     from silodem.silo.geometry import silo_shape
@@ -262,13 +268,14 @@ def check_sizes(cfg: Config) -> None:
               MAX_GRID_CELLS),
              ("field_cell", field_cell(cfg), "four mean grain diameters", "field",
               MAX_FIELD_CELLS)]
-    extent = max(width, height)
-    for name in MEASURE_LENGTHS:
+    bands = (("strip_width", 0.5 * width, "half the cell's width"),
+             ("coordination_band", height, "the walls' height"),
+             ("switch_zone_half_height", height, "the walls' height"))
+    for name, limit, what in bands:
         value = getattr(cfg.measure, name)
-        if value is not None and not value <= extent:
-            raise InputError(f"measure.{name} = {value:.3g} m is larger than {size}: it "
-                             f"would measure nothing the silo holds; give at most "
-                             f"{extent:.3g} m")
+        if value is not None and not value <= limit:
+            raise InputError(f"measure.{name} = {value:.3g} m is more than {what} in {size}; "
+                             f"give at most {floor_3(limit):.3g} m")
     for name, cell, default, what, limit in grids:
         # in floats: a silo of 1e300 m gives inf cells, refused, not an overflow
         cells = max(1.0, width / cell) * max(1.0, height / cell)

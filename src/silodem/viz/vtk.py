@@ -48,7 +48,7 @@ def remove_written(directory: Path) -> None:
     for entry in directory.iterdir():
         if _STALE.match(entry.name) and entry.is_file():
             entry.unlink()
-    if not any(directory.iterdir()):
+    if not directory.is_symlink() and not any(directory.iterdir()):  # a link may be the user's
         directory.rmdir()
 
 
