@@ -88,8 +88,6 @@ def open_results(folder: Path | str) -> RunResults:
     """The results of the run in ``folder`` (its results.h5, read once)."""
     if not isinstance(folder, str | Path):
         raise InputError(f"folder must be a results folder's path; got {folder!r}")
-    if Path(folder).is_file():
-        raise InputError(f"{folder} is a file; give the results folder that holds it")
     return RunResults(load_results(folder))
 
 

@@ -315,12 +315,12 @@ def sweep(
 
     Exit codes: 0 every run finished, 1 some runs failed (listed), 2 bad input.
     """
-    if workers is not None and not 1 <= workers <= 4096:
-        raise InputError(f"--workers must be an integer from 1 to 4096, got {workers}")
+    from silodem.study import expand, load_study, run_study
+    from silodem.study.execute import check_workers, default_workers
+
+    check_workers(workers, "--workers")
     if scheduler is not None and not scheduler.strip():
         raise InputError("--scheduler needs an address, e.g. tcp://127.0.0.1:8786")
-    from silodem.study import expand, load_study, run_study
-    from silodem.study.execute import default_workers
 
     loaded = load_study(study)
     planned = len(loaded.spec.seeds) * math.prod(len(v) for v in loaded.spec.grid.values())

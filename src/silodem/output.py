@@ -7,6 +7,7 @@ reader never sees a half-written file.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import matplotlib
@@ -19,6 +20,9 @@ from silodem import __version__
 from silodem.atomic import atomic_file, write_atomic
 from silodem.silo.procedure import SiloRun
 from silodem.silo.recorders import write_snapshot
+
+if TYPE_CHECKING:
+    from silodem.report.load import Results
 
 
 def write_text(path: Path, text: str) -> None:
@@ -64,23 +68,23 @@ PICTURES = {"settled": "end of settling", "final": "end of run"}  # file stem: c
 def write_views(folder: Path | str) -> list[Path]:
     """What a run's folder shows besides results.h5, all derived from it, by ``silodem run``
     and again by ``silodem plot``: settled.png and final.png (``draw_pictures``) and, where the
-    run wrote VTK files (a ``vtk/`` folder), the fields' ``vtk/fields_*.vtu``."""
+    run wrote VTK files (its config's ``output.vtk_interval``), the fields'
+    ``vtk/fields_*.vtu``."""
+    from silodem.report.load import load_results
     from silodem.viz.vtk import write_fields
 
     folder = Path(folder)
-    out = draw_pictures(folder)
-    if (folder / "vtk").is_dir():
+    res = load_results(folder, only=("walls", *PICTURES))  # not the frames and series
+    out = draw_pictures(res)
+    if res.cfg.output.vtk_interval:
         out += write_fields(folder / "results.h5", folder / "vtk")
     return out
 
 
-def draw_pictures(folder: Path | str) -> list[Path]:
-    """settled.png and final.png of the run in ``folder`` (if its config's ``output.png``),
-    drawn from the snapshots /settled and /final of its results.h5: by ``silodem run``, and
-    again by ``silodem plot``."""
-    from silodem.report.load import load_results
-
-    res = load_results(folder, only=("walls", *PICTURES))  # not the frames and series
+def draw_pictures(res: Results) -> list[Path]:
+    """settled.png and final.png of the run ``res`` (if its config's ``output.png``), drawn
+    from the snapshots /settled and /final of its results.h5: by ``silodem run``, and again
+    by ``silodem plot``."""
     if not res.cfg.output.png:
         return []
     walls = res.group("walls")

@@ -74,20 +74,18 @@ SAMPLED = ("step", "phase", "circles/stress", "circles/porosity", "circles/coord
 """The datasets of /measure with one row per sample (docs/output.md: shape (S, ...))."""
 
 
-def _check_samples(measure: dict[str, Any], path: Path) -> None:
+def _check_samples(res: Results) -> None:
     """InputError when a per-sample dataset of /measure has another number of rows than
     /measure/time (a damaged or hand-edited file), before a figure trips over it."""
-    samples = np.size(measure.get("time"))
+    samples = np.size(res.group("measure", "time"))
     for name in SAMPLED:
-        node: Any = measure
-        for part in name.split("/"):
-            node = node.get(part) if isinstance(node, dict) else None
+        node = res.group("measure", *name.split("/"))
         if node is None:
             continue
         rows = np.shape(node)[0] if np.ndim(node) else 0
         if rows != samples:
-            raise InputError(f"{path}: /measure/{name} has {rows} rows where /measure/time "
-                             f"has {samples} (damaged?)")
+            raise InputError(f"{res.folder / 'results.h5'}: /measure/{name} has {rows} rows "
+                             f"where /measure/time has {samples} (damaged?)")
 
 
 def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Results:
@@ -113,8 +111,6 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     measure = data.get("measure")
     if isinstance(measure, dict) and np.size(measure.get("time", ())) == 0:
         del data["measure"]  # not one sample (measure.interval longer than the run): none
-    elif isinstance(measure, dict):
-        _check_samples(measure, path)
     attrs = data.get("@attrs", {})
     toml_text = attrs.get("config_toml")
     config_file = folder / "config.toml"
@@ -131,4 +127,6 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     cfg = config_from_text(toml_text, f"the config saved in {path}")
     events = dict(data.get("events", {}).get("@attrs", {}))
     warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
-    return Results(folder, cfg, toml_text, attrs, events, warnings, data)
+    res = Results(folder, cfg, toml_text, attrs, events, warnings, data)
+    _check_samples(res)
+    return res

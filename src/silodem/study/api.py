@@ -12,6 +12,7 @@ from silodem.errors import InputError
 from silodem.output import write_text
 from silodem.study.execute import (
     StudyOutcome,
+    check_workers,
     connect,
     is_finished,
     prepare,
@@ -116,8 +117,7 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
                          f"{type(plan).__name__}")
     if not isinstance(out_dir, str | Path) or not str(out_dir).strip():
         raise InputError(f"out_dir must be the study's folder path; got {out_dir!r}")
-    if workers is not None and (not isinstance(workers, int) or not 1 <= workers <= 4096):
-        raise InputError(f"workers must be an integer from 1 to 4096, got {workers!r}")
+    check_workers(workers)
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()
     todo = prepare(plan, out_dir)

@@ -178,6 +178,16 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+MAX_WORKERS = 4096
+
+
+def check_workers(workers: int | None, what: str = "workers") -> None:
+    """InputError unless ``workers`` is None (one per core) or a count from 1 to MAX_WORKERS."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or not 1 <= workers <= MAX_WORKERS):
+        raise InputError(f"{what} must be an integer from 1 to {MAX_WORKERS}, got {workers!r}")
+
+
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
     """Create the study folder, save the study file, return the runs still to do."""
     if out_dir.exists() and not out_dir.is_dir():

@@ -41,15 +41,12 @@ _STALE = re.compile(r"^(particles|contacts|walls)(_\d+\.vtu|\.pvd)$"
 
 def remove_written(directory: Path) -> None:
     """Remove from ``directory`` the files this module writes (grains, contacts, walls, their
-    .pvd collections, the fields), and the folder itself if nothing else is left in it; other
-    files are not touched."""
+    .pvd collections, the fields); other files are not touched."""
     if not directory.is_dir():
         return
     for entry in directory.iterdir():
         if _STALE.match(entry.name) and entry.is_file():
             entry.unlink()
-    if not directory.is_symlink() and not any(directory.iterdir()):  # a link may be the user's
-        directory.rmdir()
 
 
 def file_name(kind: str, k: int) -> str:
@@ -167,10 +164,10 @@ class VtkSeries:
 
     def __init__(self, directory: Path | str, walls: WallGeometry, fresh: bool = True) -> None:
         self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
         self.walls = walls
         if fresh:
             remove_written(self.directory)
-        self.directory.mkdir(parents=True, exist_ok=True)
 
     def write(self, k: int, frame: Frame) -> None:
         d = self.directory
