@@ -1,0 +1,96 @@
+"""The ``silodem`` Typer app, the options several commands share, and their small helpers.
+
+The commands are in :mod:`silodem.cli.commands_run` (one run: run, scenarios, show, plot,
+animate) and :mod:`silodem.cli.commands_tools` (sweep, bench, validate); the entry point that
+turns every bad input into one line and exit code 2 is :mod:`silodem.cli.entry`.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from silodem.errors import one_line
+from silodem.scenario_files import load_config, quick_variant
+
+app = typer.Typer(
+    name="silodem",
+    help=(
+        "Simulate the filling and discharge of 2D silos with the Discrete Element Method. "
+        "Start with 'silodem scenarios' to see the ready-made cases, 'silodem show NAME' to "
+        "read every value of one, and 'silodem run' to run one (paper-case2 by default)."
+    ),
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+SourceArg = Annotated[
+    str,
+    typer.Argument(
+        metavar="[SCENARIO|FILE.toml]",
+        help="An embedded scenario name (see 'silodem scenarios') or the path of a TOML "
+        "config file.",
+        show_default=True,
+    ),
+]
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        "-s",
+        metavar="KEY=VALUE",
+        help="Override one config value, e.g. --set material.kn=2e7 or "
+        "--set silo.kind=flat. KEY is the dotted path of 'silodem show'; VALUE is read as "
+        'TOML (number, true/false, "text"). Repeat for several values.',
+        show_default=False,
+    ),
+]
+QuickOpt = Annotated[
+    bool,
+    typer.Option(
+        "--quick",
+        help="Shrink the case to a small silo (cell and walls x 0.6, about a third of the "
+        "grains, shorter time limits) that runs in well under a minute: a first try.",
+    ),
+]
+
+
+def check_threads(threads: int | None) -> None:
+    """Refuse a ``--threads`` value the kernels cannot run with (InputError)."""
+    from silodem.run import check_threads as check
+
+    check(threads, "--threads")
+
+
+def read_config(source: str, sets: list[str] | None, quick: bool):
+    """The validated Config of a scenario name or TOML file, with ``--set`` and ``--quick``."""
+    cfg = load_config(source, sets or [])
+    return quick_variant(cfg) if quick else cfg
+
+
+def given(ctx: typer.Context, name: str) -> bool:
+    """True when the parameter ``name`` came from the command line (not its default)."""
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name != "DEFAULT"
+
+
+def check_out(out: Path) -> None:
+    """Refuse (InputError) an ``--out`` folder that is a file, cannot be written or holds an
+    unfinished run; create it."""
+    from silodem.run import check_out as check
+
+    check(out, "--out")
+
+
+def fail(message: str, code: int = 2) -> None:
+    """Print ``message`` as one line on stderr and exit with ``code``."""
+    sys.stderr.write(one_line(message) + "\n")
+    sys.stderr.flush()
+    raise SystemExit(code)
+
