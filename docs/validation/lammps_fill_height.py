@@ -18,10 +18,10 @@ checks grain by grain that the two codes then follow the same trajectories).  Wi
 mu |F_n| while silodem caps it at 0, so the laws differ in that phase of a contact.
 
 Counted: the grains that have left, against time (LAMMPS: minus the sum of the periodic image
-counts iy; silodem: the grains moved to the top at each list build, ``bench.reenter``), sampled every 0.2 s
-over ``SECONDS`` after ``SETTLE`` steps; the steady rate is the slope from 10 % to 100 % of the
-count with its batch-means error (``measure.discharge.steady_rate``).  Needs ``lmp`` (Debian
-package ``lammps``).  Prints one JSON line per NY and code."""
+counts iy; silodem: the grains moved to the top at each list build, ``bench.reenter``), sampled
+every 0.2 s over ``SECONDS`` after ``SETTLE`` steps; the steady rate is the slope from 10 % to
+100 % of the count with its batch-means error (``measure.discharge.steady_rate``).  Needs
+``lmp`` (Debian package ``lammps``).  Prints one JSON line per NY and code."""
 
 from __future__ import annotations
 

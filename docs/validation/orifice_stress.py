@@ -6,13 +6,13 @@ H/B given on the command line (docs/validation.md, section 5, fifth session).
     python docs/validation/orifice_stress.py 6 39.78   # H = 6 B in a silo of B = 39.78 d
 
 The silo, grains and re-insertion are those of ``silodem validate`` (``validate.beverloo``,
-D = 9 d, seed 1, 3 s of discharge; B = 76.5 d, or the width B/d given as a second argument,
-e.g. 39.78 = 1.02 (D + 30 d), the narrowest the issue allows).  From 0.5 s after the gate opens, at the end of every
-check interval: the Love-Weber stress (``measure.stress``) of the grains whose centres lie in
-boxes of width D over the outlet (heights 0-D, D-2D, 2D-4D above the floor) and in a box of
-the same size in the corner next to the left wall, and the mean vertical pressure on the two
-floor segments.  Prints one JSON line: the steady rate and the time-averaged stresses [Pa]
-(compression positive)."""
+D = 9 d, seed 1, 3 s of discharge; B = 76.5 d, or the width B/d given as a second argument, e.g.
+39.78 = 1.02 (D + 30 d), the narrowest the issue allows).  From 0.5 s after the gate opens, at
+the end of every check interval: the Love-Weber stress (``measure.stress``) of the grains whose
+centres lie in boxes of width D over the outlet (heights 0-D, D-2D, 2D-4D above the floor) and
+in a box of the same size in the corner next to the left wall, and the mean vertical pressure
+on the two floor segments.  Prints one JSON line: the steady rate and the time-averaged
+stresses [Pa] (compression positive)."""
 
 import json
 import sys
