@@ -288,6 +288,14 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     html = (tmp_path / "study" / "report.html").read_text(encoding="utf-8")
     assert "phiG=30: no fit" in html
 
+    # rates that fall as the outlet widens follow no Beverloo law: a note, not a fit
+    for row, run in zip(rows, plan.runs):
+        if run.cfg.material.friction_deg == 20.0:
+            row["discharge_rate"] = 10.0 - run.cfg.silo.outlet_width
+    fits, notes = outlet_fits(plan, {r["id"]: r for r in rows})
+    assert fits == [] and notes[0].startswith("phiG=20: no fit, the rates do not grow with "
+                                              "the outlet width")
+
 
 @pytest.mark.parametrize(("text", "needles"), [
     (TINY.replace('seeds = [3]', 'seeds = [3]\ngird = 1'), ["unknown key 'gird'", "'grid'"]),

@@ -265,3 +265,36 @@ def test_en1991_4_discharge_magnifies_the_janssen_filling_load():
     # the discharge factors of slender silos, EN 1991-4:2006 §5.2.2.2: C_h = 1.15, C_w = 1.10
     np.testing.assert_allclose(p_he, 1.15 * p_h)
     np.testing.assert_allclose(p_we, 1.10 * p_w)
+
+
+@pytest.mark.parametrize(("h_c", "d_c", "kind"), [
+    (6.8, 3.4, "slender"), (10.0, 3.4, "slender"),          # h_c/d_c >= 2
+    (4.1, 3.4, "intermediate"), (6.7, 3.4, "intermediate"),  # 1 < h_c/d_c < 2: paper case 2
+    (3.4, 3.4, "squat"), (1.5, 3.4, "squat"),                # 0.4 < h_c/d_c <= 1
+    (1.36, 3.4, "retaining"), (0.5, 3.4, "retaining"),       # h_c/d_c <= 0.4
+])
+def test_en1991_4_slenderness_classes(h_c, d_c, kind):
+    # the class limits of EN 1991-4:2006 §1.5 (slender >= 2, squat <= 1, retaining <= 0.4)
+    assert th.en1991_4_slenderness(h_c, d_c) == kind
+
+
+def test_en1991_4_slenderness_refuses_a_silo_without_walls():
+    with pytest.raises(ValueError, match="positive"):
+        th.en1991_4_slenderness(0.0, 3.4)
+
+
+def test_beverloo_free_fit_starts_inside_its_bounds_for_outlets_near_one_diameter():
+    """k is bounded above by 0.95 min(D)/d; with the narrowest outlet at 1 d that bound is
+    0.95, under the usual start k = 1, which scipy refuses.  Exact rates of the law
+    (C = 0.6, k = 0.5, b = 3/2) must be fitted back."""
+    d, rho, g, t = 0.01, 700.0, 9.81, 0.01
+    D = d * np.array([1.0, 1.5, 2.0, 3.0, 4.0, 6.0])
+    W = np.array([th.beverloo_2d(x, d, rho, g, 0.6, 0.5, t) for x in D])
+    fit = th.fit_beverloo_free(D, W, 0.01 * W, d, rho, g, t)
+    assert (fit.C, fit.k, fit.b) == pytest.approx((0.6, 0.5, 1.5), rel=1e-6)
+
+
+def test_beverloo_fit_refuses_rates_that_do_not_grow_with_the_outlet():
+    D = np.array([0.05, 0.08, 0.12])
+    with pytest.raises(ValueError, match="do not grow"):
+        th.fit_beverloo_three_halves(D, np.array([3.0, 2.0, 1.0]), 0.01, 700.0, 9.81, 0.01)

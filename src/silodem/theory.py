@@ -268,7 +268,8 @@ def beverloo_2d(D: float, d: float, rho_b: float, g: float, C: float, k: float,
 
     d: grain diameter [m]; C, k: empirical constants [-]; rho_b [kg/m^3]; thickness t [m] of the
     slot (W per unit thickness times t).  Zero when D <= k d.  Source: Beverloo, Leniger & van de
-    Velde (1961), Chem. Eng. Sci. 15, 260 (3D form W ~ (D - k d)^(5/2)); Nedderman (1992) ch. 10.
+    Velde (1961), Chem. Eng. Sci. 15, 260 (3D form W ~ (D - k d)^(5/2)); Nedderman (1992) ch. 10;
+    the 3/2 power of a 2D silo: Janda, Zuriguel & Maza (2012), Phys. Rev. Lett. 108, 248001.
     """
     open_width = max(D - k * d, 0.0)
     return C * rho_b * math.sqrt(g) * open_width**1.5 * thickness
@@ -308,8 +309,9 @@ def fit_beverloo_free(D: npt.ArrayLike, W: npt.ArrayLike, W_err: npt.ArrayLike, 
     def model(x, lnC, k, b):
         return lnC + b * np.log(np.maximum(x - k * d, 1e-12)) + math.log(scale)
 
-    p0 = [math.log(0.6), 1.0, 1.5]
-    bounds = ([-10.0, -5.0, 0.5], [10.0, 0.95 * D.min() / d, 3.0])
+    k_max = 0.95 * D.min() / d
+    p0 = [math.log(0.6), min(1.0, 0.5 * k_max), 1.5]  # the start inside the bounds
+    bounds = ([-10.0, -5.0, 0.5], [10.0, k_max, 3.0])
     popt, pcov = _curve_fit(model, D, np.log(W), p0=p0, sigma=W_err / W, absolute_sigma=True,
                            bounds=bounds, maxfev=20000)
     errs = np.sqrt(np.diag(pcov)) if np.all(np.isfinite(pcov)) else np.full(3, np.nan)
@@ -323,7 +325,9 @@ def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_
                               W_err: npt.ArrayLike | None = None) -> BeverlooFit:
     """C and k with the exponent held at 3/2: W^(2/3) = (C rho_b sqrt(g) t)^(2/3) (D - k d) is a
     straight line in D (least squares, weighted by the errors of W^(2/3) when ``W_err`` is
-    given).  Two outlet widths determine it; the errors of C and k need three or more."""
+    given).  Two outlet widths determine it; the errors of C and k need three or more.
+    ValueError when the line does not rise with D: rates that do not grow with the outlet
+    follow no Beverloo law."""
     D, W = np.asarray(D, dtype=float), np.asarray(W, dtype=float)
     y = W ** (2.0 / 3.0)
     w = None
@@ -341,6 +345,9 @@ def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_
             A = np.column_stack([D, np.ones_like(D)])
             resid = y - (slope * D + intercept)
             cov = np.linalg.inv(A.T @ A) * float(resid @ resid) / (D.size - 2)
+    if not slope > 0.0:
+        raise ValueError(f"the rates do not grow with the outlet width (W^(2/3) against D has "
+                         f"slope {slope:.3g}): no Beverloo law to fit")
     scale = rho_b * math.sqrt(g) * t
     C = slope**1.5 / scale
     k = -intercept / slope / d
@@ -352,6 +359,22 @@ def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_
 
 
 # --- EN 1991-4:2006 ------------------------------------------------------------------------------
+
+
+def en1991_4_slenderness(h_c: float, d_c: float) -> str:
+    """EN 1991-4:2006 §1.5 / §5.1 slenderness class of a silo whose vertical walls stand
+    h_c [m] from the transition (or the flat bottom) to the equivalent surface, of inside
+    dimension d_c [m] (the width B of a planar silo): "slender" for h_c/d_c >= 2,
+    "intermediate" for 1 < h_c/d_c < 2, "squat" for 0.4 < h_c/d_c <= 1, "retaining" below.
+    The Janssen-form loads below (§5.2) are the standard's rules for slender silos only."""
+    if not (h_c > 0.0 and d_c > 0.0):
+        raise ValueError(f"h_c and d_c must be positive, got {h_c} and {d_c}")
+    ratio = h_c / d_c
+    if ratio >= 2.0:
+        return "slender"
+    if ratio > 1.0:
+        return "intermediate"
+    return "squat" if ratio > 0.4 else "retaining"
 
 
 def en1991_4_filling(depth: npt.ArrayLike, gamma: float, K: float, mu: float,

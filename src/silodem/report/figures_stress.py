@@ -86,10 +86,26 @@ def _hopper_curves(ax, a: Analysis, which: str) -> None:
     ax.plot(h["planar"], h["z"], color="#d62728", lw=2,
             label="Walker slice, PLANAR wedge (2D), D = 1")
     ax.plot(h["conical"], h["z"], color="#d62728", lw=1.2, ls="--",
-            label="Walker slice, conical (paper eq. 12), D = 1")
+            label="Walker slice, conical (form of paper eq. 12, virtual apex), D = 1")
     if which == "h" and "planar_D" in h:
         ax.plot(h["planar_D"], h["z"], color="#ff9896", lw=1.5, ls="-.",
                 label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)")
+
+
+def _en1991_4_discharge_curve(ax, a: Analysis) -> None:
+    """EN 1991-4's fixed discharge load on the vertical wall, p_he = 1.15 p_hf, with the depth
+    from the filled silo's surface (the standard's loads are those of the full silo).  Its
+    Janssen form (§5.2) is the rule for slender silos; the label gives this silo's class."""
+    g = a.geom
+    top = a.surface["fill"]
+    z = np.linspace(g["z_j"], top, 60)
+    p_he, _ = th.en1991_4_discharge(top - z, a.rho_b * g["g"], a.janssen["fill"].K,
+                                    g["mu_wall"], g["B"] / 2)
+    h_c = top - g["z_j"]
+    kind = th.en1991_4_slenderness(h_c, g["B"]) if h_c > 0 else "?"
+    ax.plot(p_he, z, color="#9467bd", lw=1.4, ls=(0, (5, 2)),
+            label=f"EN 1991-4 §5.2 discharge 1.15 p_hf (K of filling; slender-silo rule, "
+            f"this silo h_c/d_c = {h_c / g['B']:.2f}: {kind})")
 
 
 def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
@@ -113,13 +129,8 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
         ax.plot(s["near_xx"], s["z"], color="#2ca02c", lw=1.2, marker="s", ms=3,
                 label="sigma_xx near the walls (Love-Weber strips)")
     _janssen_curves(ax, a, key, "h")
-    if key == "discharge" and "fill" in a.janssen and np.isfinite(a.surface[key]):
-        g = a.geom
-        z = np.linspace(g["z_j"], a.surface[key], 60)
-        p_he, _ = th.en1991_4_discharge(a.surface[key] - z, a.rho_b * g["g"],
-                                        a.janssen["fill"].K, g["mu_wall"], g["B"] / 2)
-        ax.plot(p_he, z, color="#9467bd", lw=1.4, ls=(0, (5, 2)),
-                label="EN 1991-4 discharge 1.15 p_hf (K of filling)")
+    if key == "discharge" and "fill" in a.janssen and np.isfinite(a.surface["fill"]):
+        _en1991_4_discharge_curve(ax, a)
     _hopper_curves(ax, a, "h")
     if key in a.peaks and np.isfinite(a.peaks[key][0]):
         v, z = a.peaks[key]

@@ -85,7 +85,10 @@ def _fit_group(label: str, runs: list[PlannedRun],
     d = mean_diameter(cfg)
     t, g = cfg.material.thickness, cfg.gravity
     errors = W_err if np.all(W_err > 0) else None
-    fixed = th.fit_beverloo_three_halves(D, W, d, rho_b, g, t, W_err=errors)
+    try:
+        fixed = th.fit_beverloo_three_halves(D, W, d, rho_b, g, t, W_err=errors)
+    except ValueError as exc:  # rates that do not grow with D
+        return None, f"{label}: no fit, {exc}" + (f"; {note.split(': ', 1)[1]}" if note else "")
     free = None
     if D.size >= MIN_WIDTHS_FREE and errors is not None:
         try:
