@@ -7,7 +7,13 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from silodem.report.analysis import Analysis
-from silodem.report.draw import draw_force_network, draw_grains, draw_walls, silo_axes
+from silodem.report.draw import (
+    draw_force_network,
+    draw_grains,
+    draw_walls,
+    silo_axes,
+    tight_layout,
+)
 
 
 def _snaps(a: Analysis) -> list[tuple[str, dict]]:
@@ -99,7 +105,7 @@ def fig_discharge_rate(a: Analysis) -> Figure | None:
     ax2.set_xlabel("time since the gate opened [s]")
     ax2.set_ylabel("mass flow rate [kg/s]")
     ax2.legend(fontsize=8)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 

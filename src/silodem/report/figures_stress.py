@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 
 from silodem import theory as th
 from silodem.report.analysis import Analysis
-from silodem.report.draw import draw_walls, rolling_mean, shade_phases, silo_axes
+from silodem.report.draw import draw_walls, rolling_mean, shade_phases, silo_axes, tight_layout
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
 
@@ -52,7 +52,7 @@ def fig_coordination(a: Analysis) -> Figure | None:
         ax.axhline(4.0, color="0.5", lw=0.7, ls=":")
         ax.set_ylim(0, max(6.5, 1.05 * peak))
         ax.legend(fontsize=8, loc="lower right", ncol=2)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -145,7 +145,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
     ax.set_title(f"Horizontal stress along the silo wall, {title} (t = {t0:.2f}-{t1:.2f} s)",
                  fontsize=10)
     ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -169,7 +169,7 @@ def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
     ax.set_ylim(0, a.geom["top"])
     ax.set_title("Vertical stress along the silo wall, after filling", fontsize=10)
     ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -194,7 +194,7 @@ def fig_wall_shear(a: Analysis) -> Figure | None:
     ax.set_ylim(0, a.geom["top"])
     ax.set_title("Wall friction along the silo wall", fontsize=10)
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -236,7 +236,7 @@ def fig_evolution(a: Analysis) -> Figure | None:
     ax2.set_ylim(0, 3)
     ax2.set_xlabel("time [s]")
     ax2.legend(fontsize=7, ncol=3)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -259,7 +259,7 @@ def fig_change(a: Analysis) -> Figure | None:
     ax.set_ylabel("change, discharge vs end of filling [%]")
     ax.set_title("Change of the switch-zone stresses from filling to discharge", fontsize=10)
     ax.legend(fontsize=8)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -291,5 +291,5 @@ def fig_fields(a: Analysis) -> Figure | None:
             silo_axes(ax, a.geom)
             ax.set_title(f"{label.split(' [')[0]}, {window}", fontsize=9)
             fig.colorbar(pm, ax=ax, shrink=0.7, label=label)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
