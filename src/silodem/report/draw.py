@@ -9,8 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import numpy as np
 import numpy.typing as npt
-from matplotlib.collections import LineCollection, PatchCollection
-from matplotlib.patches import Circle
+from matplotlib.collections import EllipseCollection, LineCollection
 
 from silodem.measure.stress import contact_points_walls
 
@@ -41,11 +40,24 @@ def draw_walls(ax: Axes, walls: dict[str, Any], active: np.ndarray | None = None
                 "-" if act[k] else ":", color="k", lw=1.6, zorder=5)
 
 
+def grain_disks(ax: Axes, p: dict[str, np.ndarray], **kw: Any) -> EllipseCollection:
+    """The grains ``p`` (x, y, radius [m]) as disks to scale, added to ``ax`` and returned
+    (``kw``: the collection's colours, colour map, ...).
+
+    One EllipseCollection in data units: the same disks as a PatchCollection of Circles, but
+    made and drawn several times faster (no Patch object per grain)."""
+    diameter = 2.0 * np.asarray(p["radius"], dtype=float)
+    disks = EllipseCollection(diameter, diameter, np.zeros_like(diameter), units="xy",
+                              offsets=np.column_stack([p["x"], p["y"]]),
+                              offset_transform=ax.transData, **kw)
+    ax.add_collection(disks)
+    return disks
+
+
 def draw_grains(ax: Axes, p: dict[str, np.ndarray], color: str = "#e4ddcf",
                 edge: str = "#9c9280", **kw: Any) -> None:
-    circles = [Circle((x, y), r) for x, y, r in zip(p["x"], p["y"], p["radius"])]
-    ax.add_collection(PatchCollection(circles, facecolor=color, edgecolor=edge, linewidth=0.3,
-                                      **kw))
+    """The grains ``p`` as disks to scale, filled with ``color``, outlined in ``edge``."""
+    grain_disks(ax, p, facecolor=color, edgecolor=edge, linewidth=0.3, **kw)
 
 
 def draw_force_network(ax: Axes, snap: dict[str, Any], walls: dict[str, Any],

@@ -11,6 +11,7 @@ from silodem.report.draw import (
     draw_force_network,
     draw_grains,
     draw_walls,
+    grain_disks,
     silo_axes,
     tight_layout,
 )
@@ -151,14 +152,8 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
     stayed = ~left & ~dead
     draw_grains(ax, {k: v[stayed] for k, v in p.items()}, color="#cccccc", edge="#999999")
     draw_grains(ax, {k: v[dead] for k, v in p.items()}, color="k", edge="k")
-    from matplotlib.collections import PatchCollection
-    from matplotlib.patches import Circle
-
-    circles = [Circle((x, y), r) for x, y, r in zip(p["x"][left], p["y"][left],
-                                                       p["radius"][left])]
-    pc = PatchCollection(circles, cmap="plasma", edgecolor="none")
-    pc.set_array(exit_t[left])
-    ax.add_collection(pc)
+    pc = grain_disks(ax, {k: v[left] for k, v in p.items()}, cmap="plasma", edgecolor="none",
+                     array=exit_t[left])
     draw_walls(ax, a.res.group("walls"), np.ones(len(a.res.group("walls")["ax"]), bool))
     silo_axes(ax, a.geom)
     ax.set_title(f"when each grain left the silo\nblack: dead zone "
