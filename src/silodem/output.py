@@ -104,7 +104,7 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
     """A PNG of a snapshot: grains to scale, the force network (every touching contact, line
     width and colour ~ normal force; ``report.draw.draw_force_network``, as the report's
     Fig. 5) and the walls (``walls``: ax, ay, bx, by [m]; dotted where withdrawn)."""
-    from silodem.report.draw import draw_force_network, tight_layout
+    from silodem.report.draw import draw_force_network, save_png, tight_layout
 
     p = snap["particles"]
     fig, ax = plt.subplots(figsize=(6, 9), dpi=110)
@@ -121,6 +121,6 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
     tight_layout(fig)
     try:
         with atomic_file(path) as tmp:
-            fig.savefig(tmp, format="png")
+            save_png(fig, tmp)
     finally:
         plt.close(fig)

