@@ -27,6 +27,7 @@ from matplotlib.figure import Figure
 from silodem import theory as th
 from silodem.measure.discharge import mean_of_runs
 from silodem.measure.regions import mean_diameter
+from silodem.report.draw import tight_layout
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
 from silodem.study.table import as_float
 
@@ -184,5 +185,5 @@ def fig_beverloo(fits: list[OutletFit]) -> Figure | None:
     ax.set_title("Beverloo: W = C rho_b sqrt(g) (D - k d)^(3/2) t is a straight line here",
                  fontsize=10)
     ax.legend(fontsize=8)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import itertools
 import math
 import time
@@ -26,7 +25,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from silodem.atomic import write_atomic
-from silodem.report.draw import rolling_mean, shade_phases
+from silodem.report.draw import png_bytes, rolling_mean, shade_phases, tight_layout
 from silodem.report.html import PAGE_CSS, html_table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
@@ -178,7 +177,7 @@ def fig_change(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
         return None
     axes[1].set_xticks(x, [lay.row_label(r) for r in lay.rows])
     axes[0].legend(fontsize=8, ncol=2)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -225,7 +224,7 @@ def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | Non
         ax.set_visible(False)
     if not any_value:
         return None
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -338,10 +337,9 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
         if fig is None:
             (fig_dir / f"{name}.png").unlink(missing_ok=True)
             continue
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
-        write_atomic(fig_dir / f"{name}.png", buf.getvalue())
-        pngs.append((name, paper, caption, buf.getvalue()))
+        png = png_bytes(fig)
+        write_atomic(fig_dir / f"{name}.png", png)
+        pngs.append((name, paper, caption, png))
     spec = plan.study.spec
     title = f"silodem study: {plan.name}" + (" (--quick)" if plan.quick else "")
     parts = [(f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"

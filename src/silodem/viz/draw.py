@@ -19,6 +19,7 @@ from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.colors import BoundaryNorm, Normalize
 from matplotlib.figure import Figure
 
+from silodem.report.draw import PNG_COMPRESSION
 from silodem.silo.frames import Frame, Frames
 
 COLORS = ("velocity", "force", "coordination", "none")
@@ -172,6 +173,6 @@ class FrameArtist:
 
     def png(self) -> bytes:
         buf = io.BytesIO()
-        # zlib level 1, as the report's figures (report.draw.PNG_COMPRESSION): same pixels
-        self.fig.savefig(buf, format="png", dpi=self.fig.dpi, pil_kwargs={"compress_level": 1})
+        self.fig.savefig(buf, format="png", dpi=self.fig.dpi,
+                         pil_kwargs={"compress_level": PNG_COMPRESSION})  # as the report's
         return buf.getvalue()
