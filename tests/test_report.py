@@ -298,3 +298,17 @@ def test_chromium_renders_the_report_with_its_figures(run_dir, tmp_path):
     assert coloured.mean() > 0.01
     rows = np.flatnonzero(coloured.any(axis=1))
     assert rows.max() - rows.min() > 4000
+
+
+def test_grain_disks_widen_the_axes_to_the_whole_disks():
+    """The disks of the report's pictures are one EllipseCollection, whose own data limits are
+    its centres: two disks of radius 0.5 m at x = 0 and 1 m span x from -0.5 to 1.5 m."""
+    import matplotlib.pyplot as plt
+
+    from silodem.report.draw import grain_disks
+
+    fig, ax = plt.subplots()
+    grain_disks(ax, {"x": np.array([0.0, 1.0]), "y": np.array([0.0, 0.0]),
+                     "radius": np.array([0.5, 0.5])})
+    assert ax.dataLim.bounds == pytest.approx((-0.5, -0.5, 2.0, 1.0))
+    plt.close(fig)

@@ -271,16 +271,19 @@ def test_en1991_4_discharge_magnifies_the_janssen_filling_load():
     (6.8, 3.4, "slender"), (10.0, 3.4, "slender"),          # h_c/d_c >= 2
     (4.1, 3.4, "intermediate"), (6.7, 3.4, "intermediate"),  # 1 < h_c/d_c < 2: paper case 2
     (3.4, 3.4, "squat"), (1.5, 3.4, "squat"),                # 0.4 < h_c/d_c <= 1
-    (1.36, 3.4, "retaining"), (0.5, 3.4, "retaining"),       # h_c/d_c <= 0.4
+    (1.36, 3.4, "retaining"), (0.5, 3.4, "retaining"),       # flat bottom, h_c/d_c <= 0.4
 ])
 def test_en1991_4_slenderness_classes(h_c, d_c, kind):
-    # the class limits of EN 1991-4:2006 §1.5 (slender >= 2, squat <= 1, retaining <= 0.4)
-    assert th.en1991_4_slenderness(h_c, d_c) == kind
+    # the class limits of EN 1991-4:2006 §1.5 (slender >= 2, squat <= 1, retaining: a flat
+    # bottom and <= 0.4; with a hopper a silo that low is squat)
+    assert th.en1991_4_slenderness(h_c, d_c, flat_bottom=True) == kind
+    hopper = "squat" if kind == "retaining" else kind
+    assert th.en1991_4_slenderness(h_c, d_c, flat_bottom=False) == hopper
 
 
 def test_en1991_4_slenderness_refuses_a_silo_without_walls():
     with pytest.raises(ValueError, match="positive"):
-        th.en1991_4_slenderness(0.0, 3.4)
+        th.en1991_4_slenderness(0.0, 3.4, flat_bottom=True)
 
 
 def test_beverloo_free_fit_starts_inside_its_bounds_for_outlets_near_one_diameter():

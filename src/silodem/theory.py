@@ -361,12 +361,13 @@ def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_
 # --- EN 1991-4:2006 ------------------------------------------------------------------------------
 
 
-def en1991_4_slenderness(h_c: float, d_c: float) -> str:
+def en1991_4_slenderness(h_c: float, d_c: float, flat_bottom: bool) -> str:
     """EN 1991-4:2006 §1.5 / §5.1 slenderness class of a silo whose vertical walls stand
     h_c [m] from the transition (or the flat bottom) to the equivalent surface, of inside
     dimension d_c [m] (the width B of a planar silo): "slender" for h_c/d_c >= 2,
-    "intermediate" for 1 < h_c/d_c < 2, "squat" for 0.4 < h_c/d_c <= 1, "retaining" below.
-    The Janssen-form loads below (§5.2) are the standard's rules for slender silos only."""
+    "intermediate" for 1 < h_c/d_c < 2, "squat" for 0.4 < h_c/d_c <= 1 and, with a hopper,
+    below; "retaining" for a flat bottom and h_c/d_c <= 0.4.  The Janssen-form loads below
+    (§5.2) are the standard's rules for slender silos only."""
     if not (h_c > 0.0 and d_c > 0.0):
         raise ValueError(f"h_c and d_c must be positive, got {h_c} and {d_c}")
     ratio = h_c / d_c
@@ -374,7 +375,7 @@ def en1991_4_slenderness(h_c: float, d_c: float) -> str:
         return "slender"
     if ratio > 1.0:
         return "intermediate"
-    return "squat" if ratio > 0.4 else "retaining"
+    return "retaining" if ratio <= 0.4 and flat_bottom else "squat"
 
 
 def en1991_4_filling(depth: npt.ArrayLike, gamma: float, K: float, mu: float,

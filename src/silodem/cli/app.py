@@ -93,4 +93,3 @@ def fail(message: str, code: int = 2) -> None:
     sys.stderr.write(one_line(message) + "\n")
     sys.stderr.flush()
     raise SystemExit(code)
-

@@ -192,8 +192,6 @@ def plot(
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 
-
-
 @app.command()
 def animate(
     run_dir: Annotated[
@@ -245,5 +243,3 @@ def animate(
     Console().print(f"animation: {result.frames} frames ({result.width}x{result.height} px, "
                     f"{fps} fps) in {result.seconds:.1f} s -> {result.path}", markup=False,
                     highlight=False, soft_wrap=True)
-
-

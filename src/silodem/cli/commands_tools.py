@@ -105,8 +105,8 @@ def sweep(
     if outcome.failed:
         first_id, first_error = next(iter(outcome.failed.items()))
         fail(f"error: {len(outcome.failed)} of {len(plan.runs)} runs failed (first: "
-               f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command "
-               "again to retry them", 1)
+             f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command "
+             "again to retry them", 1)
 
 
 _MAX_BENCH_STEPS = 10**12  # as silo.checks.MAX_STEPS; a 64-bit step count beyond is an overflow
@@ -162,7 +162,6 @@ def bench(
             console.print(f"note: LAMMPS created {results[1].n} grains, silodem "
                           f"{results[0].n}: sites on the fill region's edge round differently",
                           markup=False, highlight=False)
-
 
 
 @app.command()

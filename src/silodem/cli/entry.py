@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> None:
     numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
     if not numba_threads.isdigit() or int(numba_threads) < 1:
         fail(f"error: NUMBA_NUM_THREADS={numba_threads!r}: must be a whole number of threads "
-               "from 1 (or unset)")
+             "from 1 (or unset)")
     empty = _empty_path(args)
     if empty is not None:
         fail(f"error: {empty}: an empty path (give a folder or file name; '.' for this one)")

@@ -9,11 +9,12 @@ normal part ``v_n`` (negative when the bodies approach) and a tangential part ``
     |F_s| <= mu * max(F_n, 0),  mu = tan(phi)        (Coulomb slip)
     c_n = 2 * zeta * sqrt(k_n * m_eff),  m_eff = m_a m_b / (m_a + m_b)  (m_eff = m for a wall)
 
-The normal force is written in total form, k_n*delta, which equals the paper's incremental sum of
-k_n*v_n*dt for a linear spring; the dashpot, which the paper's eq. (3) writes inside the
-increment, acts as a force of the current step only, as in PFC's and LAMMPS's linear laws.  In 2D the shear force is a scalar along the tangent
-t = (-n_y, n_x) of the current normal n; this *is* the rotation of the shear force with the
-contact frame that PFC applies in 3D.  A contact that opens (delta <= 0) forgets its shear force.
+The normal force is written in total form, k_n*delta, which equals the paper's incremental sum
+of k_n*v_n*dt for a linear spring; the dashpot, which the paper's eq. (3) writes inside the
+increment, acts as a force of the current step only, as in PFC's and LAMMPS's linear laws. In 2D
+the shear force is a scalar along the tangent t = (-n_y, n_x) of the current normal n; this *is*
+the rotation of the shear force with the contact frame that PFC applies in 3D. A contact that
+opens (delta <= 0) forgets its shear force.
 
 Contact stiffnesses are the series values of the two bodies (PFC2D convention):
 k = k_a k_b / (k_a + k_b); they are resolved once at set-up, never in the loop.

@@ -18,12 +18,12 @@ Chem. Eng. Sci. 59 (2004) 525):
 The kernels take 2 E* and 8 G* in place of the linear law's k_n and k_s, multiply them by a,
 and apply the linear law to 2/3 delta: S_n * 2/3 delta = 4/3 E* sqrt(R*) delta^(3/2).
 
-This is the contact law of spheres, applied to disks with a cylinder's mass and inertia
-(rho pi r^2 t, m r^2 / 2), as a 2D LAMMPS run of ``gran/hertz/history`` with ``set density/disc``:
-the thickness t does not enter the force, and E is a parameter that sets the contact stiffness,
-not the material's modulus.  (Two parallel cylinders pressed together along their length follow
-another, nearly linear law with a logarithm, Johnson ch. 4.3, and are much stiffer; it is not
-built.)
+This is the contact law of spheres, applied to disks with a cylinder's mass and inertia (rho pi
+r^2 t, m r^2 / 2), as a 2D LAMMPS run of ``gran/hertz/history`` with ``set density/disc`` (the
+mass) and ``fix nve/sphere disc`` (the inertia): the thickness t does not enter the force, and E
+is a parameter that sets the contact stiffness, not the material's modulus. (Two parallel
+cylinders pressed together along their length follow another, nearly linear law with a
+logarithm, Johnson ch. 4.3, and are much stiffer; it is not built.)
 
 The dashpot above, whose coefficient grows as delta^(1/4) (Tsuji, Tanaka & Ishida, Powder
 Technol. 71 (1992) 239), gives the same restitution at every impact speed: in the units

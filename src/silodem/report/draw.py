@@ -25,8 +25,8 @@ PHASE_COLORS = {0: ("#e8f0fb", "filling"), 1: ("#eef7e8", "settling"),
                 2: ("#fbeee6", "discharge")}
 
 
-def tight_layout(fig: Figure) -> None:
-    """``fig.tight_layout()``, once, on an Agg canvas, leaving no layout engine on ``fig``.
+def tight_layout(fig: Figure, **kw: Any) -> None:
+    """``fig.tight_layout(**kw)``, once, on an Agg canvas, leaving no layout engine on ``fig``.
 
     ``Figure.tight_layout`` leaves a placeholder layout engine behind, and ``savefig`` then
     makes a whole extra (non-rendering) draw pass of the figure before the real one; without
@@ -35,7 +35,7 @@ def tight_layout(fig: Figure) -> None:
     the figure's own Agg canvas ``savefig`` reuses that renderer and its cached text sizes."""
     if not isinstance(fig.canvas, FigureCanvasAgg):
         FigureCanvasAgg(fig)
-    fig.tight_layout()
+    fig.tight_layout(**kw)
     fig.set_layout_engine(None)
 
 
@@ -70,12 +70,16 @@ def grain_disks(ax: Axes, p: dict[str, np.ndarray], **kw: Any) -> EllipseCollect
     (``kw``: the collection's colours, colour map, ...).
 
     One EllipseCollection in data units: the same disks as a PatchCollection of Circles, but
-    made and drawn several times faster (no Patch object per grain)."""
-    diameter = 2.0 * np.asarray(p["radius"], dtype=float)
-    disks = EllipseCollection(diameter, diameter, np.zeros_like(diameter), units="xy",
-                              offsets=np.column_stack([p["x"], p["y"]]),
-                              offset_transform=ax.transData, **kw)
+    made and drawn several times faster (no Patch object per grain).  The collection's own
+    data limits are its centres only, so the disks' extents are added to the axes' limits, as
+    the Circles' were."""
+    radius = np.asarray(p["radius"], dtype=float)
+    centres = np.column_stack([p["x"], p["y"]]).astype(float)
+    disks = EllipseCollection(2.0 * radius, 2.0 * radius, np.zeros_like(radius), units="xy",
+                              offsets=centres, offset_transform=ax.transData, **kw)
     ax.add_collection(disks)
+    if radius.size:
+        ax.update_datalim(np.concatenate([centres - radius[:, None], centres + radius[:, None]]))
     return disks
 
 

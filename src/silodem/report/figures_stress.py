@@ -98,11 +98,13 @@ def _en1991_4_discharge_curve(ax, a: Analysis) -> None:
     Janssen form (§5.2) is the rule for slender silos; the label gives this silo's class."""
     g = a.geom
     top = a.surface["fill"]
+    h_c = top - g["z_j"]
+    if not h_c > 0.0:  # filled no higher than the junction: no vertical wall carries grains
+        return
     z = np.linspace(g["z_j"], top, 60)
     p_he, _ = th.en1991_4_discharge(top - z, a.rho_b * g["g"], a.janssen["fill"].K,
                                     g["mu_wall"], g["B"] / 2)
-    h_c = top - g["z_j"]
-    kind = th.en1991_4_slenderness(h_c, g["B"]) if h_c > 0 else "?"
+    kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=a.res.cfg.silo.kind != "hopper")
     ax.plot(p_he, z, color="#9467bd", lw=1.4, ls=(0, (5, 2)),
             label=f"EN 1991-4 §5.2 discharge 1.15 p_hf (K of filling; slender-silo rule, "
             f"this silo h_c/d_c = {h_c / g['B']:.2f}: {kind})")

@@ -11,9 +11,18 @@
 
 from __future__ import annotations
 
-from silodem.study.api import finish_study, run_study
 from silodem.study.plan import StudyPlan, expand
 from silodem.study.spec import LoadedStudy, list_studies, load_study, study_names, study_text
 
 __all__ = ["LoadedStudy", "StudyPlan", "expand", "finish_study", "list_studies", "load_study",
            "run_study", "study_names", "study_text"]
+
+
+def __getattr__(name: str):
+    """``run_study`` and ``finish_study`` on first use: ``study.api`` imports the run (numba,
+    matplotlib), which ``silodem show`` and ``silodem run``'s study check need not load."""
+    if name in ("finish_study", "run_study"):
+        from silodem.study import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'silodem.study' has no attribute {name!r}")

@@ -140,7 +140,7 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
             else "horizontal and vertical stress, 0.2 s running mean")
     fig.suptitle(f"Switch zone: {what}", fontsize=9, x=0.02, y=0.995, ha="left", va="top")
     top = 1.0 - 0.55 / fig.get_figheight()  # room for the title line and the legend line
-    fig.tight_layout(rect=(0, 0, 1, top))
+    tight_layout(fig, rect=(0, 0, 1, top))
     if handles:
         fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.02, 1.0 - 0.25
                    / fig.get_figheight()), ncol=len(labels), fontsize=7, frameon=False)

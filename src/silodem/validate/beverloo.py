@@ -42,7 +42,7 @@ import numpy as np
 from silodem.config import Config
 from silodem.measure.discharge import RateEstimate, mean_of_runs, steady_rate
 from silodem.silo.procedure import SiloRun
-from silodem.theory import fit_beverloo_free, fit_beverloo_three_halves
+from silodem.theory import BeverlooFit, fit_beverloo_free, fit_beverloo_three_halves
 from silodem.validate.records import Record, absolute, info, rel
 
 CASE = "Beverloo"
@@ -193,7 +193,10 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
     W = np.array([r.rate for r in rates])
     W_err = np.array([r.err for r in rates])
     free = fit_beverloo_free(D, W, W_err, d, rho_b, G, t)
-    fixed = fit_beverloo_three_halves(D, W, d, rho_b, G, t)
+    try:
+        fixed, fixed_note = fit_beverloo_three_halves(D, W, d, rho_b, G, t), ""
+    except ValueError as exc:  # rates that do not grow with D (the exponent check fails too)
+        fixed, fixed_note = BeverlooFit(float("nan"), float("nan"), 1.5, float("nan")), str(exc)
     records: list[Record] = []
     for r in rates:
         each = ", ".join(f"{run.rate:.4g}" for run in r.runs)
@@ -209,8 +212,8 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
         absolute(label, "exponent b of W = A (D - k d)^b (A, k, b fitted)", 1.5, free.b,
                  EXPONENT_TOL, note=f"2D Beverloo: 3/2; fit +- {free.b_err:.2g}"),
         info(label, "free fit: k", free.k),
-        info(label, "C of W = C rho_b sqrt(g) (D - k d)^1.5 t", fixed.C),
-        info(label, "k of W = C rho_b sqrt(g) (D - k d)^1.5 t", fixed.k),
+        info(label, "C of W = C rho_b sqrt(g) (D - k d)^1.5 t", fixed.C, note=fixed_note),
+        info(label, "k of W = C rho_b sqrt(g) (D - k d)^1.5 t", fixed.k, note=fixed_note),
         info(label, "bulk density rho_b of the settled fills", rho_b, "kg/m^3"),
         rel(f"{CASE}, D/d = {D_h:g}, fill height {base.H / d:.0f} d -> {tall.H / d:.0f} d",
             f"steady rate at {factor:.3g} x the fill height", base.rate, tall.rate, HEIGHT_TOL,
