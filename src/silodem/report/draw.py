@@ -65,9 +65,11 @@ def draw_walls(ax: Axes, walls: dict[str, Any], active: np.ndarray | None = None
                 "-" if act[k] else ":", color="k", lw=1.6, zorder=5)
 
 
-def grain_disks(ax: Axes, p: dict[str, np.ndarray], **kw: Any) -> EllipseCollection:
+def grain_disks(ax: Axes, p: dict[str, np.ndarray], autolim: bool = True,
+                **kw: Any) -> EllipseCollection:
     """The grains ``p`` (x, y, radius [m]) as disks to scale, added to ``ax`` and returned
-    (``kw``: the collection's colours, colour map, ...).
+    (``kw``: the collection's colours, colour map, ...; ``autolim=False`` leaves the axes'
+    data limits alone, for axes whose limits are fixed, as an animation's).
 
     One EllipseCollection in data units: the same disks as a PatchCollection of Circles, but
     made and drawn several times faster (no Patch object per grain).  The collection's own
@@ -77,8 +79,8 @@ def grain_disks(ax: Axes, p: dict[str, np.ndarray], **kw: Any) -> EllipseCollect
     centres = np.column_stack([p["x"], p["y"]]).astype(float)
     disks = EllipseCollection(2.0 * radius, 2.0 * radius, np.zeros_like(radius), units="xy",
                               offsets=centres, offset_transform=ax.transData, **kw)
-    ax.add_collection(disks)
-    if radius.size:
+    ax.add_collection(disks, autolim=autolim)
+    if autolim and radius.size:
         ax.update_datalim(np.concatenate([centres - radius[:, None], centres + radius[:, None]]))
     return disks
 

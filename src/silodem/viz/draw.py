@@ -15,11 +15,11 @@ matplotlib.use("Agg")
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
-from matplotlib.collections import EllipseCollection, LineCollection
+from matplotlib.collections import LineCollection
 from matplotlib.colors import BoundaryNorm, Normalize
 from matplotlib.figure import Figure
 
-from silodem.report.draw import PNG_COMPRESSION
+from silodem.report.draw import PNG_COMPRESSION, grain_disks
 from silodem.silo.frames import Frame, Frames
 
 COLORS = ("velocity", "force", "coordination", "none")
@@ -126,11 +126,8 @@ class FrameArtist:
         if frame.n:
             kw: dict = {"facecolors": PLAIN_GRAIN} if self.norm is None else {
                 "array": self._values(frame), "cmap": self.cmap, "norm": self.norm}
-            disks = EllipseCollection(2 * r, 2 * r, np.zeros_like(r), units="xy",
-                                      offsets=np.column_stack([x, y]),
-                                      offset_transform=ax.transData, edgecolors="#5c5346",
-                                      linewidths=0.3, zorder=2, **kw)
-            ax.add_collection(disks, autolim=False)
+            disks = grain_disks(ax, {"x": x, "y": y, "radius": r}, autolim=False,
+                                edgecolors="#5c5346", linewidths=0.3, zorder=2, **kw)
             self._artists.append(disks)
         segs, fn = self._chains(frame, x, y)
         if fn.size:
