@@ -26,7 +26,7 @@ import pytest
 from measure_helpers import tiny_hopper_config
 
 from silodem.output import write_text
-from silodem.report.analysis import analyse, surface_height
+from silodem.report.analysis import analyse, column_tops, surface_height
 from silodem.report.load import load_results
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
@@ -390,6 +390,10 @@ def test_surface_height_and_bulk_density(synth):
     snap = {"particles": {"x": np.array([1.05, 1.15]), "y": np.array([1.0, 0.5]),
                           "radius": np.array([0.05, 0.05])}}
     assert surface_height(snap, B, DIAM) == pytest.approx((1.05 + 0.55) / 2, rel=REL)
+    # the columns run from the left wall to the right one (EN 1991-4's h_o uses the two ends)
+    snap = {"particles": {"x": np.array([1.15, 0.05, 0.65]), "y": np.array([0.5, 0.7, 0.9]),
+                          "radius": np.array([0.05, 0.05, 0.05])}}
+    np.testing.assert_allclose(column_tops(snap, B, DIAM), [0.75, 0.95, 0.55])
 
 
 def test_mobilised_wall_friction_and_janssen_fits(synth):
@@ -509,6 +513,33 @@ def test_key_numbers_of_the_report(synth):
     assert _number(a, "change fill -> discharge, switch_centre") == "h n/a %, v 50 %"
     peak = _number(a, "change fill -> discharge, wall peak")
     assert float(peak.split()[1]) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
+
+
+def test_en1991_4_loads_of_the_report(synth):
+    """EN 1991-4 on the synthetic silo: h_c = surface - z_j = 1.36 - 0.4 tan 50 = 0.883 m over
+    B = 1.2 m is 0.736, a squat silo with a hopper, so §5.3 with discharge magnifiers 1 and 1.
+    The wall columns' tops are 1.35 and 1.37 m, above the 1.36 m surface: h_o = 0.  phi_r is
+    phi_G = 25 deg (no angle of repose set).  p_hf is §5.3.1.1 written out here:
+    p_ho (1 - (z / z_o + 1)^n), p_ho = gamma K z_o, z_o = (B/2) / (K mu), n = -(1 + tan phi_r),
+    with K = 0.55 of the filling fit and gamma = rho_b g."""
+    a, _ = synth
+    en = a.en1991_4
+    h_c = SURF_FILL - Z_J
+    assert (en["kind"], en["section"]) == ("squat", "5.3")
+    assert en["h_c"] == pytest.approx(h_c, rel=REL)
+    assert (en["h_o"], en["phi_r"], en["C_h"], en["C_w"]) == (0.0, 25.0, 1.0, 1.0)
+    z_o = (B / 2) / (K_TRUE * MU_WALL)
+    n = -(1.0 + math.tan(math.radians(25.0)))
+    depth = SURF_FILL - en["z"]
+    p_hf = RHO_B * G * K_TRUE * z_o * (1.0 - (depth / z_o + 1.0) ** n)
+    np.testing.assert_allclose(en["p_hf"], p_hf, rtol=1e-6)  # K from curve_fit
+    np.testing.assert_allclose(en["p_he"], p_hf, rtol=1e-6)
+    np.testing.assert_allclose(en["p_wf"], MU_WALL * p_hf, rtol=1e-6)
+    assert en["z"][0] == pytest.approx(Z_J, rel=REL) and en["z"][-1] == SURF_FILL
+    row = _number(a, "EN 1991-4 slenderness")
+    assert float(row.split(":")[0]) == pytest.approx(h_c / B, rel=5e-3)
+    assert row.endswith("squat, loads of §5.3")
+    assert _number(a, "EN 1991-4 discharge magnifiers") == "1, 1"
 
 
 TABLE_NAN_WITHOUT_DISCHARGE = [

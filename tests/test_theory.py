@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
+from scipy.integrate import solve_ivp, trapezoid
 from scipy.optimize import brentq
 
 from silodem import theory as th
@@ -265,6 +265,77 @@ def test_en1991_4_discharge_magnifies_the_janssen_filling_load():
     # the discharge factors of slender silos, EN 1991-4:2006 §5.2.2.2: C_h = 1.15, C_w = 1.10
     np.testing.assert_allclose(p_he, 1.15 * p_h)
     np.testing.assert_allclose(p_we, 1.10 * p_w)
+
+
+@pytest.mark.parametrize(("K", "mu", "A_over_U", "phi_r", "h_o"), [
+    (0.5, 0.4, 1.7, 25.0, 0.0),        # a levelled top
+    (0.5, 0.445, 1.7, 30.0, 0.25),     # the heap of a 3.4 m silo at about 30 deg
+    (0.6, 0.3, 1.0, 45.0, 2.777777777777778),  # n = -1: h_o / z_o = tan / (1 + tan) = 1/2
+])
+def test_en1991_4_squat_filling_solves_the_slice_balance(K, mu, A_over_U, phi_r, h_o):
+    """§5.3.1.1: the vertical stress gamma z_V and the wall friction mu p_hf of the standard
+    must satisfy the slice balance A d(p_v)/dz = gamma A - U mu p_h, integrated numerically
+    from p_v = gamma h_o at the highest wall contact; p_h is 0 there and tends to
+    p_ho = gamma A / (U mu) far down (the walls then carry the whole weight)."""
+    z_end = 12.0
+
+    def slope(z, s):
+        p_h, _, _ = th.en1991_4_filling_squat(z, GAMMA, K, mu, A_over_U, phi_r, h_o)
+        return [GAMMA - mu * float(p_h) / A_over_U]
+
+    sol = solve_ivp(slope, (h_o, z_end), [GAMMA * h_o], rtol=1e-11, atol=1e-8,
+                    dense_output=True)
+    z = np.linspace(h_o, z_end, 30)
+    p_h, p_w, p_v = th.en1991_4_filling_squat(z, GAMMA, K, mu, A_over_U, phi_r, h_o)
+    np.testing.assert_allclose(p_v, sol.sol(z)[0], rtol=1e-7)
+    np.testing.assert_allclose(p_w, mu * p_h, rtol=1e-14)
+    assert p_h[0] == 0.0
+    deep, _, _ = th.en1991_4_filling_squat(1e7, GAMMA, K, mu, A_over_U, phi_r, h_o)
+    assert float(deep) == pytest.approx(GAMMA * A_over_U / mu, rel=1e-3)
+    # above the highest wall contact the walls carry nothing and p_v is the weight above
+    top = np.linspace(0.0, h_o, 5)
+    p_h, p_w, p_v = th.en1991_4_filling_squat(top, GAMMA, K, mu, A_over_U, phi_r, h_o)
+    assert np.all(p_h == 0.0) and np.all(p_w == 0.0)
+    np.testing.assert_allclose(p_v, GAMMA * top, rtol=1e-14)
+
+
+def test_en1991_4_squat_filling_refuses_a_heap_deeper_than_z_o():
+    with pytest.raises(ValueError, match="h_o"):  # z_o = 1.7 / (0.5 * 0.4) = 8.5 m
+        th.en1991_4_filling_squat(1.0, GAMMA, 0.5, 0.4, 1.7, 30.0, 8.5)
+
+
+@pytest.mark.parametrize("phi_r", [10.0, 30.0, 40.0])
+def test_en1991_4_h_o_is_the_level_of_a_heap_of_equal_volume(phi_r):
+    """h_o is the height above the wall contacts of the level surface holding the same volume
+    as the heap at the angle of repose: integrate the heap profile numerically (planar: over
+    the width; circular: over the area of a disk of radius r)."""
+    d_c, tan = 3.4, math.tan(math.radians(phi_r))
+    x = np.linspace(0.0, d_c / 2, 200_001)
+    heap = (d_c / 2 - x) * tan  # height above the wall contacts at the distance x from the axis
+    planar = trapezoid(heap, x) / (d_c / 2)
+    circular = trapezoid(heap * 2 * np.pi * x, x) / (np.pi * (d_c / 2) ** 2)
+    assert th.en1991_4_h_o(d_c, phi_r) == pytest.approx(planar, rel=1e-9)
+    assert th.en1991_4_h_o(d_c, phi_r, planar=False) == pytest.approx(circular, rel=1e-9)
+
+
+@pytest.mark.parametrize(("h_c", "C_h", "C_w"), [
+    (3.4, 1.0, 1.0),                # squat: the discharge loads are the filling loads
+    (1.5 * 3.4, 1.075, 1.05),       # intermediate: C_S = h_c/d_c - 1 = 0.5
+    (1.999999 * 3.4, 1.15, 1.10),   # ... meeting the slender values at h_c/d_c = 2
+    (2.0 * 3.4, 1.15, 1.10),        # slender, §5.2.2.2
+    (5.0 * 3.4, 1.15, 1.10),
+])
+def test_en1991_4_discharge_factors_by_class(h_c, C_h, C_w):
+    """EN 1991-4:2006 §5.2.2.2 (slender: 1.15, 1.10) and §5.3.2.2 (intermediate: 1 + 0.15 C_S,
+    1 + 0.1 C_S with C_S = h_c/d_c - 1; squat: 1): values worked by hand from the text, and
+    continuous at the class limits."""
+    got = th.en1991_4_discharge_factors(h_c, 3.4, flat_bottom=True)
+    assert got == pytest.approx((C_h, C_w), abs=1e-6)
+
+
+def test_en1991_4_discharge_factors_refuse_a_retaining_silo():
+    with pytest.raises(ValueError, match="retaining"):
+        th.en1991_4_discharge_factors(1.0, 3.4, flat_bottom=True)
 
 
 @pytest.mark.parametrize(("h_c", "d_c", "kind"), [

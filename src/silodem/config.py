@@ -330,6 +330,11 @@ class Measure(_Strict):
         0.3, gt=0, le=1, description="flow is mass flow when v_wall / v_centre above the "
         "junction exceeds this [-] (Johanson's mass flow index)"
     )
+    angle_of_repose_deg: float | None = Field(
+        None, gt=0, lt=90, description="angle of repose phi_r of the grains [deg], for the "
+        "EN 1991-4 (§5.3) wall loads of squat and intermediate silos in the report; unset: "
+        "the grain-grain friction angle phi_G"
+    )
     report: bool = Field(True, description="write report.html with every figure after a run")
 
     @model_validator(mode="after")

@@ -403,6 +403,73 @@ def en1991_4_discharge(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
                        A_over_U: float, C_h: float = 1.15,
                        C_w: float = 1.10) -> tuple[np.ndarray | float, np.ndarray | float]:
     """EN 1991-4:2006 §5.2.2.2 fixed discharge loads of slender silos: p_he = C_h p_hf,
-    p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10; 1.0 for a silo emptied from the top).  The patch load is not included.  Returns (p_he, p_we)."""
+    p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10; 1.0 for a silo emptied from the top).
+    The patch load is not included.  Returns (p_he, p_we)."""
     p_h, p_w, _ = en1991_4_filling(depth, gamma, K, mu, A_over_U)
     return C_h * p_h, C_w * p_w
+
+
+def en1991_4_h_o(d_c: float, phi_r_deg: float, planar: bool = True) -> float:
+    """Depth h_o [m] below the equivalent surface of the highest solid-wall contact, for a
+    silo filled centrally to a heap at the angle of repose phi_r (EN 1991-4:2006 §1.6 and
+    Fig. 1.1): d_c tan(phi_r) / 4 for a planar (or rectangular) silo of width d_c, and
+    r tan(phi_r) / 3 for a circular one of radius r = d_c / 2.  Geometry: the heap is a
+    triangle (a cone) of height (d_c/2) tan(phi_r) on the level of the wall contacts; the level
+    surface of the same volume lies 1/2 (1/3) of that height above it."""
+    rise = 0.5 * d_c * math.tan(math.radians(phi_r_deg))
+    return rise / 2.0 if planar else rise / 3.0
+
+
+def en1991_4_filling_squat(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
+                           A_over_U: float, phi_r_deg: float,
+                           h_o: float) -> tuple[np.ndarray | float, np.ndarray | float,
+                                                np.ndarray | float]:
+    """EN 1991-4:2006 §5.3.1.1 symmetrical filling loads on the vertical walls of squat and
+    intermediate-slenderness silos (h_c/d_c < 2):
+
+        p_hf = p_ho Y_R(z),  p_wf = mu p_hf,  p_vf = gamma z_V,
+        p_ho = gamma K z_o,  z_o = A / (K mu U),
+        Y_R(z) = 1 - ((z - h_o) / (z_o - h_o) + 1)^n,  n = -(1 + tan phi_r) (1 - h_o / z_o),
+        z_V = h_o - (z_o - h_o - (z + z_o - 2 h_o)^(n+1) / (z_o - h_o)^n) / (n + 1).
+
+    z_V is the slice balance d(p_vf)/dz = gamma - mu p_hf U / A integrated from p_vf = gamma
+    h_o at z = h_o (with n = -1 it is a logarithm).  Above h_o (the highest wall contact) no
+    wall is loaded: p_hf = p_wf = 0 and p_vf = gamma z.  Deep down p_hf tends to p_ho, as in
+    the Janssen form of slender silos (:func:`en1991_4_filling`).
+
+    depth z [m] below the equivalent surface; gamma [N/m^3]; K, mu [-]; A/U [m] (B/2 for a
+    2D slot); phi_r the angle of repose [deg]; h_o [m] (:func:`en1991_4_h_o` for a heap, 0 for
+    a levelled top).  Returns (p_h, p_w, p_v) [Pa]."""
+    z_o = A_over_U / (K * mu)
+    if not 0.0 <= h_o < z_o:
+        raise ValueError(f"h_o must lie in [0, z_o = {z_o:.4g} m), got {h_o}")
+    z = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    below = np.maximum(z, h_o)  # the wall-loaded part starts at the highest wall contact
+    n = -(1.0 + math.tan(math.radians(phi_r_deg))) * (1.0 - h_o / z_o)
+    ratio = 1.0 + (below - h_o) / (z_o - h_o)  # = (z + z_o - 2 h_o) / (z_o - h_o) >= 1
+    p_h = gamma * K * z_o * (1.0 - ratio**n)
+    if abs(n + 1.0) < 1e-12:
+        z_v = h_o + (z_o - h_o) * np.log(ratio)
+    else:
+        z_v = h_o - (z_o - h_o) * (1.0 - ratio ** (n + 1.0)) / (n + 1.0)
+    p_v = gamma * np.where(z < h_o, z, z_v)
+    return p_h, mu * p_h, p_v
+
+
+def en1991_4_discharge_factors(h_c: float, d_c: float, flat_bottom: bool) -> tuple[float, float]:
+    """EN 1991-4:2006 discharge load magnifiers (C_h, C_w) on the symmetrical filling loads of
+    the vertical walls, by slenderness class (:func:`en1991_4_slenderness`): slender
+    (§5.2.2.2) 1.15 and 1.10; intermediate (§5.3.2.2) 1 + 0.15 C_S and 1 + 0.1 C_S with
+    C_S = h_c/d_c - 1 (so the two rules meet at h_c/d_c = 2); squat (§5.3.2.2) 1 and 1 (the
+    discharge loads equal the filling loads).  Retaining silos (§5.4) are not covered: a
+    ValueError.  For a silo emptied from the top both are 1 whatever the class."""
+    kind = en1991_4_slenderness(h_c, d_c, flat_bottom)
+    if kind == "slender":
+        return 1.15, 1.10
+    if kind == "intermediate":
+        c_s = h_c / d_c - 1.0
+        return 1.0 + 0.15 * c_s, 1.0 + 0.10 * c_s
+    if kind == "squat":
+        return 1.0, 1.0
+    raise ValueError("EN 1991-4 loads of retaining silos (§5.4, h_c/d_c <= 0.4 on a flat "
+                     "bottom) are not built")

@@ -55,6 +55,8 @@ class Analysis:
     switch: tuple[float, float] = (0.0, 0.0)
     change: dict[str, dict[str, float]] = field(default_factory=dict)
     flow: dict[str, Any] = field(default_factory=dict)
+    wall_top_of_fill: float = float("nan")  # top of the grains at the walls after filling [m]
+    en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
 
     @property
@@ -76,18 +78,24 @@ def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[
             {"fill": (t_open - cfg.window, t_open), "discharge": (d0, d0 + cfg.window)})
 
 
-def surface_height(snap: dict[str, Any] | None, width: float, d: float) -> float:
-    """Mean height of the free surface [m]: the top of the highest grain in each of round(B/d)
-    equal columns across the silo (each about d wide), averaged over the columns."""
+def column_tops(snap: dict[str, Any] | None, width: float, d: float) -> np.ndarray:
+    """Top of the highest grain [m] in each of round(B/d) equal columns across the silo (each
+    about d wide) that holds a grain, left to right; empty when there is no grain."""
     if snap is None or snap["particles"]["x"].size == 0:
-        return float("nan")
+        return np.empty(0)
     p = snap["particles"]
     x, top = p["x"], p["y"] + p["radius"]
     # round, not int: B/d = 12 can divide to 11.999999999999998 (a last column 2d wide)
     n_cols = max(1, round(width / d))
     cols = np.clip((x * (n_cols / width)).astype(int), 0, n_cols - 1)
-    tops = [top[cols == c].max() for c in np.unique(cols)]
-    return float(np.mean(tops))
+    return np.array([top[cols == c].max() for c in np.unique(cols)])
+
+
+def surface_height(snap: dict[str, Any] | None, width: float, d: float) -> float:
+    """Mean height of the free surface [m] (EN 1991-4's equivalent surface): the mean of the
+    :func:`column_tops`."""
+    tops = column_tops(snap, width, d)
+    return float(np.mean(tops)) if tops.size else float("nan")
 
 
 def bulk_density(snap: dict[str, Any] | None, cfg: Config, shape: SiloShape,
@@ -160,6 +168,7 @@ def analyse(res: Results) -> Analysis:
                "discharge": surface_height(dsnap, shape.width, d)}
     rho_b = bulk_density(settled, cfg, shape, surface["fill"])
     a = Analysis(res, geom, {}, surface, rho_b)
+    a.wall_top_of_fill = _highest_wall_contact(settled, shape.width, d)
     a.switch = regions.switch_zone(cfg, shape)
     if not a.measured:
         return a
@@ -173,6 +182,7 @@ def analyse(res: Results) -> Analysis:
         if strips is not None:
             a.strips[key] = strips
     _fit_theory(a, shape)
+    _en1991_4(a)
     _evolution_change(a, masks)
     _flow(a, shape)
     _numbers(a)
@@ -231,6 +241,49 @@ def _fit_theory(a: Analysis, shape) -> None:
         hop["D_fit"] = D
         hop["planar_D"] = th.hopper_wall_normal(h, H, q, gamma, g["alpha"], mu_h, D, True)
     a.hopper = hop
+
+
+def _highest_wall_contact(snap: dict[str, Any] | None, width: float, d: float) -> float:
+    """Height [m] of the highest grain top in the two columns next to the walls (the higher
+    of the two): EN 1991-4's highest solid-wall contact."""
+    tops = column_tops(snap, width, d)
+    return float(max(tops[0], tops[-1])) if tops.size else float("nan")
+
+
+def _en1991_4(a: Analysis) -> None:
+    """EN 1991-4:2006 loads on the vertical walls of the filled silo, by its slenderness
+    class: §5.2 (Janssen form) for slender silos, §5.3 for squat and intermediate ones, with
+    K of the Janssen fit after filling, mu = tan(phi_P), gamma = rho_b g, h_c from the junction
+    (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus the
+    highest wall contact, at least 0).  Nothing for a retaining silo (§5.4, not built)."""
+    g = a.geom
+    top, j = a.surface["fill"], a.janssen.get("fill")
+    h_c = top - g["z_j"]
+    if j is None or not (h_c > 0.0 and np.isfinite(a.rho_b)):
+        return
+    flat = a.res.cfg.silo.kind != "hopper"
+    kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=flat)
+    if kind == "retaining":
+        return
+    C_h, C_w = th.en1991_4_discharge_factors(h_c, g["B"], flat_bottom=flat)
+    m = a.res.cfg.measure
+    phi_r = (m.angle_of_repose_deg if m.angle_of_repose_deg is not None
+             else a.res.cfg.material.friction_deg)
+    h_o = max(0.0, top - a.wall_top_of_fill) if np.isfinite(a.wall_top_of_fill) else 0.0
+    z = np.linspace(g["z_j"], top, 60)
+    gamma, A_over_U = a.rho_b * g["g"], g["B"] / 2
+    try:
+        if kind == "slender":
+            p_hf, p_wf, _ = th.en1991_4_filling(top - z, gamma, j.K, g["mu_wall"], A_over_U)
+        else:
+            p_hf, p_wf, _ = th.en1991_4_filling_squat(top - z, gamma, j.K, g["mu_wall"],
+                                                      A_over_U, phi_r, h_o)
+    except ValueError:  # h_o at or below z_o: the standard's form does not apply
+        return
+    a.en1991_4 = {"kind": kind, "section": "5.2" if kind == "slender" else "5.3",
+                  "h_c": h_c, "ratio": h_c / g["B"], "h_o": h_o, "phi_r": phi_r,
+                  "C_h": C_h, "C_w": C_w, "z": z, "p_hf": p_hf, "p_he": C_h * p_hf,
+                  "p_wf": p_wf, "p_we": C_w * p_wf}
 
 
 def window_mean(values: np.ndarray) -> float:
@@ -336,6 +389,20 @@ def _numbers(a: Analysis) -> None:
                                  a.janssen["fill"].K, g["mu_wall"])
         n.append(("switch-zone peak / Janssen sigma_h at its height, after filling",
                   _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
+    en = a.en1991_4
+    if en:
+        n.append(("EN 1991-4 slenderness h_c/d_c (junction or floor to the surface, over B)",
+                  f"{_fmt(en['ratio'], 3)}: {en['kind']}, loads of §{en['section']}", "-"))
+        if en["section"] == "5.3":
+            source = ("measure.angle_of_repose_deg"
+                      if a.res.cfg.measure.angle_of_repose_deg is not None
+                      else "phi_G, angle_of_repose_deg unset")
+            label = ("EN 1991-4 §5.3 inputs: h_o measured (surface - highest wall contact), "
+                     "angle of repose phi_r")
+            n.append((label,
+                      f"{_fmt(en['h_o'], 3)} m, {_fmt(en['phi_r'], 3)} deg ({source})", ""))
+        n.append(("EN 1991-4 discharge magnifiers C_h, C_w",
+                  f"{_fmt(en['C_h'], 4)}, {_fmt(en['C_w'], 4)}", "-"))
     if "q" in a.hopper:
         n.append(("measured mean vertical stress q on the junction (hopper theory input)",
                   _pa(a.hopper["q"]), "Pa"))

@@ -92,22 +92,20 @@ def _hopper_curves(ax, a: Analysis, which: str) -> None:
                 label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)")
 
 
-def _en1991_4_discharge_curve(ax, a: Analysis) -> None:
-    """EN 1991-4's fixed discharge load on the vertical wall, p_he = 1.15 p_hf, with the depth
-    from the filled silo's surface (the standard's loads are those of the full silo).  Its
-    Janssen form (§5.2) is the rule for slender silos; the label gives this silo's class."""
-    g = a.geom
-    top = a.surface["fill"]
-    h_c = top - g["z_j"]
-    if not h_c > 0.0:  # filled no higher than the junction: no vertical wall carries grains
+def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
+    """EN 1991-4's load on the vertical wall with the depth from the filled silo's surface
+    (the standard's loads are those of the full silo): the filling load p_hf after filling
+    (only for §5.3: for a slender silo it is the fitted Janssen curve already drawn), the fixed
+    discharge load p_he = C_h p_hf during discharge.  The label gives the class and rule."""
+    en = a.en1991_4
+    if not en or (key == "fill" and en["section"] == "5.2"):
         return
-    z = np.linspace(g["z_j"], top, 60)
-    p_he, _ = th.en1991_4_discharge(top - z, a.rho_b * g["g"], a.janssen["fill"].K,
-                                    g["mu_wall"], g["B"] / 2)
-    kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=a.res.cfg.silo.kind != "hopper")
-    ax.plot(p_he, z, color="#9467bd", lw=1.4, ls=(0, (5, 2)),
-            label=f"EN 1991-4 §5.2 discharge 1.15 p_hf (K of filling; slender-silo rule, "
-            f"this silo h_c/d_c = {h_c / g['B']:.2f}: {kind})")
+    what = "filling p_hf" if key == "fill" else f"discharge {en['C_h']:.3g} p_hf"
+    inputs = f"K of filling, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
+    if en["section"] == "5.3":
+        inputs += f", h_o = {en['h_o']:.2f} m, phi_r = {en['phi_r']:.3g} deg"
+    ax.plot(en["p_hf"] if key == "fill" else en["p_he"], en["z"], color="#9467bd", lw=1.4,
+            ls=(0, (5, 2)), label=f"EN 1991-4 §{en['section']} {what} ({inputs})")
 
 
 def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
@@ -131,8 +129,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
         ax.plot(s["near_xx"], s["z"], color="#2ca02c", lw=1.2, marker="s", ms=3,
                 label="sigma_xx near the walls (Love-Weber strips)")
     _janssen_curves(ax, a, key, "h")
-    if key == "discharge" and "fill" in a.janssen and np.isfinite(a.surface["fill"]):
-        _en1991_4_discharge_curve(ax, a)
+    _en1991_4_curve(ax, a, key)
     _hopper_curves(ax, a, "h")
     if key in a.peaks and np.isfinite(a.peaks[key][0]):
         v, z = a.peaks[key]
