@@ -30,7 +30,7 @@ E_WALL, NU_WALL = 2e11, 0.25
 
 
 def textbook_moduli(e_a, nu_a, e_b, nu_b):
-    """E* and G* of two bodies (Johnson, Contact Mechanics, 1985, eqs. 4.22 and 7.36), written
+    """E* and G* of two bodies (Johnson, Contact Mechanics, 1985, ch. 4 and 7), written
     here from the book, not taken from silodem."""
     e_star = 1.0 / ((1 - nu_a**2) / e_a + (1 - nu_b**2) / e_b)
     g_star = 1.0 / ((2 - nu_a) * (1 + nu_a) * 2 / e_a + (2 - nu_b) * (1 + nu_b) * 2 / e_b)

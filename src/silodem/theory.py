@@ -58,7 +58,7 @@ def janssen_sigma_v(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: f
     Janssen's slice balance for a slot of width B between two walls (plane strain: hydraulic
     radius A/U = B/2 per unit thickness): d(sigma_v)/dz = rho_b g - 2 K mu_w sigma_v / B.
     rho_b bulk density [kg/m^3], K = sigma_h/sigma_v [-], mu_w wall friction [-].
-    Source: Janssen (1895), Z. Ver. Dtsch. Ing. 39; Nedderman (1992) ch. 3 (eq. 3.12 in 3D form).
+    Source: Janssen (1895), Z. Ver. Dtsch. Ing. 39; Nedderman (1992) ch. 3 (there in 3D form).
     """
     depth = np.maximum(np.asarray(depth, dtype=float), 0.0)
     c = 2.0 * K * mu_w / B

@@ -66,7 +66,7 @@ def overlap_under_force(force: float, kn: float, r_eff: float) -> float:
 
 def impact_overlap(speed: float, m_eff: float, kn: float, r_eff: float) -> float:
     """The largest overlap delta [m] of an undamped impact at normal speed ``speed`` [m/s]:
-    1/2 m_eff v^2 = 2/5 K delta^(5/2), K = 2/3 kn sqrt(R*) (Johnson, eq. 11.24)."""
+    1/2 m_eff v^2 = 2/5 K delta^(5/2), K = 2/3 kn sqrt(R*) (Johnson 1985, ch. 11)."""
     k_hertz = 2.0 / 3.0 * kn * math.sqrt(r_eff)
     return (1.25 * m_eff * speed**2 / k_hertz) ** 0.4
 

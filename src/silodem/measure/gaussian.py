@@ -2,7 +2,7 @@
 
 The fields of a set of grains with masses m_p at r_p and contacts c carrying the force f_c
 along the branch from a_c to a_c + l_c are (Goldhirsch, Granular Matter 12 (2010) 239;
-Weinhart, Thornton, Luding & Bokhove, Granular Matter 14 (2012) 289, eqs. 9 and 30, for disks
+Weinhart, Thornton, Luding & Bokhove, Granular Matter 14 (2012) 289, for disks
 of thickness t):
 
     rho(r)      = 1/t sum_p m_p phi(r - r_p)

@@ -171,7 +171,7 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
                                 0.0, float(miss / trace.fn.max()), LAW_TOL,
                                 note="Hertz 1882; overlaps from the positions each step used"))
         records.append(rel(label, "largest overlap", d_max, float(trace.overlap.max()),
-                           OVERLAP_TOL, "m", "Johnson 1985, eq. 11.24"))
+                           OVERLAP_TOL, "m", "Johnson 1985, ch. 11"))
         records.append(rel(label, "contact duration", t_c, trace.duration, DURATION_TOL, "s",
                            "2 delta_max/v 2/5 B(2/5, 1/2)"))
         records.append(rel(label, "restitution", 1.0, e_sim, RESTITUTION_TOL,
