@@ -15,6 +15,7 @@ Geometry of ``tiny_hopper_config``: B = 1.2 m, D = 0.4 m, theta = 50 deg, radii 
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 import types
@@ -26,7 +27,7 @@ import pytest
 from measure_helpers import tiny_hopper_config
 
 from silodem.output import write_text
-from silodem.report.analysis import analyse, column_tops, surface_height
+from silodem.report.analysis import _en1991_4, analyse, column_tops, surface_height
 from silodem.report.load import load_results
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
@@ -540,6 +541,18 @@ def test_en1991_4_loads_of_the_report(synth):
     assert float(row.split(":")[0]) == pytest.approx(h_c / B, rel=5e-3)
     assert row.endswith("squat, loads of §5.3")
     assert _number(a, "EN 1991-4 discharge magnifiers") == "1, 1"
+
+
+def test_en1991_4_skips_frictionless_walls(synth):
+    """phi_P = 0 (allowed by the config) gives z_o = A/(K mu U) = infinity: the report leaves the
+    EN loads out instead of raising ZeroDivisionError from analyse (and so from the study's
+    table row and the API)."""
+    a, _ = synth
+    b = copy.copy(a)
+    b.geom = {**a.geom, "mu_wall": 0.0}
+    b.en1991_4 = {}
+    _en1991_4(b)
+    assert b.en1991_4 == {}
 
 
 TABLE_NAN_WITHOUT_DISCHARGE = [

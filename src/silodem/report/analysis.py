@@ -255,11 +255,12 @@ def _en1991_4(a: Analysis) -> None:
     class: §5.2 (Janssen form) for slender silos, §5.3 for squat and intermediate ones, with
     K of the Janssen fit after filling, mu = tan(phi_P), gamma = rho_b g, h_c from the junction
     (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus the
-    highest wall contact, at least 0).  Nothing for a retaining silo (§5.4, not built)."""
+    highest wall contact, at least 0).  Nothing for a retaining silo (§5.4, not built), nor
+    for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
     g = a.geom
     top, j = a.surface["fill"], a.janssen.get("fill")
     h_c = top - g["z_j"]
-    if j is None or not (h_c > 0.0 and np.isfinite(a.rho_b)):
+    if j is None or not (h_c > 0.0 and np.isfinite(a.rho_b) and g["mu_wall"] > 0.0):
         return
     flat = a.res.cfg.silo.kind != "hopper"
     kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=flat)
