@@ -299,6 +299,16 @@ def test_en1991_4_squat_filling_solves_the_slice_balance(K, mu, A_over_U, phi_r,
     np.testing.assert_allclose(p_v, GAMMA * top, rtol=1e-14)
 
 
+@pytest.mark.parametrize("phi_r", [1e-9, 1e-6, 0.0])
+def test_en1991_4_squat_filling_is_continuous_at_n_minus_1(phi_r):
+    """With h_o = 0 and phi_r -> 0, n -> -1 and z_V -> z_o ln(1 + z / z_o) (the slice balance
+    with Y_R = 1 - z_o / (z + z_o), integrated by hand): no cancellation just off n = -1."""
+    K, mu, A_over_U, z = 0.5, 0.4, 1.7, np.array([0.5, 3.0, 20.0])
+    z_o = A_over_U / (K * mu)
+    _, _, p_v = th.en1991_4_filling_squat(z, GAMMA, K, mu, A_over_U, phi_r, 0.0)
+    np.testing.assert_allclose(p_v, GAMMA * z_o * np.log1p(z / z_o), rtol=1e-7)
+
+
 def test_en1991_4_squat_filling_refuses_a_heap_deeper_than_z_o():
     with pytest.raises(ValueError, match="h_o"):  # z_o = 1.7 / (0.5 * 0.4) = 8.5 m
         th.en1991_4_filling_squat(1.0, GAMMA, 0.5, 0.4, 1.7, 30.0, 8.5)

@@ -448,10 +448,10 @@ def en1991_4_filling_squat(depth: npt.ArrayLike, gamma: float, K: float, mu: flo
     n = -(1.0 + math.tan(math.radians(phi_r_deg))) * (1.0 - h_o / z_o)
     ratio = 1.0 + (below - h_o) / (z_o - h_o)  # = (z + z_o - 2 h_o) / (z_o - h_o) >= 1
     p_h = gamma * K * z_o * (1.0 - ratio**n)
-    if abs(n + 1.0) < 1e-12:
-        z_v = h_o + (z_o - h_o) * np.log(ratio)
-    else:
-        z_v = h_o - (z_o - h_o) * (1.0 - ratio ** (n + 1.0)) / (n + 1.0)
+    # z_V = h_o + (z_o - h_o) (ratio^(n+1) - 1) / (n + 1), written with expm1 so that it stays
+    # exact as n + 1 -> 0 (where it becomes h_o + (z_o - h_o) ln(ratio))
+    m, log_r = n + 1.0, np.log(ratio)
+    z_v = h_o + (z_o - h_o) * (np.expm1(m * log_r) / m if m != 0.0 else log_r)
     p_v = gamma * np.where(z < h_o, z, z_v)
     return p_h, mu * p_h, p_v
 
