@@ -299,6 +299,20 @@ def test_en1991_4_squat_filling_solves_the_slice_balance(K, mu, A_over_U, phi_r,
     np.testing.assert_allclose(p_v, GAMMA * top, rtol=1e-14)
 
 
+def test_en1991_4_squat_filling_hand_worked_below_a_heap():
+    """§5.3.1.1 by hand, h_o > 0 (the slice-balance test above cannot see a wrong n or Y_R,
+    as p_h and z_V share them): K = 0.5, mu = 0.4, A/U = 1.7 give z_o = 8.5 m; h_o = 1.7 m
+    = z_o / 5 and phi_r = 45 deg give n = -(1 + 1)(1 - 1/5) = -1.6.  At z = 8.5 m
+    (z - h_o)/(z_o - h_o) + 1 = 2: Y_R = 1 - 2^-1.6 = 0.670123,
+    z_V = 1.7 - (6.8 - 13.6^-0.6 / 6.8^-1.6) / (-0.6) = 1.7 + 6.8 (1 - 2^-0.6) / 0.6 = 5.556122;
+    at z = 22.1 m the bracket is 4: Y_R = 1 - 4^-1.6 = 0.891181, z_V = 8.100213."""
+    p_ho = GAMMA * 0.5 * 8.5
+    p_h, p_w, p_v = th.en1991_4_filling_squat([8.5, 22.1], GAMMA, 0.5, 0.4, 1.7, 45.0, 1.7)
+    np.testing.assert_allclose(p_h, p_ho * np.array([0.670123, 0.891181]), rtol=1e-6)
+    np.testing.assert_allclose(p_w, 0.4 * p_ho * np.array([0.670123, 0.891181]), rtol=1e-6)
+    np.testing.assert_allclose(p_v, GAMMA * np.array([5.556122, 8.100213]), rtol=1e-6)
+
+
 @pytest.mark.parametrize("phi_r", [1e-9, 1e-6, 0.0])
 def test_en1991_4_squat_filling_is_continuous_at_n_minus_1(phi_r):
     """With h_o = 0 and phi_r -> 0, n -> -1 and z_V -> z_o ln(1 + z / z_o) (the slice balance
