@@ -38,8 +38,9 @@ FIGURES = [
                "Horizontal stress along the silo wall after filling (time average over the last "
                "window of settling): wall normal stress per bin, near-wall Love-Weber sigma_xx, "
                "Janssen's 2D slot solution (K fitted with mu_w = tan phi_P, and the paper's "
-               "K = 0.4) in the cell, and Walker's slice solution in the hopper: the planar "
-               "(wedge) form that a 2D hopper needs and the paper's conical eq. 12.",
+               "K = 0.4) in the cell, EN 1991-4's filling load for a squat or intermediate "
+               "silo (§5.3), and Walker's slice solution in the hopper: the planar (wedge) "
+               "form that a 2D hopper needs and the paper's conical eq. 12.",
                lambda a: fs.fig_horizontal(a, "fill")),
     FigureSpec("fig3b_vertical_filling", "Fig. 3b",
                "Vertical stress along the silo wall after filling: Love-Weber sigma_zz near the "
