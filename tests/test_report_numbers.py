@@ -27,7 +27,14 @@ import pytest
 from measure_helpers import tiny_hopper_config
 
 from silodem.output import write_text
-from silodem.report.analysis import _en1991_4, analyse, column_tops, surface_height
+from silodem.report.analysis import (
+    _en1991_4,
+    _highest_wall_contact,
+    _numbers,
+    analyse,
+    column_tops,
+    surface_height,
+)
 from silodem.report.load import load_results
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
@@ -391,7 +398,7 @@ def test_surface_height_and_bulk_density(synth):
     snap = {"particles": {"x": np.array([1.05, 1.15]), "y": np.array([1.0, 0.5]),
                           "radius": np.array([0.05, 0.05])}}
     assert surface_height(snap, B, DIAM) == pytest.approx((1.05 + 0.55) / 2, rel=REL)
-    # the columns run from the left wall to the right one (EN 1991-4's h_o uses the two ends)
+    # the columns that hold grains, from the left wall to the right one
     snap = {"particles": {"x": np.array([1.15, 0.05, 0.65]), "y": np.array([0.5, 0.7, 0.9]),
                           "radius": np.array([0.05, 0.05, 0.05])}}
     np.testing.assert_allclose(column_tops(snap, B, DIAM), [0.75, 0.95, 0.55])
@@ -553,6 +560,40 @@ def test_en1991_4_skips_frictionless_walls(synth):
     b.en1991_4 = {}
     _en1991_4(b)
     assert b.en1991_4 == {}
+
+
+def test_highest_wall_contact_looks_one_column_from_each_wall():
+    """EN 1991-4's highest solid-wall contact: the highest grain top within one column
+    (B/12 = 0.1 m) of either wall; a side with no grain there is left out, not replaced by
+    the next column."""
+    snap = {"particles": {"x": np.array([0.05, 0.65, 1.05]), "y": np.array([0.7, 0.9, 0.8]),
+                          "radius": np.array([0.05, 0.05, 0.05])}}
+    assert _highest_wall_contact(snap, B, DIAM) == pytest.approx(0.75, rel=REL)
+    snap["particles"]["x"][0] = 1.15  # now right at the right wall, the left one bare
+    assert _highest_wall_contact(snap, B, DIAM) == pytest.approx(0.75, rel=REL)
+    snap["particles"]["x"][0] = 0.35  # no grain by either wall
+    assert math.isnan(_highest_wall_contact(snap, B, DIAM))
+
+
+def test_a_retaining_silo_is_named_but_gets_no_en_loads(synth):
+    """A flat silo filled to h_c/d_c <= 0.4 is 'retaining' (EN 1991-4 §5.4, not built): the key
+    numbers name the class and the figure draws no EN curve (no KeyError)."""
+    from matplotlib.figure import Figure
+
+    from silodem.report.figures_stress import _en1991_4_curve
+
+    a, _ = synth
+    b = copy.copy(a)
+    b.en1991_4 = {"kind": "retaining", "section": "5.4", "h_c": 0.4, "ratio": 0.4 / B}
+    b.numbers = []
+    _numbers(b)
+    assert _number(b, "EN 1991-4 slenderness").endswith("retaining, loads of §5.4 (not built "
+                                                        "in silodem)")
+    assert not [row for row in b.numbers if "discharge magnifiers" in row[0]]
+    ax = Figure().subplots()
+    for key in ("fill", "discharge"):
+        _en1991_4_curve(ax, b, key)
+    assert not ax.lines
 
 
 TABLE_NAN_WITHOUT_DISCHARGE = [

@@ -364,7 +364,7 @@ def test_en1991_4_discharge_factors_refuse_a_retaining_silo():
 
 @pytest.mark.parametrize(("h_c", "d_c", "kind"), [
     (6.8, 3.4, "slender"), (10.0, 3.4, "slender"),          # h_c/d_c >= 2
-    (4.1, 3.4, "intermediate"), (6.7, 3.4, "intermediate"),  # 1 < h_c/d_c < 2: paper case 2
+    (4.0, 3.4, "intermediate"), (6.7, 3.4, "intermediate"),  # 1 < h_c/d_c < 2: paper case 2
     (3.4, 3.4, "squat"), (1.5, 3.4, "squat"),                # 0.4 < h_c/d_c <= 1
     (1.36, 3.4, "retaining"), (0.5, 3.4, "retaining"),       # flat bottom, h_c/d_c <= 0.4
 ])

@@ -244,10 +244,15 @@ def _fit_theory(a: Analysis, shape) -> None:
 
 
 def _highest_wall_contact(snap: dict[str, Any] | None, width: float, d: float) -> float:
-    """Height [m] of the highest grain top in the two columns next to the walls (the higher
-    of the two): EN 1991-4's highest solid-wall contact."""
-    tops = column_tops(snap, width, d)
-    return float(max(tops[0], tops[-1])) if tops.size else float("nan")
+    """Height [m] of the highest grain top within one column (B / round(B/d), about d) of
+    either wall, the higher of the two sides: EN 1991-4's highest solid-wall contact.  NaN
+    when no grain is that close to a wall."""
+    if snap is None or snap["particles"]["x"].size == 0:
+        return float("nan")
+    p = snap["particles"]
+    column = width / max(1, round(width / d))
+    near = (p["x"] < column) | (p["x"] >= width - column)
+    return float((p["y"] + p["radius"])[near].max()) if near.any() else float("nan")
 
 
 def _en1991_4(a: Analysis) -> None:
@@ -264,7 +269,8 @@ def _en1991_4(a: Analysis) -> None:
         return
     flat = a.res.cfg.silo.kind != "hopper"
     kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=flat)
-    if kind == "retaining":
+    if kind == "retaining":  # listed in the key numbers, with no loads
+        a.en1991_4 = {"kind": kind, "section": "5.4", "h_c": h_c, "ratio": h_c / g["B"]}
         return
     C_h, C_w = th.en1991_4_discharge_factors(h_c, g["B"], flat_bottom=flat)
     m = a.res.cfg.measure
@@ -392,8 +398,11 @@ def _numbers(a: Analysis) -> None:
                   _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
     en = a.en1991_4
     if en:
+        built = "" if "p_hf" in en else " (not built in silodem)"
         n.append(("EN 1991-4 slenderness h_c/d_c (junction or floor to the surface, over B)",
-                  f"{_fmt(en['ratio'], 3)}: {en['kind']}, loads of §{en['section']}", "-"))
+                  f"{_fmt(en['ratio'], 3)}: {en['kind']}, loads of §{en['section']}{built}",
+                  "-"))
+    if "p_hf" in en:
         if en["section"] == "5.3":
             source = ("measure.angle_of_repose_deg"
                       if a.res.cfg.measure.angle_of_repose_deg is not None

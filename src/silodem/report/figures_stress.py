@@ -98,7 +98,7 @@ def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
     (only for §5.3: for a slender silo it is the fitted Janssen curve already drawn), the fixed
     discharge load p_he = C_h p_hf during discharge.  The label gives the class and rule."""
     en = a.en1991_4
-    if not en or (key == "fill" and en["section"] == "5.2"):
+    if "p_hf" not in en or (key == "fill" and en["section"] == "5.2"):
         return
     what = "filling p_hf" if key == "fill" else f"discharge {en['C_h']:.3g} p_hf"
     inputs = f"K of filling, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
