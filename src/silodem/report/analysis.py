@@ -285,7 +285,7 @@ def _en1991_4(a: Analysis) -> None:
         else:
             p_hf, p_wf, _ = th.en1991_4_filling_squat(top - z, gamma, j.K, g["mu_wall"],
                                                       A_over_U, phi_r, h_o)
-    except ValueError:  # h_o at or below z_o: the standard's form does not apply
+    except ValueError:  # h_o >= z_o (a heap deeper than z_o): the form does not apply
         return
     a.en1991_4 = {"kind": kind, "section": "5.2" if kind == "slender" else "5.3",
                   "h_c": h_c, "ratio": h_c / g["B"], "h_o": h_o, "phi_r": phi_r,
