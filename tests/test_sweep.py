@@ -441,6 +441,11 @@ def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
         hertz[section].update(kn=None, ks=None, young_modulus=1e9, poisson_ratio=0.3)
     hertz["material"]["contact_model"] = "hertz_mindlin"
     assert config_hash(Config.model_validate(hertz)) != "e62e6c9ea6"
+    # measure.angle_of_repose_deg (EN 1991-4 §5.3 in the report) came later still: unset, it
+    # leaves the id alone; set, it makes another run
+    repose = load_config("paper-case2").model_dump()
+    repose["measure"]["angle_of_repose_deg"] = 30.0
+    assert config_hash(Config.model_validate(repose)) != "e62e6c9ea6"
 
 
 def test_a_grid_over_base_scenarios_compares_the_two_contact_laws(tmp_path):
