@@ -558,7 +558,7 @@ def test_en1991_4_skips_frictionless_walls(synth):
     b = copy.copy(a)
     b.geom = {**a.geom, "mu_wall": 0.0}
     b.en1991_4 = {}
-    _en1991_4(b)
+    _en1991_4(b, SURF_FILL)
     assert b.en1991_4 == {}
 
 

@@ -55,7 +55,6 @@ class Analysis:
     switch: tuple[float, float] = (0.0, 0.0)
     change: dict[str, dict[str, float]] = field(default_factory=dict)
     flow: dict[str, Any] = field(default_factory=dict)
-    wall_top_of_fill: float = float("nan")  # top of the grains at the walls after filling [m]
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
 
@@ -168,7 +167,6 @@ def analyse(res: Results) -> Analysis:
                "discharge": surface_height(dsnap, shape.width, d)}
     rho_b = bulk_density(settled, cfg, shape, surface["fill"])
     a = Analysis(res, geom, {}, surface, rho_b)
-    a.wall_top_of_fill = _highest_wall_contact(settled, shape.width, d)
     a.switch = regions.switch_zone(cfg, shape)
     if not a.measured:
         return a
@@ -182,7 +180,7 @@ def analyse(res: Results) -> Analysis:
         if strips is not None:
             a.strips[key] = strips
     _fit_theory(a, shape)
-    _en1991_4(a)
+    _en1991_4(a, _highest_wall_contact(settled, shape.width, d))
     _evolution_change(a, masks)
     _flow(a, shape)
     _numbers(a)
@@ -255,13 +253,13 @@ def _highest_wall_contact(snap: dict[str, Any] | None, width: float, d: float) -
     return float((p["y"] + p["radius"])[near].max()) if near.any() else float("nan")
 
 
-def _en1991_4(a: Analysis) -> None:
+def _en1991_4(a: Analysis, wall_top: float) -> None:
     """EN 1991-4:2006 loads on the vertical walls of the filled silo, by its slenderness
     class: §5.2 (Janssen form) for slender silos, §5.3 for squat and intermediate ones, with
     K of the Janssen fit after filling, mu = tan(phi_P), gamma = rho_b g, h_c from the junction
-    (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus the
-    highest wall contact, at least 0).  Nothing for a retaining silo (§5.4, not built), nor
-    for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
+    (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus
+    ``wall_top`` [m], the highest wall contact, at least 0).  Nothing for a retaining silo
+    (§5.4, not built), nor for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
     g = a.geom
     top, j = a.surface["fill"], a.janssen.get("fill")
     h_c = top - g["z_j"]
@@ -276,7 +274,7 @@ def _en1991_4(a: Analysis) -> None:
     m = a.res.cfg.measure
     phi_r = (m.angle_of_repose_deg if m.angle_of_repose_deg is not None
              else a.res.cfg.material.friction_deg)
-    h_o = max(0.0, top - a.wall_top_of_fill) if np.isfinite(a.wall_top_of_fill) else 0.0
+    h_o = max(0.0, top - wall_top) if np.isfinite(wall_top) else 0.0
     z = np.linspace(g["z_j"], top, 60)
     gamma, A_over_U = a.rho_b * g["g"], g["B"] / 2
     try:
