@@ -381,6 +381,119 @@ def test_en1991_4_slenderness_refuses_a_silo_without_walls():
         th.en1991_4_slenderness(0.0, 3.4, flat_bottom=True)
 
 
+# EN 1991-4 §6, hopper loads: (beta from the vertical, K, mu_h, S) in both classes
+HOPPERS = [
+    (20.0, 0.5, 0.4, 2),  # steep cone: 2 mu_h tan(beta) = 0.29 < 1 - K
+    (20.0, 0.5, 0.4, 1),  # steep wedge
+    (40.0, 0.55, math.tan(math.radians(24.0)), 1),  # shallow wedge (the report's tiny hopper)
+    (45.0, 0.45, 0.458, 2),  # shallow cone: 2 mu_h tan(beta) = 0.92 > 1 - K
+]
+
+
+def _en_mu_eff_and_F_f(beta, K, mu_h):
+    """mu_eff and F_f as EN 1991-4 prints them: mu_h in a steep hopper (tan(beta) < (1 - K) /
+    (2 mu_h)), mu_heff = (1 - K) / (2 tan(beta)) in a shallow one; F_f = 1 - b / (1 + tan(beta)
+    / mu_eff), b = 0.2."""
+    t = math.tan(math.radians(beta))
+    mu = mu_h if t < (1.0 - K) / (2.0 * mu_h) else (1.0 - K) / (2.0 * t)
+    return mu, 1.0 - 0.2 / (1.0 + t / mu)
+
+
+@pytest.mark.parametrize(("beta", "K", "mu_h", "S"), HOPPERS)
+def test_en1991_4_hopper_filling_is_the_standards_p_v_and_solves_the_slice_balance(beta, K,
+                                                                                    mu_h, S):
+    """§6.3.2 / §6.4.2: p_v as the standard prints it, gamma h_h / (n - 1) [x/h_h - (x/h_h)^n]
+    + p_vft (x/h_h)^n with n = S (1 - b) mu_eff cot(beta), and the same p_v from the slice
+    balance of a wedge (S = 1) or a cone (S = 2) with p_n = F_f p_v, integrated numerically
+    from p_vft at the transition; p_n = F_f p_v and p_t = mu_eff p_n."""
+    h_h, p_vft = 2.5, 9000.0
+    mu, F_f = _en_mu_eff_and_F_f(beta, K, mu_h)
+    n = S * 0.8 * mu / math.tan(math.radians(beta))
+    x = np.linspace(h_h, 0.3, 25)
+    r = x / h_h
+    printed = GAMMA * h_h / (n - 1.0) * (r - r**n) + p_vft * r**n
+    sol = solve_ivp(_slice_ode(beta, mu, F_f, S == 1), (h_h, 0.3), [p_vft], method="DOP853",
+                    rtol=1e-12, atol=1e-10, dense_output=True)
+    load = th.en1991_4_hopper_filling(x, h_h, p_vft, GAMMA, beta, K, mu_h, planar=S == 1)
+    assert load.kind == ("steep" if mu == mu_h else "shallow")
+    assert (load.mu_eff, load.F) == (pytest.approx(mu, rel=1e-14), pytest.approx(F_f, rel=1e-14))
+    assert load.n == pytest.approx(n, rel=1e-12)
+    np.testing.assert_allclose(load.p_v, printed, rtol=1e-10)
+    np.testing.assert_allclose(load.p_v, sol.sol(x)[0], rtol=1e-7)
+    np.testing.assert_allclose(load.p_n, F_f * printed, rtol=1e-10)
+    np.testing.assert_allclose(load.p_t, mu * F_f * printed, rtol=1e-10)
+
+
+def test_en1991_4_hopper_filling_hand_worked():
+    """A steep cone, beta = 20 deg, K = 0.5, mu_h = 0.4: tan 20 = 0.363970, so
+    F_f = 1 - 0.2 / (1 + 0.909924) = 0.895284 and n = 2 (0.8)(0.4) / 0.363970 = 1.758386.
+    At x = h_h / 2 with h_h = 2 m, p_vft = 10 kPa and gamma = 6867 N/m^3:
+    p_v = 6867 * 2 / 0.758386 (0.5 - 0.5^1.758386) + 10000 * 0.5^1.758386
+    = 18109.52 (0.5 - 0.295579) + 2955.79 = 6657.76 Pa, p_nf = 5960.58 Pa."""
+    load = th.en1991_4_hopper_filling(1.0, 2.0, 1.0e4, GAMMA, 20.0, 0.5, 0.4, planar=False)
+    assert (load.F, load.n) == (pytest.approx(0.895284, rel=1e-6),
+                                pytest.approx(1.758386, rel=1e-6))
+    assert float(load.p_v) == pytest.approx(6657.76, rel=1e-6)
+    assert float(load.p_n) == pytest.approx(5960.58, rel=1e-6)
+
+
+@pytest.mark.parametrize(("beta", "K", "mu_h", "S"), HOPPERS[:2])
+@pytest.mark.parametrize("phi_i", [30.0, 42.0])
+def test_en1991_4_steep_hopper_discharge_uses_the_standards_F_e(beta, K, mu_h, S, phi_i):
+    """§6.3.3: F_e = (1 + sin(phi_i) cos(eps)) / (1 - sin(phi_i) cos(2 beta + eps)), eps =
+    phi_wh + arcsin(sin(phi_wh) / sin(phi_i)), phi_wh = arctan(mu_h), as printed; p_ne =
+    F_e p_v with p_v from the slice balance with p_n = F_e p_v (integrated numerically)."""
+    h_h, p_vft = 2.5, 9000.0
+    s, phi_wh = math.sin(math.radians(phi_i)), math.atan(mu_h)
+    eps = phi_wh + math.asin(math.sin(phi_wh) / s)
+    F_e = (1 + s * math.cos(eps)) / (1 - s * math.cos(2 * math.radians(beta) + eps))
+    x = np.linspace(h_h, 0.3, 25)
+    sol = solve_ivp(_slice_ode(beta, mu_h, F_e, S == 1), (h_h, 0.3), [p_vft], method="DOP853",
+                    rtol=1e-12, atol=1e-10, dense_output=True)
+    load = th.en1991_4_hopper_discharge(x, h_h, p_vft, GAMMA, beta, K, mu_h, phi_i,
+                                        planar=S == 1)
+    assert load.kind == "steep" and load.F == pytest.approx(F_e, rel=1e-12)
+    np.testing.assert_allclose(load.p_n, F_e * sol.sol(x)[0], rtol=1e-7)
+    np.testing.assert_allclose(load.p_t, mu_h * load.p_n, rtol=1e-14)
+
+
+@pytest.mark.parametrize(("beta", "K", "mu_h", "S"), HOPPERS[2:])
+def test_en1991_4_shallow_hopper_discharges_with_its_filling_loads(beta, K, mu_h, S):
+    """§6.4.3: a shallow hopper's discharge loads are its filling loads (phi_i plays no part)."""
+    x = np.linspace(0.3, 2.5, 9)
+    fill = th.en1991_4_hopper_filling(x, 2.5, 9000.0, GAMMA, beta, K, mu_h, S == 1)
+    dis = th.en1991_4_hopper_discharge(x, 2.5, 9000.0, GAMMA, beta, K, mu_h, 35.0, S == 1)
+    assert dis.kind == fill.kind == "shallow"
+    np.testing.assert_array_equal(dis.p_n, fill.p_n)
+
+
+def test_en1991_4_hopper_classes_meet_at_the_steep_limit():
+    """At tan(beta) = (1 - K) / (2 mu_h) the mobilised friction of a shallow hopper, (1 - K) /
+    (2 tan(beta)), is mu_h: the loads of the two classes agree on either side of the limit."""
+    K, mu_h = 0.5, 0.4
+    limit = math.degrees(math.atan((1 - K) / (2 * mu_h)))
+    below = th.en1991_4_hopper_filling(1.0, 2.0, 1e4, GAMMA, limit - 1e-7, K, mu_h)
+    above = th.en1991_4_hopper_filling(1.0, 2.0, 1e4, GAMMA, limit + 1e-7, K, mu_h)
+    assert (below.kind, above.kind) == ("steep", "shallow")
+    assert above.mu_eff == pytest.approx(mu_h, rel=1e-6)
+    assert float(above.p_n) == pytest.approx(float(below.p_n), rel=1e-6)
+    assert th.en1991_4_hopper_kind(86.0, K, mu_h) == "flat"
+
+
+def test_en1991_4_hopper_loads_refuse_a_flat_bottom_and_a_shallow_hopper_with_K_1():
+    with pytest.raises(ValueError, match="flat bottom"):
+        th.en1991_4_hopper_filling(1.0, 2.0, 1e4, GAMMA, 87.0, 0.5, 0.4)
+    with pytest.raises(ValueError, match="K < 1"):  # K >= 1: never steep, mu_heff <= 0
+        th.en1991_4_hopper_filling(1.0, 2.0, 1e4, GAMMA, 45.0, 1.3, 0.4)
+
+
+def test_en1991_4_phi_i_from_K():
+    """K = 1.1 (1 - sin(phi_i)): K = 0.55 is sin(phi_i) = 1/2, phi_i = 30 deg; none for
+    K >= 1.1."""
+    assert th.en1991_4_phi_i_from_K(0.55) == pytest.approx(30.0, rel=1e-12)
+    assert math.isnan(th.en1991_4_phi_i_from_K(1.32))
+
+
 def test_beverloo_free_fit_starts_inside_its_bounds_for_outlets_near_one_diameter():
     """k is bounded above by 0.95 min(D)/d; with the narrowest outlet at 1 d that bound is
     0.95, under the usual start k = 1, which scipy refuses.  Exact rates of the law

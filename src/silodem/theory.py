@@ -473,3 +473,102 @@ def en1991_4_discharge_factors(h_c: float, d_c: float, flat_bottom: bool) -> tup
         return 1.0, 1.0
     raise ValueError("EN 1991-4 loads of retaining silos (§5.4, h_c/d_c <= 0.4 on a flat "
                      "bottom) are not built")
+
+
+@dataclass(frozen=True)
+class HopperLoad:
+    """EN 1991-4:2006 §6 loads on the walls of a hopper (:func:`en1991_4_hopper_filling`,
+    :func:`en1991_4_hopper_discharge`).  kind: "steep" or "shallow" (§6.1); mu_eff: the wall
+    friction used, mu_h (steep) or the mobilised mu_heff (shallow) [-]; F: the hopper pressure
+    ratio p_n / p_v [-]; n: the exponent of p_v [-]; p_n, p_t, p_v: normal pressure, frictional
+    traction (mu_eff p_n) and mean vertical stress at the heights asked [Pa]."""
+
+    kind: str
+    mu_eff: float
+    F: float
+    n: float
+    p_n: np.ndarray | float
+    p_t: np.ndarray | float
+    p_v: np.ndarray | float
+
+
+def en1991_4_hopper_kind(beta_deg: float, K: float, mu_h: float) -> str:
+    """EN 1991-4:2006 §6.1 class of a hopper of apex half-angle beta [deg] (from the vertical,
+    alpha of this module): "flat" when its walls lie within 5 deg of the horizontal (beta > 85),
+    "steep" when tan(beta) < (1 - K) / (2 mu_h) (the wall friction is then fully mobilised),
+    "shallow" otherwise.  K: lateral pressure ratio [-]; mu_h: hopper wall friction [-]."""
+    if not 0.0 < beta_deg < 90.0:
+        raise ValueError(f"beta must lie in (0, 90) deg, got {beta_deg}")
+    if beta_deg > 85.0:
+        return "flat"
+    # tan(beta) < (1 - K) / (2 mu_h), multiplied out so that mu_h = 0 needs no division
+    return "steep" if 2.0 * mu_h * math.tan(math.radians(beta_deg)) < 1.0 - K else "shallow"
+
+
+def _hopper_load(x, h_h, p_vft, gamma, beta_deg, kind, mu, F, planar) -> HopperLoad:
+    """p_v of the slice balance with p_n = F p_v (:func:`hopper_sigma_v` with D = F), so that
+    EN's p_v expression and its exponent n = S (F mu cot(beta) + F) - S, S = 1 for a wedge and
+    2 for a cone, follow from the same equation."""
+    p_v = hopper_sigma_v(x, h_h, p_vft, gamma, beta_deg, mu, F, planar)
+    n = walker_exponent(beta_deg, mu, F, planar)
+    return HopperLoad(kind, mu, F, n, F * p_v, mu * F * p_v, p_v)
+
+
+def en1991_4_hopper_filling(x: npt.ArrayLike, h_h: float, p_vft: float, gamma: float,
+                            beta_deg: float, K: float, mu_h: float, planar: bool = True,
+                            b: float = 0.2) -> HopperLoad:
+    """EN 1991-4:2006 §6.3.2 (steep) and §6.4.2 (shallow) filling loads on a hopper's walls:
+
+        p_nf = F_f p_v,  p_tf = mu_eff F_f p_v,  F_f = 1 - b / (1 + tan(beta) / mu_eff),
+        p_v = gamma h_h / (n - 1) [x/h_h - (x/h_h)^n] + p_vft (x/h_h)^n,
+        n = S (1 - b) mu_eff cot(beta),  S = 1 (wedge, planar) or 2 (cone),
+
+    with mu_eff = mu_h in a steep hopper and the mobilised mu_heff = (1 - K) / (2 tan(beta)) in
+    a shallow one (:func:`en1991_4_hopper_kind`; the two meet at the class limit).  n is the
+    slice balance's exponent with F = F_f, S [F_f (1 + mu_eff cot(beta)) - 1], simplified.
+
+    x: height above the hopper's (virtual) apex [m]; h_h: the transition's height above the
+    apex [m]; p_vft: mean vertical stress on the transition [Pa] (EN: C_b p_vf of the vertical
+    walls, C_b = 1.0, 1.2 for action assessment class 3 and dynamic solids); gamma [N/m^3];
+    beta: apex half-angle from the vertical [deg]; K, mu_h [-]; b = 0.2, EN's empirical
+    coefficient.  A shallow hopper needs K < 1 (mu_heff > 0); a flat bottom (beta > 85 deg)
+    has no hopper rule: ValueError for both."""
+    kind = en1991_4_hopper_kind(beta_deg, K, mu_h)
+    tan_b = math.tan(math.radians(beta_deg))
+    if kind == "flat":
+        raise ValueError(f"beta = {beta_deg} deg is a flat bottom (walls within 5 deg of the "
+                         "horizontal): EN 1991-4's hopper rules do not apply")
+    if kind == "shallow" and K >= 1.0:
+        raise ValueError(f"a shallow hopper's mobilised friction (1 - K)/(2 tan beta) needs "
+                         f"K < 1, got K = {K:.3g}")
+    mu = mu_h if kind == "steep" else (1.0 - K) / (2.0 * tan_b)
+    F_f = 1.0 - b * mu / (mu + tan_b)  # = 1 - b / (1 + tan(beta) / mu), also at mu = 0
+    return _hopper_load(x, h_h, p_vft, gamma, beta_deg, kind, mu, F_f, planar)
+
+
+def en1991_4_hopper_discharge(x: npt.ArrayLike, h_h: float, p_vft: float, gamma: float,
+                              beta_deg: float, K: float, mu_h: float, phi_i_deg: float,
+                              planar: bool = True, b: float = 0.2) -> HopperLoad:
+    """EN 1991-4:2006 §6.3.3 discharge loads on a steep hopper's walls (§6.4.3: a shallow
+    hopper's discharge loads are its filling loads, :func:`en1991_4_hopper_filling`):
+
+        p_ne = F_e p_v,  p_te = mu_h F_e p_v,
+        F_e = (1 + sin(phi_i) cos(eps)) / (1 - sin(phi_i) cos(2 beta + eps)),
+        eps = phi_wh + arcsin(sin(phi_wh) / sin(phi_i)),  phi_wh = arctan(mu_h),
+
+    F_e being Walker's passive distribution factor (:func:`walker_distribution_factor` with
+    delta = phi_i, eps = 2 omega), and p_v the slice balance's (EN's p_v expression) with
+    F = F_e in n = S (F mu_h cot(beta) + F) - S.  phi_i: angle of internal friction [deg],
+    at least phi_wh; the other arguments as for the filling loads."""
+    if en1991_4_hopper_kind(beta_deg, K, mu_h) != "steep":
+        return en1991_4_hopper_filling(x, h_h, p_vft, gamma, beta_deg, K, mu_h, planar, b)
+    F_e = walker_distribution_factor(phi_i_deg, math.degrees(math.atan(mu_h)), beta_deg)
+    return _hopper_load(x, h_h, p_vft, gamma, beta_deg, "steep", mu_h, F_e, planar)
+
+
+def en1991_4_phi_i_from_K(K: float) -> float:
+    """Angle of internal friction [deg] that EN 1991-4:2006's estimate of the lateral pressure
+    ratio from it, K = 1.1 (1 - sin(phi_i)) (its section 4, on the properties of particulate
+    solids), gives for a measured K; NaN where none does (K <= 0 or K >= 1.1)."""
+    s = 1.0 - K / 1.1
+    return math.degrees(math.asin(s)) if 0.0 < s < 1.0 else float("nan")
