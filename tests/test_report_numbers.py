@@ -28,13 +28,12 @@ from measure_helpers import tiny_hopper_config
 
 from silodem.output import write_text
 from silodem.report.analysis import (
-    _en1991_4,
-    _highest_wall_contact,
     _numbers,
     analyse,
     column_tops,
     surface_height,
 )
+from silodem.report.eurocode import add_loads, highest_wall_contact, hopper_loads
 from silodem.report.load import load_results
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
@@ -550,6 +549,63 @@ def test_en1991_4_loads_of_the_report(synth):
     assert _number(a, "EN 1991-4 discharge magnifiers") == "1, 1"
 
 
+def test_en1991_4_hopper_loads_of_the_report(synth):
+    """EN 1991-4 §6 on the synthetic hopper (beta = 90 - 50 = 40 deg from the vertical, K =
+    0.55, mu_h = tan 24 deg): 2 mu_h tan(beta) = 0.747 > 1 - K = 0.45, a shallow hopper, so
+    mu_heff = (1 - K) / (2 tan beta), F_f = 1 - 0.2 / (1 + tan(beta) / mu_heff), n = (1 - 0.2)
+    mu_heff cot(beta) (a wedge, S = 1), and the discharge loads are the filling ones.  p_vft is
+    §5.3's p_vf = gamma z_V at the transition (h_o = 0: z_V = z_o ((h_c/z_o + 1)^(m+1) - 1) /
+    (m + 1), m = -(1 + tan 25 deg)); p_nf = F_f p_v with p_v as the standard prints it, x from
+    the virtual apex D/2 / tan(beta) under the outlet.  phi_i from K = 1.1 (1 - sin phi_i) is
+    30 deg."""
+    a, _ = synth
+    h = a.en1991_4["hopper"]
+    beta, gamma = 40.0, RHO_B * G
+    t = math.tan(math.radians(beta))
+    mu = (1 - K_TRUE) / (2 * t)
+    F_f = 1 - 0.2 / (1 + t / mu)
+    n = 0.8 * mu / t
+    z_o, m, h_c = (B / 2) / (K_TRUE * MU_WALL), -(1 + math.tan(math.radians(25.0))), SURF_FILL - Z_J
+    p_vft = gamma * z_o * ((h_c / z_o + 1) ** (m + 1) - 1) / (m + 1)
+    apex = 0.5 * D_OUT / t
+    h_h, x = Z_J + apex, h["z"] + apex
+    p_v = gamma * h_h / (n - 1) * (x / h_h - (x / h_h) ** n) + p_vft * (x / h_h) ** n
+    assert h["kind"] == "shallow" and h["phi_i"] == pytest.approx(30.0, rel=1e-6)
+    assert (h["mu_eff"], h["F_f"], h["F_e"]) == (pytest.approx(mu, rel=1e-6),
+                                                 pytest.approx(F_f, rel=1e-6),
+                                                 pytest.approx(F_f, rel=1e-6))
+    assert h["p_vft"] == pytest.approx(p_vft, rel=1e-6)  # K from curve_fit
+    np.testing.assert_allclose(h["p_nf"], F_f * p_v, rtol=1e-6)
+    np.testing.assert_allclose(h["p_ne"], F_f * p_v, rtol=1e-6)
+    assert h["z"][0] == 0.0 and h["z"][-1] == pytest.approx(Z_J, rel=REL)
+    row = _number(a, "EN 1991-4 §6 hopper class")
+    assert row.startswith("shallow, mu_eff ") and row.endswith("F_e = F_f (shallow hopper)")
+    at_top = _number(a, "EN 1991-4 hopper normal pressure at the transition")
+    assert at_top == f"{F_f * p_vft:,.0f} / {F_f * p_vft:,.0f}"
+
+
+def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):
+    """K >= 1 (paper case 2 fits K = 1.3 with its 430 large grains) makes every hopper shallow
+    (tan(beta) > (1 - K) / (2 mu_h) <= 0) with no positive mobilised friction: the key
+    numbers say the rules do not apply and the figures draw no hopper curve."""
+    from matplotlib.figure import Figure
+
+    from silodem.report.figures_stress import _en1991_4_curve
+
+    a, _ = synth
+    b = copy.copy(a)
+    b.en1991_4 = {**a.en1991_4, "hopper": hopper_loads(a, 1.32, 20000.0)}
+    assert b.en1991_4["hopper"]["kind"] == "shallow" and "p_nf" not in b.en1991_4["hopper"]
+    b.numbers = []
+    _numbers(b)
+    assert _number(b, "EN 1991-4 §6 hopper class") == (
+        "shallow: the rules do not apply (K = 1.32 >= 1 leaves a shallow hopper no mobilised "
+        "friction)")
+    ax = Figure().subplots()
+    _en1991_4_curve(ax, b, "fill")
+    assert [line.get_label()[:15] for line in ax.lines] == ["EN 1991-4 §5.3 "]
+
+
 def test_en1991_4_skips_frictionless_walls(synth):
     """phi_P = 0 (allowed by the config) gives z_o = A/(K mu U) = infinity: the report leaves the
     EN loads out instead of raising ZeroDivisionError from analyse (and so from the study's
@@ -558,7 +614,7 @@ def test_en1991_4_skips_frictionless_walls(synth):
     b = copy.copy(a)
     b.geom = {**a.geom, "mu_wall": 0.0}
     b.en1991_4 = {}
-    _en1991_4(b, SURF_FILL)
+    add_loads(b, SURF_FILL)
     assert b.en1991_4 == {}
 
 
@@ -568,11 +624,11 @@ def test_highest_wall_contact_looks_one_column_from_each_wall():
     the next column."""
     snap = {"particles": {"x": np.array([0.05, 0.65, 1.05]), "y": np.array([0.7, 0.9, 0.8]),
                           "radius": np.array([0.05, 0.05, 0.05])}}
-    assert _highest_wall_contact(snap, B, DIAM) == pytest.approx(0.75, rel=REL)
+    assert highest_wall_contact(snap, B, DIAM) == pytest.approx(0.75, rel=REL)
     snap["particles"]["x"][0] = 1.15  # now right at the right wall, the left one bare
-    assert _highest_wall_contact(snap, B, DIAM) == pytest.approx(0.75, rel=REL)
+    assert highest_wall_contact(snap, B, DIAM) == pytest.approx(0.75, rel=REL)
     snap["particles"]["x"][0] = 0.35  # no grain by either wall
-    assert math.isnan(_highest_wall_contact(snap, B, DIAM))
+    assert math.isnan(highest_wall_contact(snap, B, DIAM))
 
 
 def test_a_retaining_silo_is_named_but_gets_no_en_loads(synth):

@@ -15,8 +15,9 @@ from silodem import theory as th
 from silodem.measure import discharge as dis
 from silodem.measure import regions
 from silodem.measure.wall_profiles import peak_in_zone
+from silodem.report import eurocode
 from silodem.report.load import Results
-from silodem.report.numbers import significant
+from silodem.report.numbers import pascals, significant
 from silodem.silo.geometry import silo_shape
 
 if TYPE_CHECKING:
@@ -180,7 +181,7 @@ def analyse(res: Results) -> Analysis:
         if strips is not None:
             a.strips[key] = strips
     _fit_theory(a, shape)
-    _en1991_4(a, _highest_wall_contact(settled, shape.width, d))
+    eurocode.add_loads(a, eurocode.highest_wall_contact(settled, shape.width, d))
     _evolution_change(a, masks)
     _flow(a, shape)
     _numbers(a)
@@ -239,56 +240,6 @@ def _fit_theory(a: Analysis, shape) -> None:
         hop["D_fit"] = D
         hop["planar_D"] = th.hopper_wall_normal(h, H, q, gamma, g["alpha"], mu_h, D, True)
     a.hopper = hop
-
-
-def _highest_wall_contact(snap: dict[str, Any] | None, width: float, d: float) -> float:
-    """Height [m] of the highest grain top within one column (B / round(B/d), about d) of
-    either wall, the higher of the two sides: EN 1991-4's highest solid-wall contact.  NaN
-    when no grain is that close to a wall."""
-    if snap is None or snap["particles"]["x"].size == 0:
-        return float("nan")
-    p = snap["particles"]
-    column = width / max(1, round(width / d))
-    near = (p["x"] < column) | (p["x"] >= width - column)
-    return float((p["y"] + p["radius"])[near].max()) if near.any() else float("nan")
-
-
-def _en1991_4(a: Analysis, wall_top: float) -> None:
-    """EN 1991-4:2006 loads on the vertical walls of the filled silo, by its slenderness
-    class: §5.2 (Janssen form) for slender silos, §5.3 for squat and intermediate ones, with
-    K of the Janssen fit after filling, mu = tan(phi_P), gamma = rho_b g, h_c from the junction
-    (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus
-    ``wall_top`` [m], the highest wall contact, at least 0).  Nothing for a retaining silo
-    (§5.4, not built), nor for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
-    g = a.geom
-    top, j = a.surface["fill"], a.janssen.get("fill")
-    h_c = top - g["z_j"]
-    if j is None or not (h_c > 0.0 and np.isfinite(a.rho_b) and g["mu_wall"] > 0.0):
-        return
-    flat = a.res.cfg.silo.kind != "hopper"
-    kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=flat)
-    if kind == "retaining":  # listed in the key numbers, with no loads
-        a.en1991_4 = {"kind": kind, "section": "5.4", "h_c": h_c, "ratio": h_c / g["B"]}
-        return
-    C_h, C_w = th.en1991_4_discharge_factors(h_c, g["B"], flat_bottom=flat)
-    m = a.res.cfg.measure
-    phi_r = (m.angle_of_repose_deg if m.angle_of_repose_deg is not None
-             else a.res.cfg.material.friction_deg)
-    h_o = max(0.0, top - wall_top) if np.isfinite(wall_top) else 0.0
-    z = np.linspace(g["z_j"], top, 60)
-    gamma, A_over_U = a.rho_b * g["g"], g["B"] / 2
-    try:
-        if kind == "slender":
-            p_hf, p_wf, _ = th.en1991_4_filling(top - z, gamma, j.K, g["mu_wall"], A_over_U)
-        else:
-            p_hf, p_wf, _ = th.en1991_4_filling_squat(top - z, gamma, j.K, g["mu_wall"],
-                                                      A_over_U, phi_r, h_o)
-    except ValueError:  # h_o >= z_o (a heap deeper than z_o): the form does not apply
-        return
-    a.en1991_4 = {"kind": kind, "section": "5.2" if kind == "slender" else "5.3",
-                  "h_c": h_c, "ratio": h_c / g["B"], "h_o": h_o, "phi_r": phi_r,
-                  "C_h": C_h, "C_w": C_w, "z": z, "p_hf": p_hf, "p_he": C_h * p_hf,
-                  "p_wf": p_wf, "p_we": C_w * p_wf}
 
 
 def window_mean(values: np.ndarray) -> float:
@@ -353,10 +304,6 @@ def _fmt(v: float, digits: int = 4) -> str:
     return significant(v, digits)
 
 
-def _pa(v: float) -> str:
-    return f"{v:,.0f}" if v is not None and np.isfinite(v) else "n/a"
-
-
 def _numbers(a: Analysis) -> None:
     n = a.numbers
     g = a.geom
@@ -372,7 +319,7 @@ def _numbers(a: Analysis) -> None:
         if key in a.peaks:
             v, z = a.peaks[key]
             n.append((f"switch-zone peak of the wall normal stress, {label}",
-                      f"{_pa(v)} at z = {_fmt(z, 3)} m", "Pa"))
+                      f"{pascals(v)} at z = {_fmt(z, 3)} m", "Pa"))
     for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
         if key in a.mu_mobilised:
             what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell walls, {label} "
@@ -394,26 +341,10 @@ def _numbers(a: Analysis) -> None:
                                  a.janssen["fill"].K, g["mu_wall"])
         n.append(("switch-zone peak / Janssen sigma_h at its height, after filling",
                   _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
-    en = a.en1991_4
-    if en:
-        built = "" if "p_hf" in en else " (not built in silodem)"
-        n.append(("EN 1991-4 slenderness h_c/d_c (junction or floor to the surface, over B)",
-                  f"{_fmt(en['ratio'], 3)}: {en['kind']}, loads of §{en['section']}{built}",
-                  "-"))
-    if "p_hf" in en:
-        if en["section"] == "5.3":
-            source = ("measure.angle_of_repose_deg"
-                      if a.res.cfg.measure.angle_of_repose_deg is not None
-                      else "phi_G, angle_of_repose_deg unset")
-            label = ("EN 1991-4 §5.3 inputs: h_o measured (surface - highest wall contact), "
-                     "angle of repose phi_r")
-            n.append((label,
-                      f"{_fmt(en['h_o'], 3)} m, {_fmt(en['phi_r'], 3)} deg ({source})", ""))
-        n.append(("EN 1991-4 discharge magnifiers C_h, C_w",
-                  f"{_fmt(en['C_h'], 4)}, {_fmt(en['C_w'], 4)}", "-"))
+    n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
     if "q" in a.hopper:
         n.append(("measured mean vertical stress q on the junction (hopper theory input)",
-                  _pa(a.hopper["q"]), "Pa"))
+                  pascals(a.hopper["q"]), "Pa"))
     if "D_fit" in a.hopper:
         n.append(("Walker distribution factor D fitted on the hopper walls (planar)",
                   _fmt(a.hopper["D_fit"], 3), "-"))

@@ -93,19 +93,27 @@ def _hopper_curves(ax, a: Analysis, which: str) -> None:
 
 
 def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
-    """EN 1991-4's load on the vertical wall with the depth from the filled silo's surface
-    (the standard's loads are those of the full silo): the filling load p_hf after filling
-    (only for §5.3: for a slender silo it is the fitted Janssen curve already drawn), the fixed
-    discharge load p_he = C_h p_hf during discharge.  The label gives the class and rule."""
+    """EN 1991-4's loads with the depth from the filled silo's surface (the standard's loads
+    are those of the full silo).  Vertical walls: the filling load p_hf after filling (only for
+    §5.3: for a slender silo it is the fitted Janssen curve already drawn), the fixed
+    discharge load p_he = C_h p_hf during discharge.  Hopper walls (§6): the normal pressure
+    F_f p_v after filling, F_e p_v during discharge.  The labels give the class and rule."""
     en = a.en1991_4
-    if "p_hf" not in en or (key == "fill" and en["section"] == "5.2"):
+    if "p_hf" not in en:
         return
-    what = "filling p_hf" if key == "fill" else f"discharge {en['C_h']:.3g} p_hf"
-    inputs = f"K of filling, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
-    if en["section"] == "5.3":
-        inputs += f", h_o = {en['h_o']:.2f} m, phi_r = {en['phi_r']:.3g} deg"
-    ax.plot(en["p_hf"] if key == "fill" else en["p_he"], en["z"], color="#9467bd", lw=1.4,
-            ls=(0, (5, 2)), label=f"EN 1991-4 §{en['section']} {what} ({inputs})")
+    if key == "discharge" or en["section"] == "5.3":
+        what = "filling p_hf" if key == "fill" else f"discharge {en['C_h']:.3g} p_hf"
+        inputs = f"K of filling, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
+        if en["section"] == "5.3":
+            inputs += f", h_o = {en['h_o']:.2f} m, phi_r = {en['phi_r']:.3g} deg"
+        ax.plot(en["p_hf"] if key == "fill" else en["p_he"], en["z"], color="#9467bd", lw=1.4,
+                ls=(0, (5, 2)), label=f"EN 1991-4 §{en['section']} {what} ({inputs})")
+    h = en.get("hopper", {})
+    p_n = h.get("p_nf" if key == "fill" else "p_ne")
+    if p_n is not None:
+        what = "filling F_f p_v" if key == "fill" else "discharge F_e p_v"
+        ax.plot(p_n, h["z"], color="#9467bd", lw=1.4, ls=(0, (1, 1)),
+                label=f"EN 1991-4 §6 hopper {what} ({h['kind']}, p_vft = p_vf at the junction)")
 
 
 def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:

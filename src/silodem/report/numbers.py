@@ -19,3 +19,8 @@ def significant(value: float | None, digits: int = 3) -> str:
     if "e" in text and 1.0 <= abs(v) < 1e9:  # 2053.4 -> 2.05e+03, 999.6 -> 1e+03
         return f"{v:.0f}"
     return text
+
+
+def pascals(value: float | None) -> str:
+    """A stress in whole pascals with thousands separators (20,929), 'n/a' for None or NaN."""
+    return f"{value:,.0f}" if value is not None and math.isfinite(value) else "n/a"
