@@ -506,9 +506,9 @@ def en1991_4_hopper_kind(beta_deg: float, K: float, mu_h: float) -> str:
 
 
 def _hopper_load(x, h_h, p_vft, gamma, beta_deg, kind, mu, F, planar) -> HopperLoad:
-    """p_v of the slice balance with p_n = F p_v (:func:`hopper_sigma_v` with D = F), so that
-    EN's p_v expression and its exponent n = S (F mu cot(beta) + F) - S, S = 1 for a wedge and
-    2 for a cone, follow from the same equation."""
+    """p_v of the slice balance with p_n = F p_v (:func:`hopper_sigma_v` with D = F): EN's p_v
+    expression, with the slice balance's exponent n = S (F mu cot(beta) + F) - S (S = 1 for a
+    wedge, 2 for a cone; for a cone it is the standard's n for a pressure ratio F)."""
     p_v = hopper_sigma_v(x, h_h, p_vft, gamma, beta_deg, mu, F, planar)
     n = walker_exponent(beta_deg, mu, F, planar)
     return HopperLoad(kind, mu, F, n, F * p_v, mu * F * p_v, p_v)
