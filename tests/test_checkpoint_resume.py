@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import random
+import resource
 import shutil
 import signal
 import subprocess
@@ -23,7 +24,9 @@ import pytest
 from reliability_helpers import (
     assert_bit_identical,
     cli,
+    command,
     datasets,
+    env,
     quick_config,
     run_args,
     signal_when,
@@ -154,6 +157,31 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
         result = cli("run", "--resume", str(out))
         assert result.returncode == 0, result.stderr[-2000:]
         assert_same_as_reference(out, ref)
+
+
+def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_save(reference,
+                                                                                 tmp_path):
+    """Saves that fail for lack of room (a file-size limit, RLIMIT_FSIZE, fails the writes
+    as a full disk does) end the run with one line, not a crash: HDF5 writing the file itself
+    died with SIGSEGV in the middle of a save.  The last good save stays readable and
+    resumable, and the resumed run ends bit-identical to an uninterrupted one."""
+    ref, _ = reference
+    out = tmp_path / "run"
+
+    def small_files() -> None:  # in the child: writes past 150 kB fail with EFBIG
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+
+    result = subprocess.run(command(*run_args(out)), preexec_fn=small_files, check=False,
+                            capture_output=True, text=True, env=env(), timeout=180)
+    assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
+    assert "Traceback" not in result.stderr and "Fatal Python error" not in result.stderr
+    assert result.stderr.strip().splitlines()[-1].startswith("error: File too large")
+    assert_partial_results_are_a_prefix(out, ref)
+    assert read_checkpoint(out).step > 0  # the saves went on while they fitted
+    result = cli("run", "--resume", str(out))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert_same_as_reference(out, ref)
 
 
 def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):

@@ -10,10 +10,12 @@ interrupted, the temporary file is removed.
 from __future__ import annotations
 
 import errno
+import io
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import Any
 
 
 def fsync_path(path: Path) -> None:
@@ -51,3 +53,21 @@ def write_atomic(path: Path | str, data: bytes | str) -> None:
     raw = data.encode("utf-8") if isinstance(data, str) else data
     with atomic_file(path) as tmp:
         tmp.write_bytes(raw)
+
+
+@contextmanager
+def atomic_hdf5(path: Path | str, **options: Any) -> Iterator[Any]:
+    """Yield a new ``h5py.File`` (``options``: h5py.File's keywords) built in memory; on
+    success write its bytes to ``path`` through ``atomic_file``.
+
+    The HDF5 library never writes to the disk itself: a write that fails (a full disk, a file
+    size limit) is an OSError from Python's own write, which a run can survive.  Written by
+    HDF5 into the temporary file, such a failure left the library's state broken and crashed
+    the process (a segmentation fault) in the middle of a save."""
+    import h5py
+
+    with atomic_file(path) as tmp:
+        image = io.BytesIO()
+        with h5py.File(image, "w", **options) as h5:
+            yield h5
+        tmp.write_bytes(image.getbuffer())

@@ -35,7 +35,7 @@ import h5py
 import numpy as np
 
 from silodem import __version__
-from silodem.atomic import atomic_file
+from silodem.atomic import atomic_hdf5
 from silodem.config import Config
 from silodem.errors import InputError, one_line
 from silodem.scenario_files import config_from_text
@@ -180,7 +180,7 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
 
     Call it between two chunks of the procedure (a chunk hook), never inside a step."""
     sim = run.sim
-    with atomic_file(path) as tmp, h5py.File(tmp, "w", track_order=True) as h5:
+    with atomic_hdf5(path, track_order=True) as h5:
         h5.attrs["format"] = FORMAT
         h5.attrs["format_version"] = FORMAT_VERSION
         h5.attrs["silodem_version"] = __version__

@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from silodem import __version__
-from silodem.atomic import atomic_file, write_atomic
+from silodem.atomic import atomic_file, atomic_hdf5, write_atomic
 from silodem.silo.procedure import SiloRun
 from silodem.silo.recorders import write_snapshot
 
@@ -36,7 +36,7 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
     ``status``: "complete" at the end of a run; "running", "interrupted" or "unstable" when
     written before the end (checkpoints, docs/reliability.md); attributes ``phase``, ``time``
     and ``steps`` say how far the run had come."""
-    with atomic_file(path) as tmp, h5py.File(tmp, "w") as h5:
+    with atomic_hdf5(path) as h5:
         h5.attrs["status"] = status
         h5.attrs["phase"] = run.state.phase
         h5.attrs["time"] = run.sim.time
