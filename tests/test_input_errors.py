@@ -505,3 +505,13 @@ def test_a_numba_thread_count_numba_cannot_use_is_refused(capsys, monkeypatch, v
     monkeypatch.setenv("NUMBA_NUM_THREADS", value)
     line = refused(capsys, "run", "--quick", "--threads", "1")
     assert_names(line, "NUMBA_NUM_THREADS", repr(value))
+
+
+@pytest.mark.parametrize("name", ["results.h5", "config.toml", "report.html"])
+def test_animate_out_that_is_not_a_video_name_is_refused(capsys, tmp_path, name):
+    """`silodem animate DIR --out DIR/results.h5` wrote an MP4 over the run's results (any
+    suffix but .gif meant MP4): an --out that does not end in .mp4 or .gif is refused first."""
+    (tmp_path / name).write_bytes(b"a run's file")
+    line = refused(capsys, "animate", str(tmp_path), "--out", str(tmp_path / name))
+    assert_names(line, "--out", f".{name.rsplit('.', 1)[1]}", ".mp4", ".gif")
+    assert (tmp_path / name).read_bytes() == b"a run's file"

@@ -69,6 +69,9 @@ def load_run_frames(run_dir: Path | str) -> Frames:
 
 def _choose_format(out: Path | None, fmt: str | None) -> str:
     suffix = out.suffix.lower().lstrip(".") if out is not None else ""
+    if suffix and suffix not in FORMATS:  # DIR/results.h5 or config.toml would be overwritten
+        raise InputError(f"--out {out} ends in .{suffix}, not a video's suffix; give a file "
+                         f"name ending in {' or '.join('.' + f for f in FORMATS)}")
     if fmt is not None:
         fmt = fmt.lower()
         if fmt not in FORMATS:
