@@ -393,6 +393,15 @@ def _shorten_x(h5):
     (_set("particles/n", 10**9), "disagree"),
     (_set("run/state/phase", '"zzz"'), "phase 'zzz'"),  # stored as JSON
     (_set("run/rng", '{"bit_generator": "PCG64"}'), "cannot take"),
+    # kinds the first steps of the run failed on, in the kernels or numba's compiler
+    (_set("particles/x", "1.5"), "Particles.x is"),
+    (lambda h5: _set("particles/x", h5["particles/x"][()].astype(np.int64))(h5),
+     "Particles.x is int64"),
+    (lambda h5: (_set("simulation/dt", '"abc"')(h5),
+                 h5["simulation/dt"].attrs.modify("silodem_kind", "json")),
+     "Simulation.dt is a str"),
+    (_set("run/state/pending_radii", '"x"'), "run.state.pending_radii is a str"),
+    (lambda h5: _set("walls/ax", h5["walls/ax"][:1])(h5), "Walls.ax is"),
 ])
 def test_a_checkpoint_with_wrong_contents_is_refused_in_one_line(uninterrupted, tmp_path,
                                                                  damage, needle):

@@ -154,8 +154,43 @@ def object_state(obj: Any, skip: tuple[str, ...] = ()) -> dict[str, Any]:
     return out
 
 
-def restore_object(obj: Any, state: dict[str, Any]) -> None:
-    """Set the attributes saved by :func:`object_state` (arrays are fresh copies)."""
+def _kind_error(where: str, fresh: Any, value: Any, same_shape: bool) -> str | None:
+    """Why ``value`` cannot replace ``fresh`` (the attribute of a run built from the config),
+    or None: an array must stay an array of the same kind and rank (and shape for
+    ``same_shape``), a number a number, a list a list, a text a text."""
+    if isinstance(fresh, np.ndarray):
+        if not isinstance(value, np.ndarray) or value.dtype.kind != fresh.dtype.kind \
+                or value.ndim != fresh.ndim or (same_shape and value.shape != fresh.shape):
+            shape = f"shape {fresh.shape}" if same_shape else f"{fresh.ndim}-D"
+            got = (f"{value.dtype} {value.shape}" if isinstance(value, np.ndarray)
+                   else type(value).__name__)
+            return f"{where} is {got}, not a {shape} array of {fresh.dtype}"
+        return None
+    if isinstance(fresh, bool | np.bool_):
+        ok = isinstance(value, bool | np.bool_)
+    elif isinstance(fresh, int | np.integer):
+        ok = isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
+    elif isinstance(fresh, float | np.floating):
+        ok = isinstance(value, int | float | np.integer | np.floating) \
+            and not isinstance(value, bool | np.bool_)
+    elif isinstance(fresh, list | tuple):
+        ok = isinstance(value, list | tuple)
+    elif isinstance(fresh, str):
+        ok = isinstance(value, str)
+    else:
+        return None
+    return None if ok else f"{where} is a {type(value).__name__}, not a {type(fresh).__name__}"
+
+
+def restore_object(obj: Any, state: dict[str, Any], same_shape: bool = False) -> None:
+    """Set the attributes saved by :func:`object_state` (arrays are fresh copies).  TypeError
+    for a value that is not of the kind the attribute holds (``_kind_error``): a hand-edited
+    file failed in the middle of the run, or in numba's compiler, with a traceback."""
+    for name, value in state.items():
+        problem = _kind_error(f"{type(obj).__name__}.{name}", getattr(obj, name, None), value,
+                              same_shape)
+        if problem is not None:
+            raise TypeError(problem)
     for name, value in state.items():
         if isinstance(value, np.ndarray):
             value = np.ascontiguousarray(value)
@@ -253,11 +288,16 @@ class LoadedCheckpoint:
 
         d, sim = self.data, run.sim
         restore_object(sim.particles, d["particles"])
-        restore_object(sim.walls, d["walls"])
+        restore_object(sim.walls, d["walls"], same_shape=True)  # the config's walls
         restore_object(sim.neighbors, d["neighbors"])
         sim.neighbors.forget_derived()
         restore_object(sim, d["simulation"])
         r = d["run"]
+        for key, value in r["state"].items():
+            problem = _kind_error(f"run.state.{key}", getattr(run.state, key, None), value,
+                                  False)
+            if problem is not None:
+                raise TypeError(problem)
         run.state = type(run.state)(**r["state"])
         rng_state = json.loads(r["rng"])
         if rng_state.get("bit_generator") != type(run.rng.bit_generator).__name__:
