@@ -515,3 +515,12 @@ def test_animate_out_that_is_not_a_video_name_is_refused(capsys, tmp_path, name)
     line = refused(capsys, "animate", str(tmp_path), "--out", str(tmp_path / name))
     assert_names(line, "--out", f".{name.rsplit('.', 1)[1]}", ".mp4", ".gif")
     assert (tmp_path / name).read_bytes() == b"a run's file"
+
+
+def test_a_study_named_by_a_file_name_that_names_no_folder_is_refused(capsys, tmp_path):
+    """A study without `name` is named by its file's stem: `..toml` gave the name '.', which
+    the `name` key refuses, and the study went into studies/ itself, not studies/<name>."""
+    study = tmp_path / "..toml"
+    study.write_text('base = "paper-case2"\nseeds = [2]\n[grid]\n"fill.n_particles" = [100]\n')
+    line = refused(capsys, "sweep", str(study), "--scheduler", "tcp://127.0.0.1:1")
+    assert_names(line, "'.'", "cannot name a results folder", "name =")

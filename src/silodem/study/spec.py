@@ -293,6 +293,11 @@ def load_study(source: str) -> LoadedStudy:
     except ValidationError as exc:
         message = format_validation_error(exc, data, model=StudySpec)
         raise InputError(f"{where}: {message.removeprefix('config error: ')}") from None
-    if not spec.name:
+    if not spec.name:  # model_copy skips the validator of 'name': check it here
+        try:
+            folder_name(default_name, "name")
+        except ValueError as exc:
+            raise InputError(f"{where}: the study is named by its file name, but {exc}; give "
+                             "the study a name = \"...\" in the file") from None
         spec = spec.model_copy(update={"name": default_name})
     return LoadedStudy(spec=spec, source=str(source), text=text, folder=folder)
