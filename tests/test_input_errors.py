@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import subprocess
+import sys
 import tempfile
 import tomllib
 import warnings
@@ -524,3 +526,22 @@ def test_a_study_named_by_a_file_name_that_names_no_folder_is_refused(capsys, tm
     study.write_text('base = "paper-case2"\nseeds = [2]\n[grid]\n"fill.n_particles" = [100]\n')
     line = refused(capsys, "sweep", str(study), "--scheduler", "tcp://127.0.0.1:1")
     assert_names(line, "'.'", "cannot name a results folder", "name =")
+
+
+def test_ctrl_c_while_the_command_line_is_imported_is_one_line_and_exit_130():
+    """Ctrl-C in the part of a second that the import of silodem.cli takes, before its main
+    can catch anything, printed a KeyboardInterrupt traceback; the script's launcher now ends
+    it in one line and exit code 130, as an interrupt of a run does.  The interrupt is raised
+    by an import hook at the import of silodem.cli, where a real Ctrl-C lands."""
+    code = ("import sys\n"
+            "class Interrupt:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name == 'silodem.cli':\n"
+            "            raise KeyboardInterrupt\n"
+            "sys.meta_path.insert(0, Interrupt())\n"
+            "from silodem.launcher import main\n"
+            "main()\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120, check=False)
+    assert (result.returncode, result.stderr) == (130, "interrupted\n")
+

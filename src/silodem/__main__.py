@@ -1,6 +1,6 @@
 """``python -m silodem``: the same as the ``silodem`` command."""
 
-from silodem.cli import main
+from silodem.launcher import main
 
 if __name__ == "__main__":
     main()

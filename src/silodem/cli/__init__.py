@@ -1,4 +1,5 @@
-"""The ``silodem`` command line: :func:`main` is the entry point (``silodem = silodem.cli:main``).
+"""The ``silodem`` command line: :func:`main` is the entry point (the ``silodem`` script calls it
+through :mod:`silodem.launcher`, which guards its import against Ctrl-C).
 
 Importing the two command modules registers their commands on :data:`app`, in the order
 ``silodem --help`` lists them.
