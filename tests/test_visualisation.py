@@ -149,6 +149,36 @@ def test_pvd_collections_list_every_vtk_file_at_the_vtk_interval(run_dir, h5):
     assert {p.name for p in vtk.glob("fields_*.vtu")} <= fields
 
 
+def test_a_vtk_write_that_fails_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
+    """VTK files are written whole or not at all, as every other file of a run folder
+    (atomic.atomic_file): a write that fails half-way (a full disk) leaves the file written
+    before untouched and no temporary file beside it."""
+    from silodem.viz import vtk as vtk_module
+
+    pvd = tmp_path / "particles.pvd"
+    vtk_module.write_pvd(pvd, [(0.5, "particles_000001.vtu")])
+    before = pvd.read_bytes()
+    mesh = meshio.Mesh(np.zeros((1, 3)), [("vertex", np.zeros((1, 1), dtype=int))])
+    vtu = tmp_path / "particles_000001.vtu"
+    vtk_module._write_mesh(vtu, mesh)
+    vtu_before = vtu.read_bytes()
+
+    def full_disk(target, *args, **kwargs):
+        Path(target).write_bytes(b"half a file")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(vtk_module.meshio, "write", full_disk)
+    with pytest.raises(OSError):
+        vtk_module._write_mesh(vtu, mesh)
+    monkeypatch.setattr(vtk_module.ET.ElementTree, "write",
+                        lambda self, target, *args, **kwargs: full_disk(target))
+    with pytest.raises(OSError):
+        vtk_module.write_pvd(pvd, [(0.5, "a.vtu"), (1.0, "b.vtu")])
+    assert (pvd.read_bytes(), vtu.read_bytes()) == (before, vtu_before)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["particles.pvd",
+                                                          "particles_000001.vtu"]
+
+
 def test_vtk_files_hold_the_frames(run_dir, frames, h5):
     vtk = run_dir / "vtk"
     walls = h5["walls"]

@@ -24,7 +24,6 @@ cell, cell data ``density`` [kg/m^3], ``stress_xx``, ``stress_zz``, ``stress_xz`
 
 from __future__ import annotations
 
-import os
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -32,6 +31,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from silodem.atomic import atomic_file
 from silodem.silo.frames import Frame, WallGeometry
 
 KINDS = ("particles", "contacts", "walls")
@@ -138,9 +138,9 @@ def write_fields(results: Path | str, directory: Path | str) -> list[Path]:
 
 
 def _write_mesh(path: Path, mesh: meshio.Mesh) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    meshio.write(tmp, mesh, file_format="vtu")
-    os.replace(tmp, path)
+    """Write ``mesh`` to ``path`` whole or not at all (``atomic.atomic_file``)."""
+    with atomic_file(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")
 
 
 def write_pvd(path: Path, entries: list[tuple[float, str]]) -> None:
@@ -151,9 +151,8 @@ def write_pvd(path: Path, entries: list[tuple[float, str]]) -> None:
         ET.SubElement(coll, "DataSet", timestep=repr(float(time)), group="", part="0",
                       file=name)
     ET.indent(root)
-    tmp = path.with_name(f".{path.name}.tmp")
-    ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
-    os.replace(tmp, path)
+    with atomic_file(path) as tmp:
+        ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
 
 
 class VtkSeries:
