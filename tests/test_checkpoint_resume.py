@@ -176,7 +176,8 @@ def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_sav
                             capture_output=True, text=True, env=env(), timeout=180)
     assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
     assert "Traceback" not in result.stderr and "Fatal Python error" not in result.stderr
-    assert result.stderr.strip().splitlines()[-1].startswith("error: File too large")
+    last = result.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: File too large") and f"--resume {out}" in last, last
     assert_partial_results_are_a_prefix(out, ref)
     assert read_checkpoint(out).step > 0  # the saves went on while they fitted
     result = cli("run", "--resume", str(out))

@@ -143,14 +143,17 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     else:
         run = SiloRun(cfg, recorders=recorders)
         guard.drive(run)
+    kept = (f"the last checkpoint is kept: 'silodem run --resume {out}' finishes the run"
+            if guard.checkpoint_path.exists() else
+            f"{out / 'results.h5'} holds the run up to its last save")
     try:
         write_results(run, out / "results.h5", toml_text)
     except KeyboardInterrupt as exc:  # results.h5 is the last save's (atomic write)
-        kept = (f"the last checkpoint is kept: 'silodem run --resume {out}' finishes the run"
-                if guard.checkpoint_path.exists() else
-                f"{out / 'results.h5'} holds the run up to its last save")
         raise RunInterrupted(f"while the run's final results were written; {kept}",
                              _signal_of(exc)) from None
+    except OSError as exc:  # a full disk: say what is kept and how to go on
+        raise OSError(exc.errno, f"{exc.strerror or exc} while the run's final results were "
+                      f"written to {out / 'results.h5'}; {kept}") from None
     guard.completed()
     try:
         write_views(out)
