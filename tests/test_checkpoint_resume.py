@@ -226,6 +226,36 @@ def test_ctrl_c_while_the_final_results_are_written_names_the_resume(tmp_path, m
         assert h5.attrs["status"] == "complete"
 
 
+def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, monkeypatch,
+                                                                   capsys):
+    """A SIGINT that came while the last chunk ran was dropped (the chunk hook does nothing
+    once the run is done): the run went on to its pictures and report and ended with exit
+    code 0.  It now ends after writing the complete results.h5, in one line, with 130."""
+    import silodem.run
+    from silodem.cli import main
+
+    drive = silodem.run.RunGuard.drive
+
+    def signal_in_last_chunk(self, run):
+        drive(self, run)
+        self.stop_signal = signal.SIGINT  # as the handler records it during the run
+
+    def views(out):
+        raise AssertionError("the pictures were drawn after the Ctrl-C")
+
+    monkeypatch.setattr(silodem.run.RunGuard, "drive", signal_in_last_chunk)
+    monkeypatch.setattr(silodem.run, "write_views", views)
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as exc:
+        main(run_args(out))
+    assert exc.value.code == 130
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("interrupted: as the run ended; its complete results are in")
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "complete"
+    assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
+
+
 def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     """An old run's settled.png, report.html and figures stayed beside a new run that drew
     none, and a new run stopped before its first save left its config beside the old run's

@@ -155,6 +155,10 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
         raise OSError(exc.errno, f"{exc.strerror or exc} while the run's final results were "
                       f"written to {out / 'results.h5'}; {kept}") from None
     guard.completed()
+    if guard.stop_signal is not None:  # it came in the last chunk: the run is complete
+        raise RunInterrupted(f"as the run ended; its complete results are in {out / 'results.h5'}"
+                             f" ('silodem plot {out}' draws its pictures and report.html)",
+                             guard.stop_signal)
     try:
         write_views(out)
         if cfg.measure.report:
