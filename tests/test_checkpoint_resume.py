@@ -447,6 +447,25 @@ def test_a_checkpoint_with_wrong_contents_is_refused_in_one_line(uninterrupted, 
         read_checkpoint(path).restore(SiloRun(quick_config()))
     assert "\n" not in str(exc.value) and needle in str(exc.value), exc.value
 
+
+def test_a_refused_resume_prints_one_line_and_no_progress_bar(uninterrupted, tmp_path):
+    """A checkpoint refused while it is restored (inside the progress bar) printed the bar's
+    last state ('start ... compiling kernels...') above the error: stderr is now the error's
+    one line."""
+    out = tmp_path / "run"
+    out.mkdir()
+    path = out / "checkpoint.h5"
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(quick_config()),
+                    reason="test")
+    with h5py.File(path, "r+") as h5:
+        ax = h5["walls/ax"][()]
+        del h5["walls/ax"]
+        h5["walls/ax"] = ax[:1]
+    result = cli("run", "--resume", str(out))
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "Walls.ax" in result.stderr, result.stderr
+
+
 def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):
     out = tmp_path / "run"
     proc = start(*run_args(out, "checkpoint.enabled=false"))

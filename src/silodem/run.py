@@ -135,10 +135,15 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                            description=f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
                            f"{pr.steps_per_s:8.0f} steps/s  {pr.detail}")
 
-            run = SiloRun(cfg, on_progress=show, recorders=recorders)
-            for w in run.warnings:
-                console.print(f"[yellow]warning:[/] {w}")
-            guard.drive(run)
+            try:
+                run = SiloRun(cfg, on_progress=show, recorders=recorders)
+                for w in run.warnings:
+                    console.print(f"[yellow]warning:[/] {w}")
+                guard.drive(run)
+            except BaseException:  # the error's one line is the last word, not a stale bar
+                if not console.is_terminal:  # (a terminal shows the bar as it was drawn)
+                    console.quiet = True
+                raise
             bar.update(task, completed=3)
     else:
         run = SiloRun(cfg, recorders=recorders)
