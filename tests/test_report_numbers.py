@@ -582,6 +582,12 @@ def test_en1991_4_hopper_loads_of_the_report(synth):
     assert row.startswith("shallow, mu_eff ") and row.endswith("F_e = F_f (shallow hopper)")
     at_top = _number(a, "EN 1991-4 hopper normal pressure at the transition")
     assert at_top == f"{F_f * p_vft:,.0f} / {F_f * p_vft:,.0f}"
+    # the study table's columns (docs/sweeps.md) hold the same numbers
+    s = synth[1]
+    assert (s["en1991_4_class"], s["en1991_4_hopper_class"]) == ("squat", "shallow")
+    assert s["janssen_K_fill"] == pytest.approx(K_TRUE, rel=FIT_REL)
+    assert s["en1991_4_hopper_p_n_fill"] == pytest.approx(F_f * p_vft, rel=1e-6)
+    assert s["en1991_4_hopper_p_n_discharge"] == pytest.approx(F_f * p_vft, rel=1e-6)
 
 
 def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):
@@ -899,7 +905,9 @@ DOC_COLUMNS = [
     "switch_sigma_v_fill", "switch_sigma_v_discharge", "switch_sigma_v_change_pct",
     "switch_ratio_fill", "switch_ratio_discharge", "switch_ratio_cv_fill",
     "switch_ratio_cv_discharge", "wall_peak_fill", "wall_peak_z_fill", "wall_peak_discharge",
-    "wall_peak_z_discharge", "wall_peak_change_pct", "discharge_rate", "discharge_rate_err",
+    "wall_peak_z_discharge", "wall_peak_change_pct", "janssen_K_fill", "en1991_4_class",
+    "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill", "en1991_4_hopper_p_n_discharge",
+    "discharge_rate", "discharge_rate_err",
     "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level",
     "bulk_density", "n_poured",
     "discharged_fraction", "discharge_end_reason", "steps", "dt"]

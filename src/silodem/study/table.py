@@ -49,6 +49,13 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("wall_peak_discharge", "Pa", "switch-zone peak of the wall normal stress during discharge"),
     ("wall_peak_z_discharge", "m", "height of that peak"),
     ("wall_peak_change_pct", "%", "change of the wall peak, filling -> discharge"),
+    ("janssen_K_fill", "-", "Janssen K fitted to the cell walls after filling, mu_w = tan phi_P"),
+    ("en1991_4_class", "", "EN 1991-4 slenderness class: slender, intermediate, squat, retaining"),
+    ("en1991_4_hopper_class", "", "EN 1991-4 hopper class: steep, shallow or flat"),
+    ("en1991_4_hopper_p_n_fill", "Pa", ("EN 1991-4 hopper normal pressure at the transition, "
+     "filling (F_f p_vft)")),
+    ("en1991_4_hopper_p_n_discharge", "Pa", ("EN 1991-4 hopper normal pressure at the "
+     "transition, discharge (F_e p_vft)")),
     ("discharge_rate", "kg/s", "steady discharge rate W (per unit thickness t)"),
     ("discharge_rate_err", "kg/s", "its standard error (5 block slopes)"),
     ("mass_flow_index", "-", "v_wall / v_axis above the junction"),
@@ -161,7 +168,16 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
                discharged_fraction=as_float(ev.get("discharged_fraction")),
                discharge_end_reason=str(ev.get("discharge_end_reason", "")),
                steps=int(res.attrs.get("steps", 0)), dt=as_float(res.attrs.get("dt")),
-               flow_pattern="")
+               flow_pattern="", en1991_4_class="", en1991_4_hopper_class="")
+    if "fill" in a.janssen:
+        out["janssen_K_fill"] = as_float(a.janssen["fill"].K)
+    en = a.en1991_4
+    out["en1991_4_class"] = str(en.get("kind", ""))
+    hopper = en.get("hopper", {})
+    out["en1991_4_hopper_class"] = str(hopper.get("kind", ""))
+    for key, p_n in (("fill", "p_nf"), ("discharge", "p_ne")):
+        if p_n in hopper:  # the last height of the hopper curve is the transition
+            out[f"en1991_4_hopper_p_n_{key}"] = as_float(hopper[p_n][-1])
     m = res.group("measure")
     if m is not None and a.windows:
         t, phase = m["time"], m["phase"]
