@@ -196,6 +196,15 @@ def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):
     assert stderr.strip().splitlines()[-1] == "interrupted (SIGTERM)"
 
 
+def _exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
+    """Run the command line in this process: its exit code and the last line on stderr."""
+    from silodem.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    return exc.value.code, capsys.readouterr().err.strip().splitlines()[-1]
+
+
 def test_ctrl_c_while_the_final_results_are_written_names_the_resume(tmp_path, monkeypatch,
                                                                      capsys):
     """The final write of results.h5 interrupted: the file is the last save's (atomic), the
@@ -210,10 +219,8 @@ def test_ctrl_c_while_the_final_results_are_written_names_the_resume(tmp_path, m
 
     monkeypatch.setattr(silodem.run, "write_results", interrupted_final_write)
     out = tmp_path / "run"
-    with pytest.raises(SystemExit) as exc:
-        main(run_args(out))
-    assert exc.value.code == 130
-    last = capsys.readouterr().err.strip().splitlines()[-1]
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert code == 130
     assert last.startswith("interrupted: while the run's final results were written")
     assert f"silodem run --resume {out}" in last
     with h5py.File(out / "results.h5") as h5:
@@ -232,7 +239,6 @@ def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, mon
     once the run is done): the run went on to its pictures and report and ended with exit
     code 0.  It now ends after writing the complete results.h5, in one line, with 130."""
     import silodem.run
-    from silodem.cli import main
 
     drive = silodem.run.RunGuard.drive
 
@@ -246,10 +252,8 @@ def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, mon
     monkeypatch.setattr(silodem.run.RunGuard, "drive", signal_in_last_chunk)
     monkeypatch.setattr(silodem.run, "write_views", views)
     out = tmp_path / "run"
-    with pytest.raises(SystemExit) as exc:
-        main(run_args(out))
-    assert exc.value.code == 130
-    last = capsys.readouterr().err.strip().splitlines()[-1]
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert code == 130
     assert last.startswith("interrupted: as the run ended; its complete results are in")
     with h5py.File(out / "results.h5") as h5:
         assert h5.attrs["status"] == "complete"
