@@ -590,6 +590,28 @@ def test_en1991_4_hopper_loads_of_the_report(synth):
     assert s["en1991_4_hopper_p_n_discharge"] == pytest.approx(F_f * p_vft, rel=1e-6)
 
 
+def test_en1991_4_steep_hopper_of_the_report_takes_phi_i_from_K(synth):
+    """K = 0.2 makes the synthetic hopper steep (2 mu_h tan 40 deg = 0.747 < 1 - K = 0.8): the
+    discharge load is F_e p_v with F_e from phi_i = arcsin(1 - K / 1.1) (K = 1.1 (1 - sin
+    phi_i)) and phi_wh = phi_P = 24 deg, as EN 1991-4 prints it, and p_v of the slice balance
+    with p_n = F_e p_v (a wedge: n = F_e (1 + mu_h cot(beta)) - 1); p_ne = F_e p_vft at the
+    transition.  The only test of the report's steep path."""
+    a, _ = synth
+    h = hopper_loads(a, 0.2, 20000.0)
+    s, phi_wh, beta = 1 - 0.2 / 1.1, math.atan(MU_WALL), math.radians(40.0)
+    eps = phi_wh + math.asin(math.sin(phi_wh) / s)
+    F_e = (1 + s * math.cos(eps)) / (1 - s * math.cos(2 * beta + eps))
+    n = F_e * (1 + MU_WALL / math.tan(beta)) - 1
+    apex = 0.5 * D_OUT / math.tan(beta)
+    h_h, x = Z_J + apex, h["z"] + apex
+    p_v = RHO_B * G * h_h / (n - 1) * (x / h_h - (x / h_h) ** n) + 20000.0 * (x / h_h) ** n
+    assert h["kind"] == "steep" and h["mu_eff"] == pytest.approx(MU_WALL, rel=1e-12)
+    assert h["phi_i"] == pytest.approx(math.degrees(math.asin(s)), rel=1e-12)
+    assert h["F_e"] == pytest.approx(F_e, rel=1e-12)
+    np.testing.assert_allclose(h["p_ne"], F_e * p_v, rtol=1e-9)
+    assert h["p_ne"][-1] == pytest.approx(F_e * 20000.0, rel=1e-12)
+
+
 def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):
     """K >= 1 (paper case 2 fits K = 1.3 with its 430 large grains) makes every hopper shallow
     (tan(beta) > (1 - K) / (2 mu_h) <= 0) with no positive mobilised friction: the key
