@@ -477,7 +477,9 @@ def test_en1991_4_hopper_classes_meet_at_the_steep_limit():
     assert (below.kind, above.kind) == ("steep", "shallow")
     assert above.mu_eff == pytest.approx(mu_h, rel=1e-6)
     assert float(above.p_n) == pytest.approx(float(below.p_n), rel=1e-6)
-    assert th.en1991_4_hopper_kind(86.0, K, mu_h) == "flat"
+    # flat: walls within 5 deg of the horizontal (beta > 85 deg from the vertical)
+    assert th.en1991_4_hopper_kind(85.1, K, mu_h) == "flat"
+    assert th.en1991_4_hopper_kind(84.9, K, mu_h) == "shallow"
 
 
 def test_en1991_4_hopper_loads_refuse_a_flat_bottom_and_a_shallow_hopper_with_K_1():
