@@ -529,7 +529,7 @@ def en1991_4_hopper_filling(x: npt.ArrayLike, h_h: float, p_vft: float, gamma: f
 
     x: height above the hopper's (virtual) apex [m]; h_h: the transition's height above the
     apex [m]; p_vft: mean vertical stress on the transition [Pa] (EN: C_b p_vf of the vertical
-    walls, C_b = 1.0, 1.2 for action assessment class 3 and dynamic solids); gamma [N/m^3];
+    walls; C_b = 1.0, more for some silo classes and solids); gamma [N/m^3];
     beta: apex half-angle from the vertical [deg]; K, mu_h [-]; b = 0.2, EN's empirical
     coefficient.  A shallow hopper needs K < 1 (mu_heff > 0); a flat bottom (beta > 85 deg)
     has no hopper rule: ValueError for both."""
