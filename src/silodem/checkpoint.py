@@ -182,15 +182,20 @@ def _kind_error(where: str, fresh: Any, value: Any, same_shape: bool) -> str | N
     return None if ok else f"{where} is a {type(value).__name__}, not a {type(fresh).__name__}"
 
 
-def restore_object(obj: Any, state: dict[str, Any], same_shape: bool = False) -> None:
-    """Set the attributes saved by :func:`object_state` (arrays are fresh copies).  TypeError
-    for a value that is not of the kind the attribute holds (``_kind_error``): a hand-edited
-    file failed in the middle of the run, or in numba's compiler, with a traceback."""
+def check_kinds(obj: Any, state: dict[str, Any], where: str, same_shape: bool = False) -> None:
+    """TypeError for the first saved value in ``state`` that is not of the kind the same
+    attribute of ``obj`` (built from the config) holds (``_kind_error``): a hand-edited file
+    failed in the middle of the run, or in numba's compiler, with a traceback."""
     for name, value in state.items():
-        problem = _kind_error(f"{type(obj).__name__}.{name}", getattr(obj, name, None), value,
-                              same_shape)
+        problem = _kind_error(f"{where}.{name}", getattr(obj, name, None), value, same_shape)
         if problem is not None:
             raise TypeError(problem)
+
+
+def restore_object(obj: Any, state: dict[str, Any], same_shape: bool = False) -> None:
+    """Set the attributes saved by :func:`object_state` (arrays are fresh copies), after
+    :func:`check_kinds`."""
+    check_kinds(obj, state, type(obj).__name__, same_shape)
     for name, value in state.items():
         if isinstance(value, np.ndarray):
             value = np.ascontiguousarray(value)
@@ -293,11 +298,7 @@ class LoadedCheckpoint:
         sim.neighbors.forget_derived()
         restore_object(sim, d["simulation"])
         r = d["run"]
-        for key, value in r["state"].items():
-            problem = _kind_error(f"run.state.{key}", getattr(run.state, key, None), value,
-                                  False)
-            if problem is not None:
-                raise TypeError(problem)
+        check_kinds(run.state, r["state"], "run.state")
         run.state = type(run.state)(**r["state"])
         rng_state = json.loads(r["rng"])
         if rng_state.get("bit_generator") != type(run.rng.bit_generator).__name__:

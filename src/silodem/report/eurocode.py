@@ -82,18 +82,18 @@ def hopper_loads(a: Analysis, K: float, p_vft: float) -> dict[str, Any]:
     beta, mu_h = g["alpha"], g["mu_wall"]
     out: dict[str, Any] = {"kind": th.en1991_4_hopper_kind(beta, K, mu_h), "K": K,
                            "p_vft": p_vft, "phi_i": th.en1991_4_phi_i_from_K(K)}
-    if out["kind"] == "flat" or (out["kind"] == "shallow" and K >= 1.0):
-        return out
     z = np.linspace(0.0, g["z_j"], 60)
     args = (z + g["apex"], g["z_j"] + g["apex"], p_vft, a.rho_b * g["g"], beta, K, mu_h)
-    fill = th.en1991_4_hopper_filling(*args)
+    try:
+        fill = th.en1991_4_hopper_filling(*args)
+    except ValueError:  # a flat bottom, or a shallow hopper with K >= 1: no rule applies
+        return out
     out.update(z=z, mu_eff=fill.mu_eff, F_f=fill.F, p_nf=fill.p_n)
     try:
         dis = th.en1991_4_hopper_discharge(*args, out["phi_i"])
     except ValueError:  # phi_i < phi_wh: no passive stress state at this wall
         return out
-    if np.isfinite(dis.F):
-        out.update(F_e=dis.F, p_ne=dis.p_n)
+    out.update(F_e=dis.F, p_ne=dis.p_n)
     return out
 
 
@@ -124,17 +124,19 @@ def _hopper_numbers(n: list, h: dict[str, Any]) -> None:
     """The key numbers of EN 1991-4's hopper loads (:func:`hopper_loads`)."""
     label = "EN 1991-4 §6 hopper class, wall friction mu_eff, F_f filling, F_e discharge"
     if "p_nf" not in h:
-        why = ("a flat bottom" if h["kind"] == "flat"
-               else f"K = {significant(h['K'], 3)} >= 1 leaves a shallow hopper no mobilised friction")
+        why = ("a flat bottom" if h["kind"] == "flat" else
+               f"K = {significant(h['K'], 3)} >= 1 leaves a shallow hopper no mobilised "
+               "friction")
         n.append((label, f"{h['kind']}: the rules do not apply ({why})", "-"))
         return
     phi_i = f"phi_i = {significant(h['phi_i'], 3)} deg from K = 1.1 (1 - sin phi_i)"
     F_e = ("F_e = F_f (shallow hopper)" if h["kind"] == "shallow"
            else f"F_e {significant(h['F_e'], 3)} ({phi_i})" if "F_e" in h
            else f"F_e n/a ({phi_i} is below phi_P)")
-    value = f"{h['kind']}, mu_eff {significant(h['mu_eff'], 3)}, F_f {significant(h['F_f'], 3)}, {F_e}"
+    value = (f"{h['kind']}, mu_eff {significant(h['mu_eff'], 3)}, "
+             f"F_f {significant(h['F_f'], 3)}, {F_e}")
     n.append((label, value, "-"))
-    at_top = f"{pascals(h['p_nf'][-1])} / " + (pascals(h["p_ne"][-1]) if "p_ne" in h else "n/a")
+    at_top = f"{pascals(h['p_nf'][-1])} / {pascals(h['p_ne'][-1]) if 'p_ne' in h else 'n/a'}"
     label = ("EN 1991-4 hopper normal pressure at the transition, filling / discharge "
              f"(p_vft = p_vf there = {pascals(h['p_vft'])} Pa)")
     n.append((label, at_top, "Pa"))
