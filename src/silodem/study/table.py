@@ -62,7 +62,7 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("dead_fraction", "-", "fraction of the grains in a dead zone"),
     ("flow_pattern", "", "mass flow, funnel flow, or unknown (MFI not measured)"),
     ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
-    ("fill_level", "m", "free surface after settling"),
+    ("fill_level", "m", "fill level after settling: mean of the 5 highest grain tops (events)"),
     ("bulk_density", "kg/m^3", "bulk density rho_b of the settled packing under the free surface"),
     ("n_poured", "-", "grains poured"),
     ("discharged_fraction", "-", "mass fraction that left the silo"),
