@@ -35,6 +35,7 @@ from silodem.report.analysis import (
 )
 from silodem.report.eurocode import add_loads, highest_wall_contact, hopper_loads
 from silodem.report.load import load_results
+from silodem.report.numbers import significant
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
 from silodem.study.table import (
@@ -520,6 +521,21 @@ def test_key_numbers_of_the_report(synth):
     assert _number(a, "change fill -> discharge, switch_centre") == "h n/a %, v 50 %"
     peak = _number(a, "change fill -> discharge, wall peak")
     assert float(peak.split()[1]) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
+
+
+def test_bulk_density_above_the_grain_density_is_flagged(synth):
+    """A bulk density above the grains' own (porosity < 0: paper case 1's soft springs gave
+    2,302 kg/m^3 from grains of 1,607) cannot come from grains that touch as contacts should:
+    the key number says so.  The synthetic silo's rho_b (below rho = 800) is printed plain."""
+    a, _ = synth
+    assert RHO_B < RHO and _number(a, "bulk density") == significant(RHO_B, 4)
+    b = copy.copy(a)
+    b.rho_b = 1.25 * RHO
+    b.numbers = []
+    _numbers(b)
+    assert _number(b, "bulk density") == (
+        "1000 (above the grain density 800: the grains overlap far beyond a contact's range; "
+        "stiffer contacts are needed)")
 
 
 def test_en1991_4_loads_of_the_report(synth):
