@@ -328,7 +328,7 @@ class Measure(_Strict):
     )
     mass_flow_index_threshold: float = Field(
         0.3, gt=0, le=1, description="flow is mass flow when v_wall / v_centre above the "
-        "junction exceeds this [-] (Johanson's mass flow index)"
+        "junction is at least this [-] (Johanson's mass flow index)"
     )
     angle_of_repose_deg: float | None = Field(
         None, gt=0, lt=90, description="angle of repose phi_r of the grains [deg], for the "
