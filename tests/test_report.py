@@ -312,3 +312,45 @@ def test_grain_disks_widen_the_axes_to_the_whole_disks():
                      "radius": np.array([0.5, 0.5])})
     assert ax.dataLim.bounds == pytest.approx((-0.5, -0.5, 2.0, 1.0))
     plt.close(fig)
+
+
+def _legend_covers(fig) -> list[str]:
+    """Labels of the curves with a drawn point inside a legend's box (display pixels)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend()]
+    boxes = [leg.get_window_extent(renderer) for leg in legends]
+    def inside(box, xy):
+        return ((xy[:, 0] >= box.x0) & (xy[:, 0] <= box.x1)
+                & (xy[:, 1] >= box.y0) & (xy[:, 1] <= box.y1))
+
+    hidden = []
+    for ax in fig.axes:
+        clip = ax.get_window_extent(renderer)
+        for line in ax.get_lines():
+            xy = np.asarray(line.get_xydata(), dtype=float)
+            xy = line.get_transform().transform(xy[np.isfinite(xy).all(axis=1)])
+            xy = xy[inside(clip, xy)]  # drawn, not clipped away
+            if any(inside(b, xy).any() for b in boxes):
+                hidden.append(line.get_label())
+    return hidden
+
+
+def test_legends_of_the_stress_and_contact_figures_hide_no_data(run_dir):
+    """Figs. 2, 3a, 3b, 6 and 7 carry up to 14 legend entries; inside the axes the legend lay
+    over data (Fig. 7's sigma_v plateau of settling, the stress points near the surface, Fig. 2's
+    end of discharge).  No drawn point of any curve may fall inside a legend's box."""
+    from silodem.report import figures_stress as fs
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    a = analyse(load_results(run_dir))
+    figs = {"fig2": fs.fig_coordination(a), "fig3a": fs.fig_horizontal(a, "fill"),
+            "fig3b": fs.fig_vertical(a, "fill"), "fig6": fs.fig_horizontal(a, "discharge"),
+            "fig7": fs.fig_evolution(a)}
+    for name, fig in figs.items():
+        assert fig is not None, name
+        assert fig.legends or any(ax.get_legend() for ax in fig.axes), name
+        assert _legend_covers(fig) == [], name

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import textwrap
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import matplotlib
@@ -37,6 +38,34 @@ def tight_layout(fig: Figure, **kw: Any) -> None:
         FigureCanvasAgg(fig)
     fig.tight_layout(**kw)
     fig.set_layout_engine(None)
+
+
+def legend_right(ax: Axes, **kw: Any) -> None:
+    """The legend of ``ax`` outside it, on its right: a legend inside the axes hides the
+    curves it lies on (Fig. 7's sigma_v plateau of settling, Fig. 2's end of discharge).
+    ``tight_layout`` then makes room for it."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kw)
+
+
+def legend_below(fig: Figure, ax: Axes, fontsize: float = 7, ncol: int = 2,
+                 wrap: int = 58) -> None:
+    """The legend of ``ax`` under the plot, in ``ncol`` columns (labels wrapped at ``wrap``
+    characters), the figure made taller by the legend's height, then ``tight_layout`` over the
+    rest: a long legend (the stress profiles' dozen curves) inside the axes hides data.  Use
+    it in place of ``tight_layout``."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        tight_layout(fig)
+        return
+    if not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)
+    labels = [textwrap.fill(label, wrap) for label in labels]
+    leg = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=fontsize,
+                     frameon=False)
+    height_px = leg.get_window_extent(fig.canvas.get_renderer()).height + 6.0
+    w, h = fig.get_size_inches()
+    fig.set_size_inches(w, h + height_px / fig.dpi)
+    tight_layout(fig, rect=(0.0, height_px / fig.bbox.height, 1.0, 1.0))
 
 
 PNG_COMPRESSION = 1

@@ -9,7 +9,15 @@ from matplotlib.figure import Figure
 
 from silodem import theory as th
 from silodem.report.analysis import Analysis
-from silodem.report.draw import draw_walls, rolling_mean, shade_phases, silo_axes, tight_layout
+from silodem.report.draw import (
+    draw_walls,
+    legend_below,
+    legend_right,
+    rolling_mean,
+    shade_phases,
+    silo_axes,
+    tight_layout,
+)
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
 
@@ -26,16 +34,16 @@ def fig_coordination(a: Analysis) -> Figure | None:
     m = a.res.group("measure")
     if m is None:
         return None
-    fig = Figure(figsize=(9, 6.4), dpi=100)
+    fig = Figure(figsize=(11, 6.4), dpi=100)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     step, phase = m["step"], m["phase"]
     band = m["band"]
     for ax in (ax1, ax2):
         shade_phases(ax, step, phase)
     lo, hi = band["@attrs"]["z_lo"], band["@attrs"]["z_hi"]
-    ax1.plot(step, band["coordination"], color="k", lw=0.8, alpha=0.35)
+    ax1.plot(step, band["coordination"], color="k", lw=0.8, alpha=0.35, label="samples")
     ax1.plot(step, rolling_mean(band["coordination"], 9), color="k", lw=1.6,
-             label=f"band {lo:.2f} < z < {hi:.2f} m across the silo")
+             label=f"band {lo:.2f} < z < {hi:.2f} m\nacross the silo (running mean)")
     ax1.set_ylabel("coordination number C_n [-]")
     where = ("at the cell-hopper junction" if a.res.cfg.silo.kind == "hopper"
              else "in the band over the floor")
@@ -49,9 +57,9 @@ def fig_coordination(a: Analysis) -> Figure | None:
     peak = max(np.nanmax(band["coordination"], initial=0.0),
                np.nanmax(c["coordination"], initial=0.0))
     for ax in (ax1, ax2):
-        ax.axhline(4.0, color="0.5", lw=0.7, ls=":")
+        ax.axhline(4.0, color="0.5", lw=0.7, ls=":", label="C_n = 4 (square packing)")
         ax.set_ylim(0, max(6.5, 1.05 * peak))
-        ax.legend(fontsize=8, loc="lower right", ncol=2)
+        legend_right(ax, fontsize=8)
     tight_layout(fig)
     return fig
 
@@ -151,8 +159,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
     t0, t1 = a.windows.get(key, (np.nan, np.nan))
     ax.set_title(f"Horizontal stress along the silo wall, {title} (t = {t0:.2f}-{t1:.2f} s)",
                  fontsize=10)
-    ax.legend(fontsize=7, loc="upper right")
-    tight_layout(fig)
+    legend_below(fig, ax)
     return fig
 
 
@@ -175,8 +182,7 @@ def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
     ax.set_xlim(left=0)
     ax.set_ylim(0, a.geom["top"])
     ax.set_title("Vertical stress along the silo wall, after filling", fontsize=10)
-    ax.legend(fontsize=7, loc="upper right")
-    tight_layout(fig)
+    legend_below(fig, ax)
     return fig
 
 
@@ -213,7 +219,7 @@ def fig_evolution(a: Analysis) -> Figure | None:
     t, phase = m["time"], m["phase"]
     c = m["circles"]
     n_smooth = max(1, round(0.2 / a.res.cfg.measure.interval))
-    fig = Figure(figsize=(10, 7.5), dpi=100)
+    fig = Figure(figsize=(11.5, 7.5), dpi=100)
     ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for ax in (ax1, ax2):
         shade_phases(ax, t, phase)
@@ -236,13 +242,13 @@ def fig_evolution(a: Analysis) -> Figure | None:
                      lw=1.2, alpha=0.7, label="wall normal stress, switch zone")
     ax1.set_ylabel("stress [Pa]")
     ax1.set_ylim(bottom=0)
-    ax1.legend(fontsize=7, ncol=3, loc="upper left")
+    legend_right(ax1, fontsize=7)
     ax1.set_title("Stresses at the switch zone during silo use (running mean over 0.2 s)",
                   fontsize=10)
     ax2.set_ylabel("sigma_h / sigma_v [-]")
     ax2.set_ylim(0, 3)
     ax2.set_xlabel("time [s]")
-    ax2.legend(fontsize=7, ncol=3)
+    legend_right(ax2, fontsize=7)
     tight_layout(fig)
     return fig
 
