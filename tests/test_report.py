@@ -354,3 +354,23 @@ def test_legends_of_the_stress_and_contact_figures_hide_no_data(run_dir):
         assert fig is not None, name
         assert fig.legends or any(ax.get_legend() for ax in fig.axes), name
         assert _legend_covers(fig) == [], name
+
+
+def test_settled_and_final_pictures_have_a_force_colour_bar(run_dir, monkeypatch, tmp_path):
+    """settled.png / final.png colour the chains by the normal force: without a colour bar the
+    colours said nothing a reader could use."""
+    import silodem.report.draw
+    from silodem.output import draw_state
+    from silodem.report.load import load_results
+
+    saved, save = [], silodem.report.draw.save_png
+
+    def keep(fig, target):
+        saved.append(fig)
+        save(fig, target)
+
+    monkeypatch.setattr(silodem.report.draw, "save_png", keep)
+    res = load_results(run_dir, only=("walls", "settled"))
+    draw_state(res.snapshot("settled"), res.group("walls"), tmp_path / "s.png", "settled")
+    labels = [ax.get_ylabel() for ax in saved[0].axes]
+    assert "normal contact force F_n [N]" in labels

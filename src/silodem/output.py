@@ -103,12 +103,13 @@ def draw_pictures(res: Results) -> list[Path]:
 def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
     """A PNG of a snapshot: grains to scale, the force network (every touching contact, line
     width and colour ~ normal force; ``report.draw.draw_force_network``, as the report's
-    Fig. 5) and the walls (``walls``: ax, ay, bx, by [m]; dotted where withdrawn)."""
+    Fig. 5, with its colour bar) and the walls (``walls``: ax, ay, bx, by [m]; dotted where
+    withdrawn)."""
     from silodem.report.draw import draw_force_network, save_png, tight_layout
 
     p = snap["particles"]
-    fig, ax = plt.subplots(figsize=(6, 9), dpi=110)
-    draw_force_network(ax, snap, walls)
+    fig, ax = plt.subplots(figsize=(6.6, 9), dpi=110)
+    lines, _ = draw_force_network(ax, snap, walls)
     wall_x = np.concatenate([walls["ax"], walls["bx"]])
     wall_y = np.concatenate([walls["ay"], walls["by"]])
     low = min(-0.5, float(wall_y.min()), float(np.min(p["y"] - p["radius"], initial=0.0)))
@@ -118,6 +119,8 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(title, fontsize=9)
+    if lines is not None:  # the colours of the chains mean forces: say which
+        fig.colorbar(lines, ax=ax, shrink=0.5, pad=0.02, label="normal contact force F_n [N]")
     tight_layout(fig)
     try:
         with atomic_file(path) as tmp:
