@@ -68,6 +68,8 @@ def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):
     fig = fs.fig_coordination(a)
     for ax in fig.axes:
         assert ax.get_ylim()[1] >= peak
+    label = fs.fig_horizontal(a, "fill").axes[0].get_xlabel()
+    assert label == "horizontal stress sigma_h on the wall [Pa]"
 
 
 def test_plot_re_renders_from_results_without_running(run_dir, tmp_path):
@@ -311,6 +313,22 @@ def test_grain_disks_widen_the_axes_to_the_whole_disks():
     grain_disks(ax, {"x": np.array([0.0, 1.0]), "y": np.array([0.0, 0.0]),
                      "radius": np.array([0.5, 0.5])})
     assert ax.dataLim.bounds == pytest.approx((-0.5, -0.5, 2.0, 1.0))
+    plt.close(fig)
+
+
+def test_a_ratio_axis_says_where_it_cuts_the_curves():
+    """sigma_h / sigma_v axes end at 3; a ratio drawn above that (4.5 here, NaN and inf from
+    an empty zone ignored) is named in the panel, and nothing is written when all fit."""
+    import matplotlib.pyplot as plt
+
+    from silodem.report.draw import ratio_axis
+
+    fig, (cut, fits) = plt.subplots(1, 2)
+    ratio_axis(cut, [0.5, np.nan, 4.5], [np.inf, 1.0])
+    ratio_axis(fits, [0.5, 2.9])
+    assert cut.get_ylim() == (0.0, 3.0) and fits.get_ylim() == (0.0, 3.0)
+    assert [t.get_text() for t in cut.texts] == ["axis cut at 3: values up to 4.5"]
+    assert len(fits.texts) == 0
     plt.close(fig)
 
 

@@ -171,6 +171,21 @@ def shade_phases(ax: Axes, x: npt.ArrayLike, phase: npt.ArrayLike) -> None:
             start = k
 
 
+RATIO_TOP = 3.0  # sigma_h / sigma_v axes end here: near-empty zones give spikes far above it
+
+
+def ratio_axis(ax: Axes, *curves: npt.ArrayLike) -> None:
+    """Limit a stress-ratio axis to [0, RATIO_TOP] and, when a drawn value lies above that,
+    say so in the panel instead of cutting the curve silently."""
+    ax.set_ylim(0, RATIO_TOP)
+    values = np.concatenate([np.ravel(np.asarray(c, dtype=float)) for c in curves] or [[]])
+    with np.errstate(invalid="ignore"):
+        top = np.nanmax(values[np.isfinite(values)], initial=-np.inf)
+    if top > RATIO_TOP:
+        ax.text(0.99, 0.97, f"axis cut at {RATIO_TOP:g}: values up to {top:.3g}",
+                transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.35")
+
+
 def rolling_mean(y: npt.ArrayLike, n: int) -> np.ndarray:
     """Centred running mean over n samples (NaN-aware)."""
     y = np.asarray(y, dtype=float)

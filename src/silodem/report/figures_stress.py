@@ -13,6 +13,7 @@ from silodem.report.draw import (
     draw_walls,
     legend_below,
     legend_right,
+    ratio_axis,
     rolling_mean,
     shade_phases,
     silo_axes,
@@ -151,7 +152,8 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
         v, z = a.peaks[key]
         ax.plot([v], [z], marker="*", ms=16, color="#e6550d", ls="none",
                 label=f"switch-zone peak {v:,.0f} Pa at z = {z:.2f} m")
-    ax.set_xlabel("horizontal stress sigma_h on the wall (normal stress on the hopper) [Pa]")
+    on_hopper = " (normal stress on the hopper)" if a.res.cfg.silo.kind == "hopper" else ""
+    ax.set_xlabel(f"horizontal stress sigma_h on the wall{on_hopper} [Pa]")
     ax.set_ylabel("z [m]")
     ax.set_xlim(left=0)
     ax.set_ylim(0, a.geom["top"])
@@ -224,6 +226,7 @@ def fig_evolution(a: Analysis) -> Figure | None:
     for ax in (ax1, ax2):
         shade_phases(ax, t, phase)
     colors = ["#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2"]
+    ratios = []
     for k, name in enumerate(c["name"]):
         col = colors[k % len(colors)]
         sh = rolling_mean(c["stress"][:, k, 0], n_smooth)
@@ -231,7 +234,8 @@ def fig_evolution(a: Analysis) -> Figure | None:
         ax1.plot(t, sh, color=col, lw=1.5, label=f"{name}: sigma_h")
         ax1.plot(t, sv, color=col, lw=1.2, ls="--", label=f"{name}: sigma_v")
         with np.errstate(invalid="ignore", divide="ignore"):
-            ax2.plot(t, sh / sv, color=col, lw=1.3, label=str(name))
+            ratios.append(sh / sv)
+        ax2.plot(t, ratios[-1], color=col, lw=1.3, label=str(name))
     wb = a.res.group("measure", "wall_bins")
     if wb is not None:
         names = list(a.res.group("walls")["name"])
@@ -246,7 +250,7 @@ def fig_evolution(a: Analysis) -> Figure | None:
     ax1.set_title("Stresses at the switch zone during silo use (running mean over 0.2 s)",
                   fontsize=10)
     ax2.set_ylabel("sigma_h / sigma_v [-]")
-    ax2.set_ylim(0, 3)
+    ratio_axis(ax2, *ratios)
     ax2.set_xlabel("time [s]")
     legend_right(ax2, fontsize=7)
     tight_layout(fig)

@@ -25,7 +25,13 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from silodem.atomic import write_atomic
-from silodem.report.draw import png_bytes, rolling_mean, shade_phases, tight_layout
+from silodem.report.draw import (
+    png_bytes,
+    ratio_axis,
+    rolling_mean,
+    shade_phases,
+    tight_layout,
+)
 from silodem.report.html import PAGE_CSS, html_table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
@@ -118,7 +124,7 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
                     r = np.where(s.sigma_v > 0, s.sigma_h / s.sigma_v, np.nan)
                 ax.plot(s.time, r, color="#7f7f7f", lw=0.5)
                 ax.plot(s.time, rolling_mean(r, n), color="k", lw=1.2)
-                ax.set_ylim(0, 3)
+                ratio_axis(ax, r)
             else:
                 ax.plot(s.time, rolling_mean(s.sigma_h, n) / 1e3, color="#1f77b4", lw=1.2,
                         label="sigma_h")
