@@ -17,6 +17,7 @@ from measure_helpers import tiny_hopper_config
 
 from silodem.cli import main
 from silodem.run import run_simulation
+from silodem.silo.geometry import silo_shape
 
 PAPER_FIGURES = ["fig2_coordination", "fig3a_horizontal_filling", "fig3b_vertical_filling",
                  "fig4_switch_zone_network", "fig5_force_network", "fig6_horizontal_discharge",
@@ -330,6 +331,36 @@ def test_a_ratio_axis_says_where_it_cuts_the_curves():
     assert [t.get_text() for t in cut.texts] == ["axis cut at 3: values up to 4.5"]
     assert len(fits.texts) == 0
     plt.close(fig)
+
+
+def test_field_maps_paint_only_the_inside_of_the_silo(run_dir):
+    """The field cells cut by a hopper wall hold the value of their inside part; the maps are
+    clipped to the silo's outline, whose area (shoelace formula) is the silo's area from the
+    trapezoid of hopper and the rectangle of cell: ((B + D)/2) z_j + B (H - z_j)."""
+    from matplotlib.collections import QuadMesh
+
+    from silodem.report import figures_stress as fs
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    a = analyse(load_results(run_dir))
+    cfg = a.res.cfg
+    s = cfg.silo
+    outline = np.array(silo_shape(cfg).outline())
+    x, z = outline[:, 0], outline[:, 1]
+    shoelace = 0.5 * (np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1)))
+    expected = (0.5 * (s.cell_width + s.outlet_width) * s.hopper_height
+                + s.cell_width * (s.wall_height - s.hopper_height))
+    assert shoelace == pytest.approx(expected, rel=1e-12)
+    flat = silo_shape(cfg.model_copy(update={"silo": s.model_copy(update={"kind": "flat"})}))
+    assert flat.outline() == [(0.0, 0.0), (s.cell_width, 0.0), (s.cell_width, s.wall_height),
+                              (0.0, s.wall_height)]
+    maps = [ax for ax in fs.fig_fields(a).axes if ax.get_xlabel() == "x [m]"]  # no colour bars
+    meshes = [c for ax in maps for c in ax.collections if isinstance(c, QuadMesh)]
+    assert len(meshes) == 6
+    for mesh in meshes:
+        path, _ = mesh.get_clip_path().get_transformed_path_and_affine()
+        np.testing.assert_allclose(path.vertices[:len(outline)], outline)
 
 
 def _legend_covers(fig) -> list[str]:

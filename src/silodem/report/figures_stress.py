@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Polygon
 
 from silodem import theory as th
 from silodem.report.analysis import Analysis
@@ -19,6 +20,7 @@ from silodem.report.draw import (
     silo_axes,
     tight_layout,
 )
+from silodem.silo.geometry import silo_shape
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
 
@@ -291,6 +293,7 @@ def fig_fields(a: Analysis) -> Figure | None:
     if not rows:
         return None
     xe, ze = f["x_edges"], f["z_edges"]
+    inside = silo_shape(a.res.cfg).outline()
     fig = Figure(figsize=(12, 5.6 * len(rows)), dpi=90)
     axes = np.atleast_2d(fig.subplots(len(rows), 3))
     # one colour scale per quantity, shared by the two rows
@@ -304,6 +307,8 @@ def fig_fields(a: Analysis) -> Figure | None:
         for row, ((window, _), v) in enumerate(zip(rows, values)):
             ax = axes[row, col]
             pm = ax.pcolormesh(xe, ze, v.T, cmap=cmap, vmin=0.0, vmax=top, shading="flat")
+            # a cell cut by a hopper wall holds the value of its inside part (A_c, fields.py)
+            pm.set_clip_path(Polygon(inside, transform=ax.transData))
             draw_walls(ax, a.res.group("walls"))
             silo_axes(ax, a.geom)
             ax.set_title(f"{label.split(' [')[0]}, {window}", fontsize=9)

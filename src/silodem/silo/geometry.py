@@ -43,6 +43,15 @@ class SiloShape:
         right = self.outlet_right + (self.width - self.outlet_right) * f
         return self.outlet_left * (1.0 - f), right
 
+    def outline(self) -> list[tuple[float, float]]:
+        """Corners of the silo's inside [m], anticlockwise from the outlet's left edge (the
+        outlet and the cell's open top are edges of the polygon)."""
+        B, top = self.width, self.wall_top
+        if self.kind == "flat":
+            return [(0.0, 0.0), (B, 0.0), (B, top), (0.0, top)]
+        return [(self.outlet_left, 0.0), (self.outlet_right, 0.0), (B, self.junction), (B, top),
+                (0.0, top), (0.0, self.junction)]
+
     def area_below(self, z: float) -> float:
         """Area of the silo's inside under height z [m^2]."""
         z = min(max(z, 0.0), self.wall_top)
