@@ -545,3 +545,56 @@ def test_ctrl_c_while_the_command_line_is_imported_is_one_line_and_exit_130():
                             timeout=120, check=False)
     assert (result.returncode, result.stderr) == (130, "interrupted\n")
 
+
+
+@pytest.fixture
+def not_a_scheduler():
+    """A TCP server on 127.0.0.1 that is not a Dask scheduler: 'http' answers every connection
+    with an HTTP reply (a web server, the dashboard's port, a proxy), 'silent' accepts and
+    never says anything.  Yields start(mode) -> address."""
+    import socket
+    import threading
+
+    servers, held = [], []
+
+    def start(mode: str) -> str:
+        server = socket.create_server(("127.0.0.1", 0))
+        servers.append(server)
+
+        def serve():
+            while True:
+                try:
+                    conn, _ = server.accept()
+                except OSError:
+                    return
+                if mode == "http":
+                    conn.sendall(b"HTTP/1.0 426 Upgrade Required\r\ncontent-length: 0\r\n\r\n")
+                    conn.close()
+                else:
+                    held.append(conn)
+
+        threading.Thread(target=serve, daemon=True).start()
+        return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+    yield start
+    for sock in servers + held:
+        sock.close()
+
+
+@pytest.mark.parametrize("mode", ["http", "silent"])
+def test_an_address_that_is_no_dask_scheduler_is_refused_in_time(
+        capsys, tmp_path, monkeypatch, not_a_scheduler, mode):
+    """An HTTP server at the address ended in a traceback (Dask read its reply as a message
+    length: a MemoryError for 3 EiB), and a server that accepts and never answers hung the
+    sweep for ever (Dask's handshake read has no timeout, whatever Client's timeout says)."""
+    import time
+
+    from silodem.study import execute
+
+    monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 2.0)
+    address = not_a_scheduler(mode)
+    t0 = time.monotonic()
+    line = refused(capsys, "sweep", "paper-study", "--quick", "--scheduler", address,
+                   "--out", str(tmp_path / "s"))
+    assert time.monotonic() - t0 < 30
+    assert_names(line, "cannot reach the Dask scheduler", address)

@@ -43,6 +43,7 @@ ATTEMPT_NAME = "attempt.json"
 RESULTS_NAME = "results.h5"
 TASK_RETRIES = 2  # re-runs of a task that raised an unexpected error (a full disk, a lost file)
 WORKER_WAIT_S = 120.0  # how long to wait for the first worker of an external scheduler
+CONNECT_TIMEOUT_S = 10.0  # how long to wait for an external scheduler's handshake
 
 
 # --- one run, in a worker --------------------------------------------------------------------
@@ -312,6 +313,26 @@ def local_cluster(workers: int) -> LocalCluster:
             signal.signal(signal.SIGINT, before)
 
 
+def _probe(address: str) -> None:
+    """Open one Dask connection to ``address`` (connect and handshake) and close it, all
+    within CONNECT_TIMEOUT_S.  Client's own timeout covers the connect only: a server that
+    accepts and never answers (not a Dask scheduler, or a stuck one) hung it for ever in the
+    handshake, and one that answers something else (an HTTP server) raised whatever its
+    reply decoded to."""
+    import asyncio
+
+    from distributed.comm import connect as dask_connect
+
+    async def once() -> None:
+        comm = await dask_connect(address, timeout=CONNECT_TIMEOUT_S)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(once(), CONNECT_TIMEOUT_S))
+    except TimeoutError:
+        raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s") from None
+
+
 def connect(scheduler: str | None,
             workers: int | None) -> tuple[Client, LocalCluster | None, str]:
     """(client, cluster or None, description): a LocalCluster by default, else a client of
@@ -323,9 +344,11 @@ def connect(scheduler: str | None,
         cluster = local_cluster(n)
         return Client(cluster), cluster, f"LocalCluster of {n} single-threaded workers"
     try:
-        client = Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:  # TypeError: tls://, ucx://
-        raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(exc)}); "
+        _probe(scheduler)
+        client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+    except Exception as exc:  # noqa: BLE001 - TypeError: tls://, ucx://; MemoryError: not Dask
+        reason = one_line(exc) or type(exc).__name__
+        raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({reason}); "
                          "start one with 'dask scheduler' or leave out --scheduler for a "
                          "local cluster") from None
     try:
