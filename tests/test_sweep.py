@@ -473,3 +473,61 @@ def test_a_grid_over_base_scenarios_compares_the_two_contact_laws(tmp_path):
     with open(outcome.table_path, encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
     assert sorted(r["base"] for r in rows) == ["hertz.toml", "paper-case2"]
+
+
+def test_a_scheduler_lost_mid_study_names_the_cause_and_a_second_invocation_completes(
+        serial, tmp_path):
+    """kill -9 the external scheduler while a run goes: Dask cancels every future, and each
+    run was reported failed with 'NoneType: None' (a cancelled future has no exception()).
+    The error now says the connection to the scheduler was lost; the same study on a new
+    scheduler then finishes what is missing, equal to the serial reference."""
+    import subprocess
+    import sys
+
+    from reliability_helpers import env
+
+    _, ref_dir = serial
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    runs = study_dir / "runs"
+    procs = []
+
+    def cluster(name: str) -> str:
+        sched_file = tmp_path / f"{name}.json"
+        for module, args in (("dask_scheduler", ["--host", "127.0.0.1", "--port", "0"]),
+                             ("dask_worker", ["--nthreads", "1", "--nworkers", "1"])):
+            procs.append(subprocess.Popen(
+                [sys.executable, "-m", f"distributed.cli.{module}", *args,
+                 "--scheduler-file", str(sched_file), "--dashboard-address", ":0"],
+                env=env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            deadline = time.monotonic() + 60
+            while not sched_file.is_file():
+                assert time.monotonic() < deadline, "no scheduler"
+                time.sleep(0.1)
+        return json.loads(sched_file.read_text(encoding="utf-8"))["address"]
+
+    try:
+        address = cluster("first")
+        result: dict = {}
+        thread = threading.Thread(target=lambda: result.update(
+            outcome=run_study(plan, study_dir, scheduler=address, report=False)))
+        thread.start()
+        deadline = time.monotonic() + 120
+        while not (runs.is_dir() and any(runs.glob(".*.tmp-*/attempt.json"))):
+            assert time.monotonic() < deadline, "no run started"
+            time.sleep(0.01)
+        procs[0].kill()
+        thread.join(timeout=120)
+        assert not thread.is_alive()
+        outcome = result["outcome"]
+        assert outcome.failed
+        for error in outcome.failed.values():
+            assert "NoneType" not in error and "lost the connection to the scheduler" in error
+        procs[1].kill()
+        again = run_study(plan, study_dir, scheduler=cluster("second"))
+    finally:
+        for proc in procs:
+            proc.kill()
+            proc.wait()
+    assert not again.failed and again.computed + again.skipped == len(plan.runs)
+    _assert_same_runs(plan, ref_dir, study_dir)

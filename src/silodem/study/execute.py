@@ -271,9 +271,12 @@ def run_on_client(plan: StudyPlan, out_dir: Path, client: Client,
             if fut.status == "finished":
                 result = fut.result()
             else:
+                # result() raises the task's error, or for a cancelled future (a lost
+                # scheduler cancels them all) the reason; exception() gives None for the latter
                 try:
-                    exc = fut.exception()
-                except Exception as err:  # noqa: BLE001 - a cancelled future raises here
+                    fut.result()
+                    exc = RuntimeError(f"the task ended as '{fut.status}'")
+                except Exception as err:  # noqa: BLE001 - any error is this run's failure
                     exc = err
                 result = {"id": run.id, "status": "failed",
                           "error": f"{type(exc).__name__}: {one_line(exc)}"}
