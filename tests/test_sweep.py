@@ -531,3 +531,30 @@ def test_a_scheduler_lost_mid_study_names_the_cause_and_a_second_invocation_comp
             proc.wait()
     assert not again.failed and again.computed + again.skipped == len(plan.runs)
     _assert_same_runs(plan, ref_dir, study_dir)
+
+
+def test_ctrl_c_while_waiting_for_workers_closes_the_client(monkeypatch):
+    """Ctrl-C while `--workers N` waited for an external scheduler's workers left the client
+    connected (and the default client of the process): closed only by distributed's atexit
+    hook, where a second Ctrl-C printed a traceback."""
+    import distributed
+
+    from silodem.study import execute
+
+    closed = []
+
+    class FakeClient:
+        def __init__(self, address, timeout=None):
+            self.address = address
+
+        def wait_for_workers(self, n_workers, timeout):
+            raise KeyboardInterrupt
+
+        def close(self):
+            closed.append(self.address)
+
+    monkeypatch.setattr(execute, "_probe", lambda address: None)
+    monkeypatch.setattr(distributed, "Client", FakeClient)
+    with pytest.raises(KeyboardInterrupt):
+        execute.connect("tcp://127.0.0.1:1", 3)
+    assert closed == ["tcp://127.0.0.1:1"]

@@ -362,5 +362,8 @@ def connect(scheduler: str | None,
         raise InputError(f"the Dask scheduler at {scheduler} has {have} worker(s), fewer than "
                          f"{workers or 1} after {WORKER_WAIT_S:.0f} s; start workers with "
                          f"'dask worker {scheduler} --nthreads 1'") from None
+    except BaseException:  # Ctrl-C while waiting: close it here, not left open (or to atexit)
+        client.close()
+        raise
     n = len(client.scheduler_info().get("workers", {}))
     return client, None, f"Dask scheduler {scheduler} ({n} workers)"
