@@ -558,3 +558,24 @@ def test_ctrl_c_while_waiting_for_workers_closes_the_client(monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         execute.connect("tcp://127.0.0.1:1", 3)
     assert closed == ["tcp://127.0.0.1:1"]
+
+
+def test_runs_finished_by_another_attempt_meanwhile_are_counted(serial, tmp_path, monkeypatch):
+    """A task that finds its run finished after the sweep planned it (another sweep, or the
+    attempt of a sweep stopped with Ctrl-C that its worker still finished) returns 'existing':
+    it was counted nowhere, and a re-run after Ctrl-C said '0 computed, 0 already finished,
+    0 failed' for a complete study of two runs."""
+    import shutil
+
+    from silodem.study import execute
+
+    _, ref_dir = serial
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    shutil.copytree(ref_dir / "runs", study_dir / "runs")
+    real_prepare = execute.prepare
+    monkeypatch.setattr(execute, "prepare",  # planned before the other attempt finished
+                        lambda p, out: (real_prepare(p, out), list(p.runs))[1])
+    outcome = execute.run_serial(plan, study_dir)
+    assert {r["status"] for r in outcome.results.values()} == {"existing"}
+    assert outcome.computed == 0 and outcome.skipped == 2 and not outcome.failed

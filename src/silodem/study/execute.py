@@ -162,7 +162,7 @@ class StudyOutcome:
     plan: StudyPlan
     out_dir: Path
     computed: int = 0  # runs computed by this invocation
-    skipped: int = 0  # runs found finished before it started
+    skipped: int = 0  # runs found finished (before it started, or by another attempt)
     failed: dict[str, str] = field(default_factory=dict)  # run id -> error
     results: dict[str, dict[str, Any]] = field(default_factory=dict)  # run id -> task result
     wall_s: float = 0.0
@@ -225,6 +225,8 @@ def _record(outcome: StudyOutcome, run: PlannedRun, result: dict[str, Any]) -> N
         outcome.failed[run.id] = result.get("error", "failed")
     elif result["status"] == "computed":
         outcome.computed += 1
+    elif result["status"] == "existing":  # finished meanwhile (another sweep, a stale attempt)
+        outcome.skipped += 1
 
 
 def run_serial(plan: StudyPlan, out_dir: Path, on_done: Callback | None = None) -> StudyOutcome:
