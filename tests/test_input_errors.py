@@ -598,3 +598,26 @@ def test_an_address_that_is_no_dask_scheduler_is_refused_in_time(
                    "--out", str(tmp_path / "s"))
     assert time.monotonic() - t0 < 30
     assert_names(line, "cannot reach the Dask scheduler", address)
+
+
+def test_the_scheduler_probe_works_where_an_event_loop_runs(monkeypatch, not_a_scheduler):
+    """A notebook's thread runs an event loop, where asyncio.run refuses to start: the probe
+    of the address said 'asyncio.run() cannot be called from a running event loop' for every
+    scheduler, a real one too.  From a running loop it must reach the server and time out
+    on its silence as it does from a script."""
+    import asyncio
+
+    from silodem.errors import InputError
+    from silodem.study import execute
+
+    monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 2.0)
+    address = not_a_scheduler("silent")
+
+    async def notebook_cell() -> str:
+        with pytest.raises(InputError) as info:
+            execute.connect(address, None)
+        return str(info.value)
+
+    message = asyncio.run(notebook_cell())
+    assert "cannot reach the Dask scheduler" in message
+    assert "no Dask handshake within 2 s" in message

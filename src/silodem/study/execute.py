@@ -325,6 +325,7 @@ def _probe(address: str) -> None:
     handshake, and one that answers something else (an HTTP server) raised whatever its
     reply decoded to."""
     import asyncio
+    from concurrent.futures import ThreadPoolExecutor
 
     from distributed.comm import connect as dask_connect
 
@@ -332,10 +333,14 @@ def _probe(address: str) -> None:
         comm = await dask_connect(address, timeout=CONNECT_TIMEOUT_S)
         await comm.close()
 
-    try:
+    def probe() -> None:  # in a thread of its own: a notebook's thread runs an event loop
         asyncio.run(asyncio.wait_for(once(), CONNECT_TIMEOUT_S))
-    except TimeoutError:
-        raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s") from None
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        try:
+            pool.submit(probe).result()
+        except TimeoutError:
+            raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s") from None
 
 
 def connect(scheduler: str | None,
