@@ -621,3 +621,22 @@ def test_the_scheduler_probe_works_where_an_event_loop_runs(monkeypatch, not_a_s
     message = asyncio.run(notebook_cell())
     assert "cannot reach the Dask scheduler" in message
     assert "no Dask handshake within 2 s" in message
+
+
+def test_waiting_for_workers_says_so_before_the_wait(monkeypatch):
+    """--workers N on a scheduler with fewer workers waited up to WORKER_WAIT_S in silence; it
+    now says what it waits for and how many have joined, then refuses in one line.  A
+    scheduler of its own with no worker (an in-process LocalCluster with n_workers=0)."""
+    from distributed import LocalCluster
+
+    from silodem.errors import InputError
+    from silodem.study import execute
+
+    monkeypatch.setattr(execute, "WORKER_WAIT_S", 1.0)
+    said: list[str] = []
+    with (LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster,
+          pytest.raises(InputError) as info):
+        execute.connect(cluster.scheduler_address, 2, said.append)
+    assert said == [(f"waiting up to 1 s for 2 worker(s) at {cluster.scheduler_address} "
+                     "(0 joined so far)")]
+    assert "has 0 worker(s), fewer than 2 after 1 s" in str(info.value)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -102,6 +103,10 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
         yield done
 
 
+def _stderr_line(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
 def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = None,
               workers: int | None = None, client: Client | None = None, serial: bool = False,
               progress: bool = False, report: bool = True) -> StudyOutcome:
@@ -132,7 +137,7 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
             outcome = run_on_client(plan, out_dir, client, on_done)
         outcome.where = f"Dask client of {client.scheduler.address}"
     else:
-        client, cluster, where = connect(scheduler, workers)
+        client, cluster, where = connect(scheduler, workers, _stderr_line if progress else None)
         try:
             with _progress_bar(len(todo), progress) as on_done:
                 outcome = run_on_client(plan, out_dir, client, on_done)

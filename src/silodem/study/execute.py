@@ -343,10 +343,11 @@ def _probe(address: str) -> None:
             raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s") from None
 
 
-def connect(scheduler: str | None,
-            workers: int | None) -> tuple[Client, LocalCluster | None, str]:
+def connect(scheduler: str | None, workers: int | None,
+            say: Callable[[str], None] | None = None) -> tuple[Client, LocalCluster | None, str]:
     """(client, cluster or None, description): a LocalCluster by default, else a client of
-    the running scheduler at ``scheduler`` (``--workers`` then waits for that many workers)."""
+    the running scheduler at ``scheduler`` (``--workers`` then waits for that many workers,
+    telling ``say`` so when they have not all joined yet)."""
     from distributed import Client
 
     if scheduler is None:
@@ -361,13 +362,18 @@ def connect(scheduler: str | None,
         raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({reason}); "
                          "start one with 'dask scheduler' or leave out --scheduler for a "
                          "local cluster") from None
+    need = workers or 1
     try:
-        client.wait_for_workers(n_workers=workers or 1, timeout=WORKER_WAIT_S)
+        have = len(client.scheduler_info().get("workers", {}))
+        if have < need and say is not None:
+            say(f"waiting up to {WORKER_WAIT_S:.0f} s for {need} worker(s) at {scheduler} "
+                f"({have} joined so far)")
+        client.wait_for_workers(n_workers=need, timeout=WORKER_WAIT_S)
     except (OSError, TimeoutError):
         have = len(client.scheduler_info().get("workers", {}))
         client.close()
         raise InputError(f"the Dask scheduler at {scheduler} has {have} worker(s), fewer than "
-                         f"{workers or 1} after {WORKER_WAIT_S:.0f} s; start workers with "
+                         f"{need} after {WORKER_WAIT_S:.0f} s; start workers with "
                          f"'dask worker {scheduler} --nthreads 1'") from None
     except BaseException:  # Ctrl-C while waiting: close it here, not left open (or to atexit)
         client.close()
