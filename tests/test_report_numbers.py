@@ -363,7 +363,11 @@ def test_wall_profile_and_switch_zone_peak(synth):
     Expected: the constructed profile (left = 1.25 P, right = 0.75 P, sample factors of mean 1,
     9e6 outside the windows); the peak is the largest value with z_j - 2d <= z <= z_j + 2d
     (0.277 .. 0.677 m): 4500 Pa at z = 0.5 after filling (not the 9000 Pa at z = 0.25 below the
-    zone), 6500 Pa at z = 0.375 during discharge (not the 12000 Pa at z = 0.75 above it)."""
+    zone), 6500 Pa at z = 0.375 during discharge (not the 12000 Pa at z = 0.75 above it).
+    The downward shear traction of every bin, vertical and inclined walls alike, is the
+    constructed one: TAU_CELL on the cell bins, 5e5 Pa elsewhere (sides tau +- 50 Pa, stored
+    along A -> B, so with the opposite sign on a wall whose tangent points up; sample factors
+    of mean 1) -- a sign taken from the tangent, not the tangent's length sin(theta)."""
     a, s = synth
     assert a.switch == pytest.approx(SWITCH, rel=REL)
     for key, prof in (("fill", _profile_fill()), ("discharge", PROFILE_DIS)):
@@ -371,6 +375,7 @@ def test_wall_profile_and_switch_zone_peak(synth):
         zs = sorted(prof)
         assert e.z.tolist() == zs
         assert e.sigma_n == pytest.approx([prof[z] for z in zs], rel=REL)
+        assert e.tau_down == pytest.approx([TAU_CELL.get(z, 5.0e5) for z in zs], rel=REL)
         assert e.on_vertical.tolist() == [z in Z_CELL for z in zs]
         left_z, left_sn = e.sides["left"]
         assert left_sn == pytest.approx([1.25 * prof[z] for z in zs], rel=REL)
