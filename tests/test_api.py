@@ -86,10 +86,46 @@ def test_contact_tables_balance_each_grains_resultant_force(res):
     assert len(c) > len(p)  # a packing: more contacts than grains
 
 
+def _wall_profile_from_h5(h5, window):
+    """The wall profile recomputed from results.h5's raw wall bins (docs/measurements.md):
+    the window's samples ('fill': settling samples in (t_open - window, t_open]; 'discharge':
+    discharge samples in (t_open + delay, t_open + delay + window)), their mean per bin,
+    both sides' bins sorted by z and averaged; the downward shear is minus the shear along
+    A -> B times the sign of the tangent's z component."""
+    m, cfg = h5["measure"], tiny_hopper_config().measure
+    t, phase = m["time"][()], m["phase"][()]
+    t_open = float(h5["events"].attrs["discharge_start_time"])
+    if window == "fill":
+        sel = (phase == 1) & (t > t_open - cfg.window) & (t <= t_open)
+    else:
+        lo = t_open + cfg.discharge_delay
+        sel = (phase == 2) & (t > lo) & (t < lo + cfg.window)
+    assert sel.sum() >= 3
+    names = [n.decode() for n in h5["walls/name"][()]]
+    wall, z = m["wall_bins/wall"][()], m["wall_bins/z"][()]
+    ty = m["wall_bins/tangent"][()][wall, 1]
+    normal = m["wall_bins/normal"][()][sel].mean(axis=0)
+    down = -m["wall_bins/shear"][()][sel].mean(axis=0) * np.sign(ty)
+    sides = []
+    for side in ("left", "right"):
+        b = np.isin(wall, [names.index(f"{side}_wall"), names.index(f"{side}_hopper")])
+        order = np.argsort(z[b])
+        sides.append((z[b][order], normal[b][order], down[b][order]))
+    (zl, nl, dl), (_, nr, dr) = sides
+    return zl, 0.5 * (nl + nr), 0.5 * (dl + dr)
+
+
 def test_report_views_and_summary(res):
     prof = res.wall_profile("fill")
     assert list(prof.columns) == ["z", "sigma_n", "tau_down", "on_vertical"]
     assert np.all(np.diff(prof["z"]) > 0) and (prof["sigma_n"] >= 0).all()
+    with h5py.File(res.folder / "results.h5", "r") as h5:
+        for window in ("fill", "discharge"):
+            z, sigma_n, tau_down = _wall_profile_from_h5(h5, window)
+            got = res.wall_profile(window)
+            np.testing.assert_allclose(got["z"], z, rtol=1e-12)
+            np.testing.assert_allclose(got["sigma_n"], sigma_n, rtol=1e-12, atol=1e-9)
+            np.testing.assert_allclose(got["tau_down"], tau_down, rtol=1e-12, atol=1e-9)
     numbers = res.numbers()
     assert numbers["quantity"].str.contains("Janssen").any()
     assert res.summary()["n_poured"] == res.events["n_poured"] == 150
