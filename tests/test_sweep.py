@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import signal
 import socket
@@ -223,7 +224,15 @@ seeds = [1, 2]
 def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     """Rates drawn from the 2D Beverloo law (docs/theory.md), one C per friction angle, k = 1.4,
     the two seeds 3 % above and below it: the study's fit gives C and k back (the seed means
-    are the law), b = 3/2 when free, and the report and beverloo.csv carry them."""
+    are the law), b = 3/2 when free, and the report and beverloo.csv carry them.
+
+    The errors of the fixed-b fit, from the seeds' spread: W_err = 3 % of W, so y = W^(2/3)
+    = a (D - k d), a = (C rho_b sqrt(g) t)^(2/3), has sigma_y = (2/3) 0.03 y = 0.02 a u with
+    u = D - k d.  Weighted least squares for the line y = a D + c (weights 1/sigma_y^2, the
+    given errors taken as absolute), with S, Sx, Sxx the sums of w, w D, w D^2 and Delta =
+    S Sxx - Sx^2: Var(a) = S / Delta, Var(c) = Sxx / Delta, Cov = -Sx / Delta.  Propagated
+    to first order: C ~ a^(3/2) gives C_err = 1.5 C sqrt(S / Delta) (a / a scaled out), and
+    k = -c / (a d) gives k_err^2 = k^2 S/Delta - 2 k Sx / (d Delta) + Sxx / (d^2 Delta)."""
     import csv as csv_module
 
     from silodem import theory as th
@@ -249,7 +258,13 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
         assert (f.free.C, f.free.k, f.free.b) == pytest.approx((C, 1.4, 1.5), rel=1e-6)
         # error of a mean: the seeds' spread (3 % of W, sample std / sqrt 2) beats 1 % / sqrt 2
         assert f.W_err == pytest.approx(0.03 * f.W, rel=1e-9)
-        assert 0 < f.fixed.C_err < 0.1 * C and 0 < f.fixed.k_err < 0.5
+        u = f.D - 1.4 * d
+        w = 1.0 / (0.02 * u) ** 2  # in units of 1/a^2: a scales out of the relative errors
+        S, Sx, Sxx = w.sum(), (w * f.D).sum(), (w * f.D**2).sum()
+        delta = S * Sxx - Sx**2
+        assert f.fixed.C_err == pytest.approx(1.5 * C * math.sqrt(S / delta), rel=1e-6)
+        k_var = (1.4**2 * S - 2 * 1.4 * Sx / d + Sxx / d**2) / delta
+        assert f.fixed.k_err == pytest.approx(math.sqrt(k_var), rel=1e-6)
     write_study_report(plan, tmp_path / "study", rows)
     with open(tmp_path / "study" / "beverloo.csv", encoding="utf-8") as fh:
         table = list(csv_module.DictReader(fh))
