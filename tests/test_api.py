@@ -47,9 +47,18 @@ def test_tables_are_the_datasets_of_results_h5(res):
         m = res.measurements()
         assert np.array_equal(m["band_coordination"].to_numpy(),
                               h5["measure/band/coordination"][()], equal_nan=True)
-        name = h5["measure/circles/name"][0].decode()
-        assert np.array_equal(m[f"{name}_sigma_zz"].to_numpy(),
-                              h5["measure/circles/stress"][:, 0, 1], equal_nan=True)
+        # every stress column: component k of the stress datasets is xx, zz, xz (docs/output.md)
+        band, circles = h5["measure/band/stress"][()], h5["measure/circles/stress"][()]
+        for n, raw in enumerate(h5["measure/circles/name"][()]):
+            name = raw.decode()
+            assert np.array_equal(m[f"{name}_coordination"].to_numpy(),
+                                  h5["measure/circles/coordination"][:, n], equal_nan=True)
+            for k, comp in enumerate(("xx", "zz", "xz")):
+                assert np.array_equal(m[f"{name}_sigma_{comp}"].to_numpy(), circles[:, n, k],
+                                      equal_nan=True), (name, comp)
+        for k, comp in enumerate(("xx", "zz", "xz")):
+            assert np.array_equal(m[f"band_sigma_{comp}"].to_numpy(), band[:, k],
+                                  equal_nan=True), comp
     assert isinstance(ts, pd.DataFrame) and len(ts) > 10
 
 
