@@ -21,6 +21,7 @@ from silodem.validate.chung_ooi import (
     sliding_limit,
     sticking_tangential_restitution,
 )
+from silodem.validate.hertz_mindlin import textbook_moduli
 from silodem.validate.impacts import convergence_order, spring_dashpot
 from silodem.validate.records import Record
 
@@ -121,6 +122,30 @@ def test_quick_validation_uses_the_stated_tolerances(quick_run):
     # every sliding angle of test 4 from 30 to 85 deg is checked
     angles = {int(c.split("angle ")[1].split(" ")[0]) for c in cases if "angle " in c}
     assert set(range(30, 90, 5)) <= angles
+
+
+def test_quick_validation_expects_nominal_e_and_series_stiffnesses(quick_run):
+    """The expected values come from outside the engine: with tension, the nominal e asked
+    for (not exp(-zeta pi/sqrt(1 - zeta^2)) of the engine's zeta), and the contact durations
+    of paper-case2's constants from k_a k_b / (k_a + k_b) of its body stiffnesses."""
+    records = json.loads(quick_run[0].stdout)
+    tension = [r for r in records if r["case"].startswith("normal impact")
+               and ", tension, dt=t_c/" in r["case"] and r["quantity"] == "restitution"]
+    assert len(tension) == 2 * 6 * 3 + 1  # the checked impacts and paper-case2's dt
+    for r in tension:
+        assert r["expected"] == float(r["case"].split("e=")[1].split(",")[0]), r
+    series = [r for r in records if "paper-case2's contact constants" in r["case"]]
+    assert {r["case"].split(", ")[1] for r in series} == {"grain-grain", "grain-wall"}
+    assert all(r["tolerance"] == 0.01 and r["pass"] is True for r in series), series
+
+
+def test_textbook_moduli_of_the_hertz_check():
+    # nu = 0: E* = E/2 for two equal bodies; G = E/2, 1/G* = 2/G + 2/G  =>  G* = E/8
+    assert textbook_moduli(1.0, 0.0, 1.0, 0.0) == pytest.approx((0.5, 0.125), rel=1e-15)
+    # a rigid wall: E* = E/(1 - nu^2), G* = G/(2 - nu)
+    e_star, g_star = textbook_moduli(2.0, 0.25, math.inf, 0.3)
+    assert e_star == pytest.approx(2.0 / (1 - 0.25**2), rel=1e-15)
+    assert g_star == pytest.approx(2.0 / 2.5 / 1.75, rel=1e-15)
 
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")

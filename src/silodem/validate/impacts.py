@@ -244,7 +244,11 @@ def normal_impact(geometry: str, e: float, tension: bool, steps_per_contact: int
         sim = wall_sim(g, dt, vn=v)
         trace = follow_contact(sim, wall_overlap, _wall_force)
         e_sim = sim.particles.vy[0] / v
-    return NormalImpact(geometry, e, tension, steps_per_contact, ref.restitution(tension),
+    # with tension the restitution expected is the nominal e itself, not exp(-zeta pi /
+    # sqrt(1 - zeta^2)) of the engine's zeta: the check then also covers the engine's map
+    # e -> zeta (``damping_ratio_from_restitution``), which every expected value here uses
+    expected_e = e if tension else ref.e_star
+    return NormalImpact(geometry, e, tension, steps_per_contact, expected_e,
                         ref.duration(tension), float(e_sim), trace.duration, ref.w0)
 
 
@@ -278,6 +282,40 @@ def default_steps_per_contact() -> float:
     return spring_dashpot(g.kn, 0.5 * mass, g.zeta).t_c / dt
 
 
+SERIES_STEPS = 1000  # steps per contact of the series-stiffness impacts (undamped)
+SERIES_SPEED = 0.1  # [m/s], a small overlap at the silo's soft stiffness
+
+
+def silo_contact_durations() -> list[tuple[str, float, float]]:
+    """Undamped head-on impacts with the contact constants a silo run builds from its
+    configuration (paper-case2: ``silo.checks.grain_law``, ``silo.geometry.build_walls``),
+    as (label, expected, measured) contact durations [s].  Expected: pi sqrt(m_eff / k) with
+    k the series stiffness of the two bodies, k_a k_b / (k_a + k_b), worked out here from
+    the configuration's body stiffnesses (PFC2D's convention, ``config``), not by the
+    engine's ``contact.series``: the impacts above set the contact stiffness directly and
+    would not see a wrong combination."""
+    from silodem.scenario_files import load_config
+    from silodem.silo.checks import grain_law
+    from silodem.silo.geometry import build_walls
+
+    cfg = load_config("paper-case2", [])
+    kg, kw = float(cfg.material.kn), float(cfg.walls.kn)
+    g = GrainLaw(kn=grain_law(cfg).kn, ks=grain_law(cfg).ks, mu=0.0, zeta=0.0,
+                 allow_tension=True)
+    walls = build_walls(cfg)
+    out = []
+    m1, m2 = disk_mass(R1), disk_mass(R2)
+    m_eff = m1 * m2 / (m1 + m2)
+    t_pair = math.pi * math.sqrt(m_eff / (kg * kg / (kg + kg)))
+    sim = pair_sim(g, t_pair / SERIES_STEPS, v1=(SERIES_SPEED, 0.0), v2=(-SERIES_SPEED, 0.0))
+    out.append(("grain-grain", t_pair, follow_contact(sim, pair_overlap, _pair_force).duration))
+    t_wall = math.pi * math.sqrt(m1 / (kg * kw / (kg + kw)))
+    sim = wall_sim(g, t_wall / SERIES_STEPS, vn=SERIES_SPEED, wall_kn=float(walls.kn[0]),
+                   wall_ks=float(walls.ks[0]), wall_mu=0.0)
+    out.append(("grain-wall", t_wall, follow_contact(sim, wall_overlap, _wall_force).duration))
+    return out
+
+
 def run(quick: bool = False) -> tuple[list[Record], dict]:
     """Normal impacts, disk-disk and disk-wall, e in [0.1, 1], with and without tension, at
     three time steps; the order of convergence in dt; the error at a silo's time step."""
@@ -291,8 +329,7 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
                     checked.append(r)
                     label = (f"{CASE}, {geometry}, e={e:g}, "
                              f"{'tension' if tension else 'no tension'}, dt=t_c/{n}")
-                    src = "exp(-zeta pi/sqrt(1-zeta^2))" if tension else \
-                        "Schwager & Poeschel 2007 e*"
+                    src = "nominal e" if tension else "Schwager & Poeschel 2007 e*"
                     records.append(rel(label, "restitution", r.expected_e, r.e,
                                        RESTITUTION_TOL, note=src))
                     records.append(rel(label, "contact duration", r.expected_t, r.t,
@@ -328,5 +365,10 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
                             f", dt=t_c/{round(n_silo)} (paper-case2's time step)",
                             "restitution", r.e, expected=r.expected_e,
                             note="reported: the dashpot's first-order error at a silo's dt"))
+    for kind, expected, got in silo_contact_durations():
+        records.append(rel(f"{CASE}, {kind}, paper-case2's contact constants, undamped, "
+                           f"dt=t_c/{SERIES_STEPS}", "contact duration", expected, got,
+                           DURATION_TOL, "s", "pi sqrt(m_eff/k), k = k_a k_b/(k_a + k_b) "
+                           "of the configuration's body stiffnesses (series)"))
     return records, {"checked": checked, "convergence": convergence, "silo": silo_points,
                      "silo_steps": n_silo}
