@@ -122,3 +122,40 @@ def test_contact_table_forces_add_up_to_each_grains_total():
         assert bound.max() < 0.05 * scale  # the bound is tight enough to mean something
         checked += gc.i.size
     assert checked > 500
+
+
+def test_an_edited_kernel_source_clears_every_cached_kernel(tmp_path):
+    """numba checks a cached kernel only against its own file; the compiled step loop of
+    simulation.py inlines contact.py's law, so an edited contact.py left the old law in the
+    cache (a validation mutation went unseen).  The caches of all kernel files go as soon as
+    any kernel source differs from the hash stored with them, and only then."""
+    from silodem.jit import CACHE_STAMP, clear_stale_caches
+
+    root = tmp_path / "silodem"
+    sources = {"engine/contact.py": "law = 1\n", "engine/simulation.py": "loop = 1\n",
+               "jit.py": "flags = 1\n", "measure/gaussian.py": "g = 1\n"}
+    for name, text in sources.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+
+    def cache_files(*names: str) -> list:
+        made = []
+        for name in names:
+            made.append(root / name)
+            made[-1].parent.mkdir(parents=True, exist_ok=True)
+            made[-1].write_bytes(b"compiled")
+        return made
+
+    other = root / "report" / "__pycache__" / "unrelated.nbi"  # no kernel file there
+    cached = cache_files("engine/__pycache__/simulation._steps-1.py311.nbi",
+                         "engine/__pycache__/simulation._steps-1.py311.1.nbc",
+                         "measure/__pycache__/gaussian.g-1.py311.nbi",
+                         "__pycache__/jit.f-1.py311.nbi", "report/__pycache__/unrelated.nbi")
+    assert clear_stale_caches(root)  # no stamp yet: nothing cached can be trusted
+    assert [f.exists() for f in cached] == [False, False, False, False, True] and other.exists()
+    stamp = (root / CACHE_STAMP).read_text()
+    cached = cache_files("engine/__pycache__/simulation._steps-1.py311.nbi")
+    assert not clear_stale_caches(root) and cached[0].exists()  # unchanged: kept
+    (root / "engine/contact.py").write_text("law = 2\n")  # only the callee's file changes
+    assert clear_stale_caches(root) and not cached[0].exists()
+    assert (root / CACHE_STAMP).read_text() != stamp

@@ -12,13 +12,51 @@
 
 from __future__ import annotations
 
+import hashlib
 import types
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numba
 
+from silodem.atomic import write_atomic
+
 FLAGS = {"cache": True, "fastmath": False, "error_model": "numpy"}
+KERNEL_SOURCES = ("engine/*.py", "jit.py", "measure/gaussian.py")  # every file with kernels
+CACHE_STAMP = "engine/__pycache__/kernel-sources.sha256"
+
+
+def clear_stale_caches(root: Path = Path(__file__).parent) -> bool:
+    """Remove the package's cached kernels when any kernel source changed since they were
+    stored; True if it removed them.
+
+    numba checks a cached kernel only against the stamp of the file that defines it (numba's
+    docs, "Cache invalidation"), but a kernel inlines what it calls from other files: the
+    compiled step loop of simulation.py kept the old contact law of an edited contact.py.
+    So the hash of all kernel sources is kept beside the caches, and a different hash clears
+    them all.  Where the package folder is read-only (an installed copy, whose sources do not
+    change in place) nothing is done."""
+    files = sorted(f for pattern in KERNEL_SOURCES for f in root.glob(pattern))
+    digest = hashlib.sha256(b"".join(f.read_bytes() for f in files)).hexdigest()
+    stamp = root / CACHE_STAMP
+    try:
+        if stamp.read_text(encoding="ascii") == digest:
+            return False
+    except (OSError, UnicodeDecodeError):
+        pass
+    try:
+        for cache in {f.parent / "__pycache__" for f in files}:
+            for stale in cache.glob("*.nb[ic]"):
+                stale.unlink(missing_ok=True)
+        stamp.parent.mkdir(exist_ok=True)
+        write_atomic(stamp, digest)
+    except OSError:
+        return False
+    return True
+
+
+clear_stale_caches()
 PARALLEL_MIN_GRAINS = 800  # below this, thread start-up costs more than it saves
 
 njit = numba.njit(**FLAGS)
