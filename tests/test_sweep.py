@@ -562,6 +562,9 @@ def test_ctrl_c_while_waiting_for_workers_closes_the_client(monkeypatch):
         def __init__(self, address, timeout=None):
             self.address = address
 
+        def scheduler_info(self):
+            return {"workers": {}}
+
         def wait_for_workers(self, n_workers, timeout):
             raise KeyboardInterrupt
 
