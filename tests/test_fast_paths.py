@@ -159,3 +159,26 @@ def test_an_edited_kernel_source_clears_every_cached_kernel(tmp_path):
     (root / "engine/contact.py").write_text("law = 2\n")  # only the callee's file changes
     assert clear_stale_caches(root) and not cached[0].exists()
     assert (root / CACHE_STAMP).read_text() != stamp
+
+
+def test_kernel_caches_under_numba_cache_dir_are_cleared_too(tmp_path, monkeypatch):
+    """With NUMBA_CACHE_DIR set numba keeps the kernels there, not in __pycache__: an edited
+    callee must clear those (before, the hash was stored and the stale step loop kept)."""
+    import numba
+
+    from silodem.jit import STAMP_NAME, _cache_dir, clear_stale_caches
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "numba-cache"))
+    root = tmp_path / "silodem"
+    for name in ("engine/contact.py", "engine/simulation.py", "jit.py", "measure/gaussian.py"):
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text("x = 1\n")
+    engine_cache = _cache_dir(root / "engine/simulation.py")
+    assert engine_cache.is_relative_to(tmp_path / "numba-cache")
+    assert clear_stale_caches(root) and (engine_cache / STAMP_NAME).exists()
+    assert not (root / "engine/__pycache__").exists()  # nothing written beside the sources
+    cached = engine_cache / "simulation._steps-1.py311.nbi"
+    cached.write_bytes(b"compiled")
+    assert not clear_stale_caches(root) and cached.exists()
+    (root / "engine/contact.py").write_text("x = 2\n")
+    assert clear_stale_caches(root) and not cached.exists()

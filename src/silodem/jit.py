@@ -24,7 +24,28 @@ from silodem.atomic import write_atomic
 
 FLAGS = {"cache": True, "fastmath": False, "error_model": "numpy"}
 KERNEL_SOURCES = ("engine/*.py", "jit.py", "measure/gaussian.py")  # every file with kernels
-CACHE_STAMP = "engine/__pycache__/kernel-sources.sha256"
+STAMP_NAME = "kernel-sources.sha256"
+CACHE_STAMP = "engine/__pycache__/" + STAMP_NAME  # where it is in the usual in-tree cache
+
+
+def _cache_dir(source: Path) -> Path:
+    """The folder where numba caches the kernels of ``source``: the first of numba's own
+    cache locators that accepts it, as numba picks one (``NUMBA_CACHE_DIR`` if set, else
+    ``__pycache__`` beside the file, else a user-wide folder where that is read-only)."""
+    try:
+        from numba.core import caching
+        impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+        locators = list(impl._locator_classes)
+    except (ImportError, AttributeError):
+        return source.parent / "__pycache__"
+    for locator in locators:
+        try:
+            found = locator.from_function(_cache_dir, str(source))
+        except Exception:  # noqa: BLE001, S112 - a locator that does not apply
+            continue
+        if found is not None:
+            return Path(found.get_cache_path())
+    return source.parent / "__pycache__"
 
 
 def clear_stale_caches(root: Path = Path(__file__).parent) -> bool:
@@ -35,21 +56,26 @@ def clear_stale_caches(root: Path = Path(__file__).parent) -> bool:
     docs, "Cache invalidation"), but a kernel inlines what it calls from other files: the
     compiled step loop of simulation.py kept the old contact law of an edited contact.py.
     So the hash of all kernel sources is kept beside the caches, and a different hash clears
-    them all.  Where the package folder is read-only (an installed copy, whose sources do not
-    change in place) nothing is done."""
+    them all.  The caches are looked for where numba keeps them (``NUMBA_CACHE_DIR``, the
+    user-wide folder of a read-only install), and the hash is kept with the engine's; where
+    none is writable nothing is done."""
     files = sorted(f for pattern in KERNEL_SOURCES for f in root.glob(pattern))
+    if not files:
+        return False
     digest = hashlib.sha256(b"".join(f.read_bytes() for f in files)).hexdigest()
-    stamp = root / CACHE_STAMP
+    caches = {f.parent: _cache_dir(f) for f in files}  # numba's folder depends on the folder
+    engine = [f for f in files if f.parent == root / "engine"] or files
+    stamp = caches[engine[0].parent] / STAMP_NAME
     try:
         if stamp.read_text(encoding="ascii") == digest:
             return False
     except (OSError, UnicodeDecodeError):
         pass
     try:
-        for cache in {f.parent / "__pycache__" for f in files}:
+        for cache in set(caches.values()):
             for stale in cache.glob("*.nb[ic]"):
                 stale.unlink(missing_ok=True)
-        stamp.parent.mkdir(exist_ok=True)
+        stamp.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(stamp, digest)
     except OSError:
         return False
