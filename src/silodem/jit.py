@@ -39,7 +39,7 @@ def _cache_dir(source: Path) -> Path:
     except (ImportError, AttributeError):
         return source.parent / "__pycache__"
     for locator in locators:
-        try:
+        try:  # a locator reads only the file's path; any function stands in for the kernel
             found = locator.from_function(_cache_dir, str(source))
         except Exception:  # noqa: BLE001, S112 - a locator that does not apply
             continue
@@ -64,8 +64,7 @@ def clear_stale_caches(root: Path = Path(__file__).parent) -> bool:
         return False
     digest = hashlib.sha256(b"".join(f.read_bytes() for f in files)).hexdigest()
     caches = {f.parent: _cache_dir(f) for f in files}  # numba's folder depends on the folder
-    engine = [f for f in files if f.parent == root / "engine"] or files
-    stamp = caches[engine[0].parent] / STAMP_NAME
+    stamp = caches.get(root / "engine", next(iter(caches.values()))) / STAMP_NAME
     try:
         if stamp.read_text(encoding="ascii") == digest:
             return False

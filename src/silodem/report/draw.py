@@ -179,8 +179,7 @@ def ratio_axis(ax: Axes, *curves: npt.ArrayLike) -> None:
     say so in the panel instead of cutting the curve silently."""
     ax.set_ylim(0, RATIO_TOP)
     values = np.concatenate([np.ravel(np.asarray(c, dtype=float)) for c in curves] or [[]])
-    with np.errstate(invalid="ignore"):
-        top = np.nanmax(values[np.isfinite(values)], initial=-np.inf)
+    top = np.max(values[np.isfinite(values)], initial=-np.inf)
     if top > RATIO_TOP:
         ax.text(0.99, 0.97, f"axis cut at {RATIO_TOP:g}: values up to {top:.3g}",
                 transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.35")
