@@ -3,6 +3,8 @@ parallel variants) against a brute-force reference DEM on random configurations.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from reference_dem import ReferenceDEM
@@ -182,3 +184,70 @@ def test_kernel_caches_under_numba_cache_dir_are_cleared_too(tmp_path, monkeypat
     assert not clear_stale_caches(root) and cached.exists()
     (root / "engine/contact.py").write_text("x = 2\n")
     assert clear_stale_caches(root) and not cached.exists()
+
+
+# --- where the arrays lie: every stream of the step in an L1 cache set of its own ----------
+
+def _l1_sets(arrays) -> list[int]:
+    """The L1 set of each array's first byte on a 32 KB, 8-way cache of 64 B lines: address
+    bits 6-11 (32768 / (8 x 64) = 64 sets), worked out here from the address alone."""
+    return [(a.__array_interface__["data"][0] >> 6) & 63 for a in arrays]
+
+
+@pytest.mark.parametrize("n", [1_000, 300_000])  # on the heap, and mmap'd by glibc
+def test_lanes_start_in_64_different_l1_sets_and_hold_the_values(n):
+    from silodem.engine import lanes
+
+    made = [lanes.empty(n, lane) for lane in range(64)]
+    assert len(set(_l1_sets(made))) == 64
+    assert all(a.shape == (n,) and a.dtype == np.float64 and a.flags.c_contiguous
+               and a.flags.writeable for a in made)
+    values = np.random.default_rng(0).random(n)
+    for lane in (0, 13):
+        copied = lanes.copy(values, lane)
+        assert copied.tobytes() == values.tobytes() and not np.shares_memory(copied, values)
+    ints = lanes.zeros(n, 5, np.int64)
+    assert ints.dtype == np.int64 and not ints.any()
+    # no two arrays overlap
+    spans = sorted((a.ctypes.data, a.ctypes.data + a.nbytes) for a in made)
+    assert all(end <= start for (_, end), (start, _) in itertools.pairwise(spans))
+
+
+def test_grain_and_list_arrays_lie_in_different_l1_sets_as_built_and_as_grown():
+    """glibc gives every array of 128 KB or more a fresh page and numpy starts it 16 bytes in:
+    element i of every such array then falls in one L1 set, and the step's dozen streams
+    evicted each other (1e5-1e6 grains ran at 1.6-1.7x the cost per particle-step of 1e4;
+    engine/lanes.py).  The grains' 14 fields and the list's arrays streamed beside them must
+    lie in different sets, in a new store, after it grew, and after a list build."""
+    from silodem.engine.particles import FIELDS
+
+    n = 40_000
+    x, y = np.meshgrid(np.arange(200) * 0.2, np.arange(n // 200) * 0.2)
+    p = Particles(16)  # grows (twice over) to hold them
+    p.add(x.ravel(), y.ravel(), 0.099, 1000.0)
+    streams = [getattr(p, name) for name in FIELDS]
+    assert min(a.nbytes for a in streams) >= 128 * 1024
+    assert len(set(_l1_sets(streams))) == len(FIELDS)
+    sim = Simulation(p, Walls(), GrainLaw(kn=K, ks=KS, mu=MU, zeta=ZETA), dt=DT, gravity=G,
+                     skin=0.01)
+    sim.run(2)
+    nb = sim.neighbors
+    streams = [getattr(p, name) for name in FIELDS] + [nb.wall_gap, nb.pair_fs, nb.pair_fn]
+    assert len(set(_l1_sets(streams))) == len(streams)
+
+
+def test_a_run_gives_the_same_bits_wherever_its_arrays_lie(monkeypatch):
+    """The lanes move where the arrays start, never a value: a run with every array in lane 0
+    (as plain numpy arrays lie) ends with the same bits as one with the lanes."""
+    from silodem.engine import lanes
+
+    def end_state():
+        x, y, r, v = _random_state(4, n=300)
+        sim = _engine(x, y, r, v)
+        sim.run(400)
+        p = sim.particles
+        return b"".join(p.view(f).tobytes() for f in ("uid", "x", "y", "vx", "vy", "omega"))
+
+    spread = end_state()
+    monkeypatch.setattr(lanes, "LANE_BYTES", 0)
+    assert end_state() == spread

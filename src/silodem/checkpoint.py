@@ -293,8 +293,10 @@ class LoadedCheckpoint:
 
         d, sim = self.data, run.sim
         restore_object(sim.particles, d["particles"])
+        sim.particles.to_lanes()  # placed as a fresh run places them (engine/lanes.py)
         restore_object(sim.walls, d["walls"], same_shape=True)  # the config's walls
         restore_object(sim.neighbors, d["neighbors"])
+        sim.neighbors.to_lanes()
         sim.neighbors.forget_derived()
         restore_object(sim, d["simulation"])
         r = d["run"]

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
+from silodem.engine import lanes
 from silodem.engine.cells import (
     INDEX,
     cell_list,
@@ -289,6 +290,13 @@ class NeighborList:
         self._wall_stride = 2
         self._buf = np.zeros(0, dtype=INDEX)
 
+    def to_lanes(self) -> None:
+        """Copy the arrays the step streams beside the grains' into their lanes
+        (``engine/lanes.py``), after they were replaced wholesale (a checkpoint's restore)."""
+        self.pair_fs = lanes.copy(self.pair_fs, lanes.PAIR_FS_LANE)
+        self.pair_fn = lanes.copy(self.pair_fn, lanes.PAIR_FN_LANE)
+        self.wall_gap = lanes.copy(self.wall_gap, lanes.WALL_GAP_LANE)
+
     # first grain of each candidate, expanded from the CSR starts on demand (measurements only;
     # the step works from the CSR starts)
     @property
@@ -391,7 +399,7 @@ class NeighborList:
             lambda *csr: _compact_touching_first.pick(n, threads)(*csr, i_apart))
         old_of = np.empty(n, dtype=INDEX)
         _old_index.pick(n, threads)(n, uid, self.slot_of_uid, old_of)
-        pair_fs = np.empty(pair_j.size)
+        pair_fs = lanes.empty(pair_j.size, lanes.PAIR_FS_LANE)
         _carry_pairs.pick(n, threads)(n, old_of, i_start, i_apart, pair_j, pair_fs,
                                       self.i_start, self.pair_j, self.pair_fs)
 
@@ -401,7 +409,7 @@ class NeighborList:
         bin_reach = 3.0 * r_max + self.skin
         cell_wstart, cell_walls = walls_by_cell(*w_box, wb.active, bin_reach,
                                                 xmin, ymin, cell_size, ncx, ncy)
-        wall_gap = np.empty(n)
+        wall_gap = lanes.empty(n, lanes.WALL_GAP_LANE)
         w_start, wc_w = self._strided(
             _wall_candidates_of, n,
             (n, x, y, radius, *w_box, wb.ax, wb.ay, wb.bx, wb.by, wb.one_sided,
@@ -414,7 +422,7 @@ class NeighborList:
                              self.w_start, self.wc_w, self.wc_fs, self.wc_fn)
 
         self.i_start, self.i_apart, self.pair_j, self.pair_fs = i_start, i_apart, pair_j, pair_fs
-        self.pair_fn = np.zeros(pair_j.size)
+        self.pair_fn = lanes.zeros(pair_j.size, lanes.PAIR_FN_LANE)
         self.strip_start = first_grains(cell_start, ncx, rows)
         self._blocks_threads = 0  # to be cut again
         self.w_start, self.wc_w, self.wc_fs, self.wc_fn = w_start, wc_w, wc_fs, wc_fn

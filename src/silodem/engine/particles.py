@@ -12,12 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from silodem.engine import lanes
 from silodem.jit import kernel, prange
 
 _FLOAT_FIELDS = (
     "x", "y", "vx", "vy", "omega", "radius", "mass", "inv_mass",
     "fx", "fy", "torque", "x_ref", "y_ref",
 )
+# every field in a lane of its own (``engine/lanes.py``): the step streams a dozen of them at
+# the same index, which must not all fall in one L1 cache set
+FIELDS = (*_FLOAT_FIELDS, "uid")
+_LANE = {name: k for k, name in enumerate(FIELDS)}
 
 
 class Particles:
@@ -26,8 +31,8 @@ class Particles:
     def __init__(self, capacity: int = 1024) -> None:
         capacity = max(int(capacity), 16)
         for name in _FLOAT_FIELDS:
-            setattr(self, name, np.zeros(capacity))
-        self.uid = np.zeros(capacity, dtype=np.int64)
+            setattr(self, name, lanes.zeros(capacity, _LANE[name]))
+        self.uid = lanes.zeros(capacity, _LANE["uid"], np.int64)
         self.n = 0
         self.next_uid = 0
 
@@ -41,11 +46,17 @@ class Particles:
             cap *= 2
         if cap == self.capacity:
             return
-        for name in (*_FLOAT_FIELDS, "uid"):
+        for name in FIELDS:
             old = getattr(self, name)
-            new = np.zeros(cap, dtype=old.dtype)
+            new = lanes.zeros(cap, _LANE[name], old.dtype)
             new[: self.n] = old[: self.n]
             setattr(self, name, new)
+
+    def to_lanes(self) -> None:
+        """Copy every field into its own lane, after the arrays were replaced wholesale (a
+        checkpoint's restore): the same values, placed as ``__init__`` places them."""
+        for name in FIELDS:
+            setattr(self, name, lanes.copy(getattr(self, name), _LANE[name]))
 
     def add(
         self,
@@ -88,7 +99,7 @@ class Particles:
         """Keep the live particles where ``mask`` is True (compaction, order preserved)."""
         idx = np.flatnonzero(mask[: self.n])
         m = idx.shape[0]
-        for name in (*_FLOAT_FIELDS, "uid"):
+        for name in FIELDS:
             arr = getattr(self, name)
             arr[:m] = arr[idx]
         self.n = m
