@@ -10,13 +10,12 @@ serves every allocation above its mmap threshold (128 KB to start with: numpy ar
 every large array starts at the same offset modulo 4 KB. Ten or more streams then compete
 for the 8 ways of one set, and a line is evicted before its 8 grains are used.
 
-Measured (thirtieth session, ``docs/performance.md``): the benchmark's step at 1e5 and 1e6
-grains cost 1.6-1.7x its cost at 1e4 grains, whose arrays lie at scattered offsets on the
-heap; with each array in its own lane the cost per particle-step is the same from 1e4 to
-1e6 grains.  This is the cache-set conflict the processor vendors' optimization manuals
-warn of for arrays a multiple of 4 KB apart (Intel 64 and IA-32 Architectures Optimization
-Reference Manual, "4K aliasing" and cache associativity; AMD Software Optimization Guide,
-L1 data cache).
+Measured (thirtieth session, ``docs/performance.md``, 1 thread): in the packed scaling silo
+the step at 1e5-1e6 grains cost 72-83 core-ns per particle-step with the arrays in one set
+and 54-61 in lanes, against 50-52 at 1e4 grains (arrays below 128 KB, which lay at
+scattered offsets on the heap before the lanes too).  This is the cache-set conflict that
+processor optimization manuals warn of for arrays a multiple of 4 KB apart (Intel 64 and
+IA-32 Architectures Optimization Reference Manual, on 4K aliasing and cache associativity).
 
 ``empty(n, lane)`` starts an array ``lane x LANE_BYTES`` past a 4 KB boundary (modulo 4 KB).
 ``LANE_BYTES`` is 5 lines, odd in lines, so lanes 0-63 fall in 64 different sets.  Each
@@ -62,7 +61,3 @@ def copy(values: np.ndarray, lane: int) -> np.ndarray:
     out[:] = values
     return out
 
-
-def l1_set(a: np.ndarray) -> int:
-    """The L1 set (0-63) of the array's first element: address bits 6-11."""
-    return (a.ctypes.data % PAGE_BYTES) // LINE_BYTES
