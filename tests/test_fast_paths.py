@@ -217,13 +217,13 @@ def test_grain_and_list_arrays_lie_in_different_l1_sets_as_built_and_as_grown():
     """glibc gives every array of 128 KB or more a fresh page and numpy starts it 16 bytes in:
     element i of every such array then falls in one L1 set, and the step's dozen streams
     evicted each other (1e5-1e6 grains ran at 1.6-1.7x the cost per particle-step of 1e4;
-    engine/lanes.py).  The grains' 14 fields and the list's arrays streamed beside them must
-    lie in different sets, in a new store, after it grew, and after a list build."""
+    engine/lanes.py).  The grains' 14 fields and the list's float arrays streamed beside them
+    must lie in different sets, in a new store, after it grew, and after a list build."""
     from silodem.engine.particles import FIELDS
 
     n = 40_000
     x, y = np.meshgrid(np.arange(200) * 0.2, np.arange(n // 200) * 0.2)
-    p = Particles(16)  # grows (twice over) to hold them
+    p = Particles(16)  # grows to hold them
     p.add(x.ravel(), y.ravel(), 0.099, 1000.0)
     streams = [getattr(p, name) for name in FIELDS]
     assert min(a.nbytes for a in streams) >= 128 * 1024

@@ -60,4 +60,3 @@ def copy(values: np.ndarray, lane: int) -> np.ndarray:
     out = empty(values.shape[0], lane, values.dtype)
     out[:] = values
     return out
-
