@@ -303,6 +303,23 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         assert "cannot be read" in res.stderr and "has no /frames" not in res.stderr
 
 
+def test_force_network_of_a_file_without_frames_is_a_one_line_error(tmp_path):
+    """A results.h5 with no /frames (written with frames off, or by another program) gives a
+    ValueError naming the file and what it lacks, not a bare KeyError('frames'); the report
+    (which catches ValueError) then leaves the snapshots out."""
+    import h5py
+
+    from silodem.viz import force_network_png, force_network_pngs
+
+    path = tmp_path / "results.h5"
+    with h5py.File(path, "w") as f:
+        f.attrs["scenario"] = "none"
+    for draw in (lambda: force_network_png(path), lambda: force_network_pngs(path)):
+        with pytest.raises(ValueError, match="has no /frames") as err:
+            draw()
+        assert str(path) in str(err.value) and "\n" not in str(err.value)
+
+
 def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
     from silodem.viz import force_network_png, force_network_pngs
     from silodem.viz.network import select_frame
