@@ -194,3 +194,17 @@ def test_profile_step_times_a_run_without_changing_it():
         for name in ("x", "y", "vx", "vy", "omega", "fx", "fy", "torque"):
             assert np.array_equal(timed.particles.view(name), plain.particles.view(name))
         assert np.array_equal(timed.neighbors.pair_fs, plain.neighbors.pair_fs)
+
+
+def test_interleaved_scaling_runs_every_size_the_same_steps(monkeypatch):
+    """``benchmarks/interleaved_scaling.py``: every size settles, then runs ``turn`` steps in
+    turn with the others until each has run ``steps`` (so all stay in the same flow state);
+    its silo is ``performance_matrix --scaling``'s (10,144 grains a copy)."""
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "benchmarks"))
+    measure = _benchmark_module("interleaved_scaling").measure
+    sims, seconds = measure([1, 2], steps=20, turn=10, settle=5, log=lambda line: None)
+    assert [sim.particles.n for sim in sims] == [10_144, 20_288]
+    assert [sim.steps for sim in sims] == [25, 25]
+    assert seconds.shape == (2, 2) and np.all(seconds > 0)
