@@ -22,7 +22,6 @@ size's turn, a small size starts with its state out of the caches (2 MB at 1e4 g
 10 steps made that 10 % and the 1e4 figure higher than the 1e6 one.
 """
 
-
 from __future__ import annotations
 
 import argparse

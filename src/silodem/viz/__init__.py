@@ -16,7 +16,8 @@ from typing import Any
 def force_network_png(results_h5: Path | str, which: str | float = "end-of-filling",
                       **kwargs: Any) -> bytes:
     """PNG bytes of the force network at ``which``: "end-of-filling", "early-discharge",
-    "late-discharge", "final" or a time [s] (see :mod:`silodem.viz.network`)."""
+    "late-discharge", "final" or a time [s] (see :mod:`silodem.viz.network`).  ValueError
+    (one line) when the file has no frames or not that moment."""
     from silodem.viz.network import force_network_png as impl
 
     return impl(results_h5, which, **kwargs)
@@ -24,7 +25,7 @@ def force_network_png(results_h5: Path | str, which: str | float = "end-of-filli
 
 def force_network_pngs(results_h5: Path | str) -> dict[str, bytes]:
     """{view: PNG bytes} for the views end-of-filling, early-discharge, late-discharge that the
-    run has."""
+    run has.  ValueError (one line) when the file has no frames."""
     from silodem.viz.network import force_network_pngs as impl
 
     return impl(results_h5)
