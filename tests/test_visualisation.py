@@ -303,6 +303,34 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         assert "cannot be read" in res.stderr and "has no /frames" not in res.stderr
 
 
+def test_force_lines_have_a_key_that_reads_true(frames):
+    """The force network's key: the run's force scale to one significant figure, half and
+    twice that, each drawn as wide as the network draws a contact of that force: on the
+    settled frame every unclipped line's width over its force is the key's width over its
+    force."""
+    from matplotlib.collections import LineCollection
+
+    from silodem.viz.draw import FrameArtist
+
+    artist = FrameArtist(frames, "none")
+    frame = frames.end_of_filling()
+    artist.draw(frame)
+    key = artist.force_key
+    forces = [float(t.get_text().removesuffix(" N")) for t in key.get_texts()]
+    assert forces[1] == pytest.approx(artist.force_scale, rel=0.5)
+    assert len(f"{forces[1]:e}".split("e")[0].rstrip("0").rstrip(".")) == 1  # one figure
+    assert forces == [0.5 * forces[1], forces[1], 2.0 * forces[1]]
+    key_ratio = [line.get_linewidth() / f for line, f in zip(key.get_lines(), forces)]
+    assert key_ratio == pytest.approx([key_ratio[0]] * 3)
+    chains = next(a for a in artist.ax.collections if isinstance(a, LineCollection))
+    widths = np.asarray(chains.get_linewidths(), dtype=float)
+    fn = np.concatenate([frame.contacts["fn"], frame.wall_contacts["fn"]]).astype(float)
+    fn = fn[fn > 0]
+    free = (widths > 0.15) & (widths < 6.0)  # not clipped
+    assert free.sum() > 10
+    assert widths[free] / fn[free] == pytest.approx(key_ratio[0], rel=1e-9)
+
+
 def test_force_network_of_a_file_without_frames_is_a_one_line_error(tmp_path):
     """A results.h5 with no /frames (written with frames off, or by another program) gives a
     ValueError naming the file and what it lacks, not a bare KeyError('frames'); the report

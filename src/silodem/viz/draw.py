@@ -1,4 +1,5 @@
-"""Drawing a frame: disks to scale, the force network (line width ~ normal force), the walls.
+"""Drawing a frame: disks to scale, the force network (line width ~ normal force, with a key
+of three widths), the walls.
 
 ``FrameArtist`` owns one matplotlib figure (Agg canvas, no pyplot) and redraws only what changes
 from frame to frame, so animations render fast.  Colour scales and the force-line scale are
@@ -18,6 +19,7 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.collections import LineCollection
 from matplotlib.colors import BoundaryNorm, Normalize
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from silodem.report.draw import PNG_COMPRESSION, grain_disks
 from silodem.silo.frames import Frame, Frames
@@ -30,6 +32,24 @@ _CMAPS = {"velocity": "viridis", "force": "YlGnBu", "coordination": "viridis"}
 CHAIN_COLOR = "#c0152f"
 PLAIN_GRAIN = "#ddd5c4"
 _MAX_COORD = 7
+
+
+# force-line widths [pt]: CHAIN_WIDTH at the run's force scale, clipped to CHAIN_WIDTHS
+CHAIN_WIDTH = 2.5
+CHAIN_WIDTHS = (0.15, 6.0)
+
+
+def chain_widths(fn: np.ndarray, force_scale: float) -> np.ndarray:
+    """Line widths [pt] of contacts with normal forces ``fn`` [N]: proportional to the force,
+    ``CHAIN_WIDTH`` at ``force_scale`` [N], clipped to ``CHAIN_WIDTHS``."""
+    return np.clip(CHAIN_WIDTH * np.asarray(fn, dtype=float) / force_scale, *CHAIN_WIDTHS)
+
+
+def key_forces(force_scale: float) -> list[float]:
+    """Forces [N] for the line-width key: the run's force scale to one significant figure, and
+    half and twice that."""
+    base = float(f"{force_scale:.0e}")
+    return [0.5 * base, base, 2.0 * base]
 
 
 def _even16(px: float) -> int:
@@ -113,6 +133,13 @@ class FrameArtist:
                                    color="k", lw=1.6, solid_capstyle="round")[0]
                            for k in range(len(walls))]
         self.text = ax.set_title("", fontsize=9, loc="left")
+        # the key of the force lines' widths, fixed over the run like their scale
+        handles = [Line2D([], [], color=CHAIN_COLOR, alpha=0.9, solid_capstyle="round",
+                          lw=float(chain_widths(f, self.force_scale)), label=f"{f:g} N")
+                   for f in key_forces(self.force_scale)]
+        self.force_key = ax.legend(handles=handles, title="contact normal force",
+                                   loc="upper right", fontsize=7, title_fontsize=7,
+                                   framealpha=0.85, handlelength=2.2)
         self._artists: list = []
 
     # --- drawing ------------------------------------------------------------------------------
@@ -131,7 +158,7 @@ class FrameArtist:
             self._artists.append(disks)
         segs, fn = self._chains(frame, x, y)
         if fn.size:
-            widths = np.clip(2.5 * fn / self.force_scale, 0.15, 6.0)
+            widths = chain_widths(fn, self.force_scale)
             chains = LineCollection(segs, linewidths=widths, colors=CHAIN_COLOR, alpha=0.9,
                                     capstyle="round", zorder=3)
             ax.add_collection(chains, autolim=False)
