@@ -307,10 +307,10 @@ def test_force_lines_have_a_key_that_reads_true(frames):
     """The force network's key: the run's force scale to one significant figure, half and
     twice that, each drawn as wide as the network draws a contact of that force: on the
     settled frame every unclipped line's width over its force is the key's width over its
-    force."""
+    force.  A force whose line would be clipped is left out of the key."""
     from matplotlib.collections import LineCollection
 
-    from silodem.viz.draw import FrameArtist
+    from silodem.viz.draw import FrameArtist, key_forces
 
     artist = FrameArtist(frames, "none")
     frame = frames.end_of_filling()
@@ -321,7 +321,9 @@ def test_force_lines_have_a_key_that_reads_true(frames):
     assert len(f"{forces[1]:e}".split("e")[0].rstrip("0").rstrip(".")) == 1  # one figure
     assert forces == [0.5 * forces[1], forces[1], 2.0 * forces[1]]
     key_ratio = [line.get_linewidth() / f for line, f in zip(key.get_lines(), forces)]
-    assert key_ratio == pytest.approx([key_ratio[0]] * 3)
+    assert key_ratio == pytest.approx([key_ratio[0]] * len(key_ratio))
+    # twice a scale rounded up past 1.2 x would be clipped: 1.5 N rounds to 2, 4 N is 6.7 pt
+    assert key_forces(1.5) == [1.0, 2.0] and key_forces(1.2) == [0.5, 1.0, 2.0]
     chains = next(a for a in artist.ax.collections if isinstance(a, LineCollection))
     widths = np.asarray(chains.get_linewidths(), dtype=float)
     fn = np.concatenate([frame.contacts["fn"], frame.wall_contacts["fn"]]).astype(float)

@@ -47,9 +47,12 @@ def chain_widths(fn: np.ndarray, force_scale: float) -> np.ndarray:
 
 def key_forces(force_scale: float) -> list[float]:
     """Forces [N] for the line-width key: the run's force scale to one significant figure, and
-    half and twice that."""
+    half and twice that, less any whose line would be clipped (``CHAIN_WIDTHS``: twice a scale
+    rounded up, e.g. 1.5 -> 2, would be drawn 6.7 pt wide, which the network draws at 6)."""
     base = float(f"{force_scale:.0e}")
-    return [0.5 * base, base, 2.0 * base]
+    lo, hi = CHAIN_WIDTHS
+    return [f for f in (0.5 * base, base, 2.0 * base)
+            if lo <= CHAIN_WIDTH * f / force_scale <= hi]
 
 
 def _even16(px: float) -> int:
