@@ -33,9 +33,9 @@ import numba
 import numpy as np
 from performance_matrix import SCALING_N, SCALING_ROWS
 
-from silodem.bench import advance, build
+from silodem.bench import advance, build, widened_size
 
-NX = max(4, round(SCALING_N / (1.6 * SCALING_ROWS - 3)))  # as ``bench.run_silodem`` with rows
+NX = widened_size(SCALING_N, SCALING_ROWS)  # as ``bench.run_silodem`` with rows
 
 
 def measure(copies: list[int], steps: int, turn: int, settle: int,

@@ -161,6 +161,12 @@ def advance(sim: Simulation, top: float, steps: int) -> None:
     sim.run(steps)
 
 
+def widened_size(n: int, rows: int) -> int:
+    """NX of a silo of about ``n`` grains whose column is ``rows`` (NY) high: the deck's
+    lattice holds about 1.6 NY - 3 grains per column (``run_silodem(rows=...)``)."""
+    return max(4, round(n / (1.6 * rows - 3)))
+
+
 def run_silodem(n: int, threads: int, steps: int, settle: int,
                 rows: int | None = None, copies: int = 1) -> BenchResult:
     """Throughput of silodem on the benchmark silo of about ``n`` grains.  ``rows`` fixes the
@@ -174,7 +180,7 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
     if rows is None:
         nx, ny = lattice_size(n)
     else:
-        nx, ny = max(4, round(n / (1.6 * rows - 3))), rows
+        nx, ny = widened_size(n, rows), rows
     sim, _, top = build(nx, ny, copies=copies)
     advance(sim, top, settle)
     builds = sim.neighbors.rebuilds
