@@ -334,17 +334,22 @@ def test_force_lines_have_a_key_that_reads_true(frames):
 
 
 def test_force_network_of_a_file_without_frames_is_a_one_line_error(tmp_path):
-    """A results.h5 with no /frames (written with frames off, or by another program) gives a
-    ValueError naming the file and what it lacks, not a bare KeyError('frames'); the report
-    (which catches ValueError) then leaves the snapshots out."""
+    """A results.h5 with no /frames (written by an older silodem or another program) gives a
+    ValueError (``NoFramesError``, from ``read_frames`` itself) naming the file and what it
+    lacks, not a bare KeyError('frames'); the report (which catches ValueError) then leaves
+    the snapshots out."""
     import h5py
 
+    from silodem.silo.frames import NoFramesError
     from silodem.viz import force_network_png, force_network_pngs
 
     path = tmp_path / "results.h5"
     with h5py.File(path, "w") as f:
         f.attrs["scenario"] = "none"
-    for draw in (lambda: force_network_png(path), lambda: force_network_pngs(path)):
+    with pytest.raises(NoFramesError):
+        read_frames(path)
+    for draw in (lambda: read_frames(path), lambda: force_network_png(path),
+                 lambda: force_network_pngs(path)):
         with pytest.raises(ValueError, match="has no /frames") as err:
             draw()
         assert str(path) in str(err.value) and "\n" not in str(err.value)

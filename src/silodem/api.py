@@ -206,9 +206,9 @@ class RunResults:
 
     def frames(self) -> Frames:
         """The saved frames (``silodem.silo.frames.Frames``) for pictures and animations."""
-        from silodem.silo.frames import read_frames
+        from silodem.silo.frames import NoFramesError, read_frames
 
         try:
             return read_frames(self.folder / "results.h5")
-        except KeyError:
-            raise InputError(f"{self.folder / 'results.h5'} has no /frames") from None
+        except NoFramesError as exc:
+            raise InputError(str(exc)) from None

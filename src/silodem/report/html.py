@@ -152,7 +152,7 @@ def render_snapshots(folder: Path, fig_dir: Path) -> list[tuple[str, str, bytes]
 
     try:
         pngs = force_network_pngs(folder / "results.h5")
-    except (KeyError, ValueError, OSError):  # no frames in this results file
+    except (ValueError, OSError):  # no frames in this results file (NoFramesError)
         pngs = {}
     out = []
     for view, caption in _SNAPSHOT_CAPTIONS.items():

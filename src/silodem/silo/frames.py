@@ -333,13 +333,19 @@ class Frames:
         return self.frames[int(np.argmin(np.abs(self.times - time)))]
 
 
+class NoFramesError(ValueError):
+    """A results.h5 without ``/frames`` (written by an older silodem or another program);
+    ``str()`` is one line naming the file."""
+
+
 def read_frames(path: Path | str) -> Frames:
-    """The ``/frames`` of a results.h5 (``KeyError`` when it has none)."""
+    """The ``/frames`` of a results.h5 (``NoFramesError``, a ValueError, when it has none)."""
     import h5py
 
     with h5py.File(path, "r") as h5:
         if "frames" not in h5:
-            raise KeyError("frames")
+            raise NoFramesError(f"'{path}' has no /frames (saved frames); run it again "
+                                "with this version of silodem")
         g = h5["frames"]
         arrays = {}
         g.visititems(lambda name, obj: arrays.__setitem__(name, obj[()])

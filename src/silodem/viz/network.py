@@ -42,15 +42,6 @@ def select_frame(frames: Frames, which: str | float) -> Frame:
                      "'settled' or a time in seconds")
 
 
-def _read(results_h5: Path | str) -> Frames:
-    """The frames of a results.h5; ValueError (one line) when it has none."""
-    try:
-        return read_frames(results_h5)
-    except KeyError:
-        raise ValueError(f"{results_h5} has no /frames (saved frames): no force network to "
-                         "draw") from None
-
-
 _LABEL = {"end-of-filling": "end of filling", "early-discharge": "early discharge",
           "late-discharge": "late discharge", "final": "end of run", "settled": "end of filling"}
 
@@ -63,7 +54,7 @@ def force_network_png(results_h5: Path | str | Frames, which: str | float = "end
     ``color``: "none" (plain grains, the default), "velocity", "force" or "coordination"."""
     from silodem.viz.draw import FrameArtist
 
-    frames = results_h5 if isinstance(results_h5, Frames) else _read(results_h5)
+    frames = results_h5 if isinstance(results_h5, Frames) else read_frames(results_h5)
     frame = select_frame(frames, which)
     artist = FrameArtist(frames, color, height_px=height_px)
     label = _LABEL.get(which, "") if isinstance(which, str) else ""
@@ -74,7 +65,7 @@ def force_network_png(results_h5: Path | str | Frames, which: str | float = "end
 
 def force_network_pngs(results_h5: Path | str) -> dict[str, bytes]:
     """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge)."""
-    frames = _read(results_h5)
+    frames = read_frames(results_h5)
     out = {}
     for view in VIEWS:
         try:
