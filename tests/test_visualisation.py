@@ -271,6 +271,17 @@ def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):
     _check_frames_differ_and_not_blank(images)
 
 
+def test_animate_out_without_a_suffix_gets_the_formats(run_dir, tmp_path):
+    """`--out movie` wrote an MP4 named 'movie', which players and browsers do not
+    recognise: a name without a suffix gets the format's (.mp4 by default, .gif with
+    --format gif); a name with .mp4 or .gif is kept as given."""
+    from silodem.viz.animate import plan_animation
+
+    assert plan_animation(run_dir, tmp_path / "movie").out == tmp_path / "movie.mp4"
+    assert plan_animation(run_dir, tmp_path / "movie", fmt="gif").out == tmp_path / "movie.gif"
+    assert plan_animation(run_dir, tmp_path / "m.gif").out == tmp_path / "m.gif"
+
+
 @pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color",
                                   "out_in_proc", "out_a_folder", "walls_missing"])
 def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):

@@ -217,7 +217,8 @@ def animate(
     out: Annotated[
         Path | None,
         typer.Option("--out", "-o", metavar="FILE",
-                     help="Where to write the video. Default: DIR/animation.mp4 (or .gif).",
+                     help="Where to write the video (a name without a suffix gets .mp4 or .gif). "
+                     "Default: DIR/animation.mp4 (or .gif).",
                      show_default=False),
     ] = None,
 ) -> None:

@@ -103,6 +103,9 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
         raise InputError(f"--fps must be an integer from 1 to 60; got {fps}")
     out_path = Path(out) if out is not None else None
     fmt = _choose_format(out_path, fmt)
+    if out_path is not None and out_path.name and not out_path.suffix \
+            and not out_path.is_dir():  # "--out movie": movie.mp4, which players recognise
+        out_path = out_path.with_name(f"{out_path.name}.{fmt}")
     frames = load_run_frames(run_dir)
     if out_path is None:
         out_path = Path(run_dir) / f"animation.{fmt}"
