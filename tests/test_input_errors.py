@@ -600,6 +600,26 @@ def test_an_address_that_is_no_dask_scheduler_is_refused_in_time(
     assert_names(line, "cannot reach the Dask scheduler", address)
 
 
+def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_scheduler):
+    """Ctrl-C while the probe waited on a silent server raised only after the probe's own
+    timeout (its thread pool was joined on the way out): now the interrupt ends the wait
+    at once, well before CONNECT_TIMEOUT_S."""
+    import signal
+    import threading
+    import time
+
+    from silodem.study import execute
+
+    monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 20.0)
+    address = not_a_scheduler("silent")
+    main_thread = threading.main_thread().ident
+    threading.Timer(0.5, signal.pthread_kill, (main_thread, signal.SIGINT)).start()
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        execute._probe(address)
+    assert time.monotonic() - t0 < 10.0  # the probe alone would wait 20 s
+
+
 def test_the_scheduler_probe_works_where_an_event_loop_runs(monkeypatch, not_a_scheduler):
     """A notebook's thread runs an event loop, where asyncio.run refuses to start: the probe
     of the address said 'asyncio.run() cannot be called from a running event loop' for every

@@ -325,7 +325,7 @@ def _probe(address: str) -> None:
     handshake, and one that answers something else (an HTTP server) raised whatever its
     reply decoded to."""
     import asyncio
-    from concurrent.futures import ThreadPoolExecutor
+    import threading
 
     from distributed.comm import connect as dask_connect
 
@@ -333,14 +333,24 @@ def _probe(address: str) -> None:
         comm = await dask_connect(address, timeout=CONNECT_TIMEOUT_S)
         await comm.close()
 
-    def probe() -> None:  # in a thread of its own: a notebook's thread runs an event loop
-        asyncio.run(asyncio.wait_for(once(), CONNECT_TIMEOUT_S))
+    failed: list[BaseException | None] = []
 
-    with ThreadPoolExecutor(max_workers=1) as pool:
+    def probe() -> None:  # in a thread of its own: a notebook's thread runs an event loop
         try:
-            pool.submit(probe).result()
-        except TimeoutError:
-            raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s") from None
+            asyncio.run(asyncio.wait_for(once(), CONNECT_TIMEOUT_S))
+            failed.append(None)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+            failed.append(exc)
+
+    # a daemon thread, joined with a timeout: Ctrl-C ends the wait at once, and the exit
+    # does not wait for the probe (a pool's thread was joined, up to CONNECT_TIMEOUT_S)
+    thread = threading.Thread(target=probe, name="silodem-scheduler-probe", daemon=True)
+    thread.start()
+    thread.join(CONNECT_TIMEOUT_S + 1.0)
+    if not failed or isinstance(failed[0], TimeoutError):
+        raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s")
+    if failed[0] is not None:
+        raise failed[0]
 
 
 def connect(scheduler: str | None, workers: int | None,
