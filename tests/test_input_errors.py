@@ -613,10 +613,14 @@ def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_s
     monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 20.0)
     address = not_a_scheduler("silent")
     main_thread = threading.main_thread().ident
-    threading.Timer(0.5, signal.pthread_kill, (main_thread, signal.SIGINT)).start()
+    ctrl_c = threading.Timer(0.5, signal.pthread_kill, (main_thread, signal.SIGINT))
     t0 = time.monotonic()
-    with pytest.raises(KeyboardInterrupt):
-        execute._probe(address)
+    ctrl_c.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            execute._probe(address)
+    finally:
+        ctrl_c.cancel()  # never an interrupt in a later test
     assert time.monotonic() - t0 < 10.0  # the probe alone would wait 20 s
 
 
