@@ -614,6 +614,8 @@ def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_s
     address = not_a_scheduler("silent")
     main_thread = threading.main_thread().ident
     ctrl_c = threading.Timer(0.5, signal.pthread_kill, (main_thread, signal.SIGINT))
+    # Python's own Ctrl-C handler, which a shell's background job (SIGINT ignored) lacks
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
     t0 = time.monotonic()
     ctrl_c.start()
     try:
@@ -621,6 +623,7 @@ def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_s
             execute._probe(address)
     finally:
         ctrl_c.cancel()  # never an interrupt in a later test
+        signal.signal(signal.SIGINT, before)
     assert time.monotonic() - t0 < 10.0  # the probe alone would wait 20 s
 
 
