@@ -333,24 +333,24 @@ def _probe(address: str) -> None:
         comm = await dask_connect(address, timeout=CONNECT_TIMEOUT_S)
         await comm.close()
 
-    failed: list[BaseException | None] = []
+    outcome: list[BaseException | None] = []  # None: the handshake was made
 
     def probe() -> None:  # in a thread of its own: a notebook's thread runs an event loop
         try:
             asyncio.run(asyncio.wait_for(once(), CONNECT_TIMEOUT_S))
-            failed.append(None)
+            outcome.append(None)
         except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
-            failed.append(exc)
+            outcome.append(exc)
 
     # a daemon thread, joined with a timeout: Ctrl-C ends the wait at once, and the exit
     # does not wait for the probe (a pool's thread was joined, up to CONNECT_TIMEOUT_S)
     thread = threading.Thread(target=probe, name="silodem-scheduler-probe", daemon=True)
     thread.start()
     thread.join(CONNECT_TIMEOUT_S + 1.0)
-    if not failed or isinstance(failed[0], TimeoutError):
+    if not outcome or isinstance(outcome[0], TimeoutError):
         raise TimeoutError(f"no Dask handshake within {CONNECT_TIMEOUT_S:g} s")
-    if failed[0] is not None:
-        raise failed[0]
+    if outcome[0] is not None:
+        raise outcome[0]
 
 
 def connect(scheduler: str | None, workers: int | None,

@@ -14,11 +14,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from silodem.errors import InputError
-from silodem.silo.frames import Frames, read_frames
+from silodem.silo.frames import Frames, NoFramesError, read_frames
 
 FORMATS = ("mp4", "gif")
 ANIMATION_COLORS = ("velocity", "force", "coordination")
@@ -48,15 +47,11 @@ def load_run_frames(run_dir: Path | str) -> Frames:
     if not h5.is_file():
         raise InputError(f"'{d}' has no results.h5; make one with: silodem run ... --out {d}")
     try:
-        with h5py.File(h5, "r") as f:
-            has_frames = "frames" in f
-    except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
-        raise InputError(f"cannot read '{h5}' (damaged?): {type(exc).__name__}: {exc}") from None
-    if not has_frames:
-        raise InputError(f"'{h5}' has no /frames (saved frames); run it again with this "
-                         "version of silodem")
-    try:
         frames = read_frames(h5)
+    except NoFramesError as exc:
+        raise InputError(str(exc)) from None
+    except OSError as exc:  # h5py cannot open it
+        raise InputError(f"cannot read '{h5}' (damaged?): {type(exc).__name__}: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - the frames are there but not whole
         raise InputError(f"'{h5}': its /frames (or /walls) cannot be read "
                          f"({type(exc).__name__}: {exc}); damaged, or written by another "
