@@ -231,6 +231,80 @@ def test_vtk_files_hold_the_frames(run_dir, frames, h5):
         assert bool(active[gate]) == (time <= h5["events"]["discharge_start_time"])
 
 
+def test_vtk_steps_follow_the_vtk_interval_when_frames_are_saved_every_step(tmp_path):
+    """A frame interval below the time step saves a frame every step; the VTK files then
+    still come every vtk_interval of simulated time (they came every 1e6 steps: the ratio of
+    the intervals, 1e-3 / 1e-9, was taken as a count of frame steps)."""
+    dt = 2.38e-4
+    rec = FramesRecorder(1e-9, 1e-3, tmp_path)
+    assert rec.every_steps(dt) == 1
+    assert rec._vtk_steps(dt) == round(1e-3 / dt) == 4
+    # a whole multiple of a frame interval above dt is still a whole multiple of its steps,
+    # so that each VTK file is a saved frame
+    rec = FramesRecorder(0.1, 0.5, tmp_path)
+    assert rec._vtk_steps(dt) == 5 * round(0.1 / dt)
+
+
+def test_a_run_shorter_than_its_vtk_interval_ends_well_and_writes_its_fields(tmp_path):
+    """No grains' VTK file falls inside the run, so vtk/ did not exist when the fields'
+    files were written at the end (the run ended 'error: No such file or directory')."""
+    out = tmp_path / "run"
+    res = cli("run", "paper-case2", "--quick", "--set", "fill.n_particles=80",
+              "--set", "output.vtk_interval=100", "--set", "output.png=false",
+              "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert sorted(p.name for p in (out / "vtk").iterdir()) == ["fields_discharge.vtu",
+                                                               "fields_settled.vtu"]
+
+
+def test_the_output_size_estimates_hold_for_a_real_run(run_dir, frames):
+    """The bytes per grain that the output warning (``volume_warning``) counts, against what
+    the fixture's run holds in memory for its frames and wrote as VTK files (both are about
+    a grain's fields and its share of the contacts, so they agree within a factor 2)."""
+    from silodem.silo import frames as frames_module
+
+    rows = sum(f.n for f in frames)
+    held = sum(a.nbytes for f in frames
+               for table in (f.particles, f.contacts, f.wall_contacts) for a in table.values())
+    assert 0.5 <= held / rows / frames_module.FRAME_BYTES_PER_GRAIN <= 1.0
+    vtk = run_dir / "vtk"
+    grains = written = 0
+    for particles in vtk.glob("particles_*.vtu"):
+        grains += len(meshio.read(particles).points)
+        written += sum((vtk / particles.name.replace("particles", kind)).stat().st_size
+                       for kind in ("particles", "contacts", "walls"))
+    assert 0.5 <= written / grains / frames_module.VTK_BYTES_PER_GRAIN <= 2.0
+
+
+def test_output_that_would_not_fit_is_warned_of_before_the_run():
+    """The shipped scenarios draw no warning; a frame every step of paper-case2 does, with
+    the count of frames its phase time limits allow (68 s / dt), and VTK files every step
+    do, with their count (3 files each)."""
+    from types import SimpleNamespace
+
+    from silodem.scenario_files import load_config, scenario_names
+    from silodem.silo.checks import check_numbers
+
+    def warning(cfg):
+        run = SimpleNamespace(cfg=cfg, dt=check_numbers(cfg)[0])
+        return FramesRecorder.from_config(cfg, Path("run")).volume_warning(run)
+
+    for name in scenario_names():
+        assert warning(load_config(name)) is None, name
+    cfg = load_config("paper-case2", ["output.frame_interval=1e-9"])
+    dt = check_numbers(cfg)[0]
+    limits = cfg.fill.max_time + cfg.settle.max_time + cfg.discharge.max_time
+    assert limits == 68.0
+    said = warning(cfg)
+    assert said.startswith("output.frame_interval = 1e-09 s may save about "
+                           f"{limits / dt:.3g} frames, ")
+    assert "held in memory" in said and "430 grains" in said
+    cfg = load_config("paper-case2", ["output.vtk_interval=1e-9"])
+    said = warning(cfg)
+    assert said.startswith(f"output.vtk_interval = 1e-09 s may write about "
+                           f"{3 * limits / dt:.3g} VTK files, ")
+
+
 # --- animations and pictures ------------------------------------------------------------------
 def _check_frames_differ_and_not_blank(images: list[np.ndarray]) -> None:
     spread = [float(img.std()) for img in images]

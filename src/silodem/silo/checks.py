@@ -198,15 +198,23 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
         from silodem.silo.procedure import loose_sites
 
         loose_sites(silo_shape(cfg), cfg.material.radius_max, cfg.fill.n_particles)
-    total = cfg.fill.max_time + cfg.settle.max_time
-    if cfg.discharge.enabled:
-        total += cfg.discharge.max_time
+    total, words = phase_time_limits(cfg)
     if total / dt > MAX_STEPS:
         raise InputError(
             f"a time step of {dt:.3g} s would allow {total / dt:.2g} steps in the phase time "
-            f"limits ({total:g} s = fill.max_time + settle.max_time + discharge.max_time), more "
-            f"than {MAX_STEPS:.0e}; check {keys}")
+            f"limits ({total:g} s = {words}), more than {MAX_STEPS:.0e}; check {keys}")
     return dt, dt_crit
+
+
+def phase_time_limits(cfg: Config) -> tuple[float, str]:
+    """The longest simulated time ``cfg`` may run [s], the sum of its phases' time limits,
+    and that sum in words: fill.max_time + settle.max_time (+ discharge.max_time when the
+    discharge is on)."""
+    total, words = cfg.fill.max_time + cfg.settle.max_time, "fill.max_time + settle.max_time"
+    if cfg.discharge.enabled:
+        total += cfg.discharge.max_time
+        words += " + discharge.max_time"
+    return total, words
 
 
 MAX_STEPS = 1e12  # a run allowed more steps than this is refused

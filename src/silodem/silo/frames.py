@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem.measure.stress import contact_points_walls
+from silodem.silo.checks import phase_time_limits
 from silodem.silo.recorders import PHASE_CODES, Recorder, take_snapshot
 
 if TYPE_CHECKING:
@@ -36,6 +37,15 @@ if TYPE_CHECKING:
     from silodem.silo.procedure import SiloRun
 
 PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
+
+# What a frame costs (paper-case2 --quick: 755 frames held 75,315 grain rows and 74,771 contact
+# rows; its VTK files held 72 B per grain in particles_*.vtu and 28 B per contact in
+# contacts_*.vtu; a settled packing has up to about 2 contacts per grain):
+FRAME_BYTES_PER_GRAIN = 72  # 40 B of grain fields + 2 contacts of 16 B [B]
+VTK_BYTES_PER_GRAIN = 130  # a grain and 2 contacts in VTK XML [B]
+VTK_FILES_PER_OUTPUT = 3  # particles, contacts, walls
+WARN_BYTES = 1e9  # frames (all held in memory) or VTK files past this draw a warning [B]
+WARN_VTK_FILES = 10_000  # VTK files past this draw a warning
 
 #: The arrays of a frame, their dtypes and units, by table.
 FIELDS: dict[str, dict[str, tuple[type, str]]] = {
@@ -174,18 +184,49 @@ class FramesRecorder(Recorder):
 
     def _vtk_steps(self, dt: float) -> int | None:
         """Steps between VTK outputs.  A VTK interval that is a whole multiple of the frame
-        interval is made a whole multiple of the frame steps, so each VTK file is a frame."""
+        interval is made a whole multiple of the frame steps, so each VTK file is a frame.
+        (The multiple is taken of the steps: a frame interval below dt is one step, and
+        frame_interval 1e-9 s with vtk_interval 1e-3 s is a VTK file every 1e-3 s, not every
+        1e6 steps.)"""
         if self.vtk_interval is None:
             return None
+        steps = max(1, round(self.vtk_interval / dt))
         ratio = self.vtk_interval / self.interval
         if ratio >= 1.0 and abs(ratio - round(ratio)) < 1e-6:
-            return self._frame_steps(dt) * round(ratio)
-        return max(1, round(self.vtk_interval / dt))
+            frame_steps = self._frame_steps(dt)
+            return frame_steps * max(1, round(steps / frame_steps))
+        return steps
 
     def every_steps(self, dt: float) -> int:
         vs = self._vtk_steps(dt)
         fs = self._frame_steps(dt)
         return fs if vs is None else math.gcd(fs, vs)
+
+    def volume_warning(self, run: SiloRun) -> str | None:
+        """A warning when the frames the run may save, up to its phase time limits, pass
+        ``WARN_BYTES`` (they are all held in memory during the run), or the VTK
+        files pass ``WARN_BYTES`` or ``WARN_VTK_FILES``; None otherwise."""
+        dt, n = run.dt, run.cfg.fill.n_particles
+        duration, words = phase_time_limits(run.cfg)
+        said = []
+        frames = duration / (self._frame_steps(dt) * dt)
+        size = frames * n * FRAME_BYTES_PER_GRAIN
+        if size > WARN_BYTES:
+            said.append(f"output.frame_interval = {self.interval:.3g} s may save about "
+                        f"{frames:.3g} frames, {_bytes(size)}, all held in memory during the "
+                        "run")
+        vs = self._vtk_steps(dt)
+        if vs is not None:
+            outputs = duration / (vs * dt)
+            size = outputs * n * VTK_BYTES_PER_GRAIN
+            files = outputs * VTK_FILES_PER_OUTPUT
+            if size > WARN_BYTES or files > WARN_VTK_FILES:
+                said.append(f"output.vtk_interval = {self.vtk_interval:.3g} s may write about "
+                            f"{files:.3g} VTK files, {_bytes(size)}")
+        if not said:
+            return None
+        return (f"{'; '.join(said)} ({n} grains, time step {dt:.3g} s, up to {duration:.3g} s "
+                f"of simulated time: {words}); a larger interval saves less")
 
     # --- recording ------------------------------------------------------------------------
     def record(self, run: SiloRun) -> None:
@@ -236,6 +277,11 @@ class FramesRecorder(Recorder):
         self.frames = frames_from_arrays(arrays)
         self.vtk_times = [float(t) for t in np.asarray(state.get("vtk_times", []))]
         self._vtk = None
+
+
+def _bytes(size: float) -> str:
+    """``size`` [B] as GB or MB."""
+    return f"{size / 1e9:.3g} GB" if size >= 1e9 else f"{size / 1e6:.3g} MB"
 
 
 # --- the flat layout ----------------------------------------------------------------------

@@ -129,6 +129,7 @@ class SiloRun:
         self.overlap_estimate = estimate_overlap(cfg)
         if self.overlap_estimate.too_soft:
             self.warnings.append(self.overlap_estimate.warning())
+        self.warnings += [w for rec in self.recorders if (w := rec.volume_warning(self))]
 
     @property
     def phase(self) -> str:

@@ -41,6 +41,11 @@ class Recorder:
     def phase_ended(self, run: SiloRun, phase: str) -> None:
         """Called when ``phase`` ends (before the next one begins)."""
 
+    def volume_warning(self, run: SiloRun) -> str | None:
+        """A warning when what this recorder would gather is out of proportion (None: fine);
+        asked once, before the run starts."""
+        return None
+
     def write(self, group: h5py.Group) -> None:  # pragma: no cover - interface
         raise NotImplementedError
 

@@ -132,6 +132,8 @@ def write_fields(results: Path | str, directory: Path | str) -> list[Path]:
             if g is None or g.attrs.get("samples", 0) == 0:
                 continue
             path = Path(directory) / f"fields_{window}.vtu"
+            path.parent.mkdir(parents=True, exist_ok=True)  # none yet: a run shorter than
+            # its output.vtk_interval wrote no grains' files
             _write_mesh(path, fields_mesh(xe, ze, g["density"][()], g["stress"][()]))
             out.append(path)
     return out
