@@ -597,3 +597,71 @@ def test_runs_finished_by_another_attempt_meanwhile_are_counted(serial, tmp_path
     outcome = execute.run_serial(plan, study_dir)
     assert {r["status"] for r in outcome.results.values()} == {"existing"}
     assert outcome.computed == 0 and outcome.skipped == 2 and not outcome.failed
+
+
+def test_a_spell_without_workers_is_said_once_and_its_end_too():
+    """NoWorkersWatch, on a made-up clock: nothing before NO_WORKERS_WARN_S of no worker,
+    one line when it has passed, one when workers are back, and a new spell starts over."""
+    from silodem.study.execute import NoWorkersWatch
+
+    said: list[str] = []
+    watch = NoWorkersWatch("tcp://10.0.0.1:8786", said.append, after_s=60.0)
+    for workers, now in ((2, 0.0), (0, 10.0), (0, 40.0), (0, 69.0)):
+        watch.check(workers, now)
+    assert said == []  # 59 s without a worker
+    watch.check(0, 71.0)
+    watch.check(0, 500.0)
+    first = ("no worker at the Dask scheduler tcp://10.0.0.1:8786 for 61 s: the sweep waits "
+             "for one (start workers with 'dask worker tcp://10.0.0.1:8786 --nthreads 1'; "
+             "Ctrl-C stops the sweep, and its finished runs are kept)")
+    assert said == [first]
+    watch.check(3, 510.0)
+    assert said[1:] == ["3 worker(s) at tcp://10.0.0.1:8786 again: the sweep goes on"]
+    watch.check(0, 600.0)
+    watch.check(0, 659.0)
+    assert len(said) == 2
+    watch.check(0, 660.0)
+    assert said[2:] == [first.replace(" for 61 s", " for 60 s")]
+
+
+def test_a_sweep_on_a_scheduler_without_workers_says_so_and_finishes_when_one_joins(
+        serial, tmp_path, monkeypatch):
+    """A scheduler whose workers are all gone: the sweep waited in silence.  It now says so
+    after NO_WORKERS_WARN_S (shortened here), and when a worker joins it says that too and
+    finishes every run, equal to the serial reference."""
+    from distributed import Client, LocalCluster
+
+    from silodem.study import execute
+    from silodem.study.api import finish_study
+
+    monkeypatch.setattr(execute, "NO_WORKERS_WARN_S", 0.5)
+    monkeypatch.setattr(execute, "WATCH_INTERVAL_S", 0.1)
+    _, ref_dir = serial
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    said: list[str] = []
+    result: dict = {}
+    cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
+                           dashboard_address=":0")
+    client = Client(cluster)
+    try:
+        address = client.scheduler.address
+        thread = threading.Thread(target=lambda: result.update(outcome=execute.run_on_client(
+            plan, study_dir, client, say=said.append)))
+        thread.start()
+        deadline = time.monotonic() + 30
+        while not said:
+            assert time.monotonic() < deadline, "nothing said"
+            time.sleep(0.05)
+        assert said[0].startswith(f"no worker at the Dask scheduler {address} for ")
+        cluster.scale(1)
+        thread.join(timeout=300)
+        assert not thread.is_alive()
+    finally:
+        client.close()
+        cluster.close()
+    assert said[1:] == [f"1 worker(s) at {address} again: the sweep goes on"]
+    outcome = result["outcome"]
+    assert outcome.computed == len(plan.runs) and not outcome.failed
+    finish_study(plan, study_dir, outcome, report=False)  # results.csv, as run_study
+    _assert_same_runs(plan, ref_dir, study_dir)

@@ -123,6 +123,7 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     if not isinstance(out_dir, str | Path) or not str(out_dir).strip():
         raise InputError(f"out_dir must be the study's folder path; got {out_dir!r}")
     check_workers(workers)
+    say = _stderr_line if progress else None
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()
     todo = prepare(plan, out_dir)
@@ -134,13 +135,15 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
             outcome = run_serial(plan, out_dir, on_done)
     elif client is not None:
         with _progress_bar(len(todo), progress) as on_done:
-            outcome = run_on_client(plan, out_dir, client, on_done)
+            outcome = run_on_client(plan, out_dir, client, on_done, say)
         outcome.where = f"Dask client of {client.scheduler.address}"
     else:
-        client, cluster, where = connect(scheduler, workers, _stderr_line if progress else None)
+        client, cluster, where = connect(scheduler, workers, say)
         try:
-            with _progress_bar(len(todo), progress) as on_done:
-                outcome = run_on_client(plan, out_dir, client, on_done)
+            with _progress_bar(len(todo), progress) as on_done:  # (a local cluster's nannies
+                # restart its workers: only an external scheduler's are watched)
+                outcome = run_on_client(plan, out_dir, client, on_done,
+                                        say if cluster is None else None)
             outcome.where = where
         finally:
             client.close()

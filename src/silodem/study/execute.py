@@ -26,7 +26,7 @@ import shutil
 import socket
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -44,6 +44,8 @@ RESULTS_NAME = "results.h5"
 TASK_RETRIES = 2  # re-runs of a task that raised an unexpected error (a full disk, a lost file)
 WORKER_WAIT_S = 120.0  # how long to wait for the first worker of an external scheduler
 CONNECT_TIMEOUT_S = 10.0  # how long to wait for an external scheduler's handshake
+NO_WORKERS_WARN_S = 60.0  # an external scheduler without workers this long is reported
+WATCH_INTERVAL_S = 5.0  # how often the scheduler's workers are counted during a sweep
 
 
 # --- one run, in a worker --------------------------------------------------------------------
@@ -246,16 +248,73 @@ def run_serial(plan: StudyPlan, out_dir: Path, on_done: Callback | None = None) 
     return outcome
 
 
+class NoWorkersWatch:
+    """Says when a scheduler has had no worker for ``after_s`` seconds, and when workers are
+    back: a sweep on an external scheduler whose workers all died waits for new ones, and
+    without a word its progress bar just stood still.  ``check(workers, now)`` is given the
+    count of workers and the time [s] (monotonic); it calls ``say`` once per spell."""
+
+    def __init__(self, address: str, say: Callable[[str], None], after_s: float) -> None:
+        self.address, self.say, self.after_s = address, say, after_s
+        self.none_since: float | None = None
+        self.said = False
+
+    def check(self, workers: int, now: float) -> None:
+        if workers > 0:
+            if self.said:
+                self.say(f"{workers} worker(s) at {self.address} again: the sweep goes on")
+            self.none_since, self.said = None, False
+            return
+        if self.none_since is None:
+            self.none_since = now
+        if not self.said and now - self.none_since >= self.after_s:
+            self.said = True
+            self.say(f"no worker at the Dask scheduler {self.address} for "
+                     f"{now - self.none_since:.0f} s: the sweep waits for one (start workers "
+                     f"with 'dask worker {self.address} --nthreads 1'; Ctrl-C stops the "
+                     "sweep, and its finished runs are kept)")
+
+
+@contextlib.contextmanager
+def watching_workers(client: Client, say: Callable[[str], None] | None) -> Iterator[None]:
+    """While the block runs, count ``client``'s workers every WATCH_INTERVAL_S in a daemon
+    thread and tell ``say`` when there has been none for NO_WORKERS_WARN_S
+    (``NoWorkersWatch``).  Nothing is watched without ``say``."""
+    import threading
+
+    if say is None:
+        yield
+        return
+    watch = NoWorkersWatch(client.scheduler.address, say, NO_WORKERS_WARN_S)
+    stop = threading.Event()
+
+    def count() -> None:
+        while not stop.wait(WATCH_INTERVAL_S):
+            try:
+                workers = len(client.scheduler_info().get("workers", {}))
+            except Exception:  # noqa: BLE001 - a lost scheduler is the sweep's to report
+                return
+            watch.check(workers, time.monotonic())
+
+    thread = threading.Thread(target=count, name="silodem-worker-watch", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(timeout=WATCH_INTERVAL_S)
+
+
 def run_on_client(plan: StudyPlan, out_dir: Path, client: Client,
-                  on_done: Callback | None = None) -> StudyOutcome:
+                  on_done: Callback | None = None,
+                  say: Callable[[str], None] | None = None) -> StudyOutcome:
     """Submit the runs still to do to a dask.distributed ``client`` and wait for them.
 
     Task keys are ``silodem-<run id>`` (a resubmitted study reuses them); each task may be
     retried ``TASK_RETRIES`` times after an unexpected error, and the scheduler re-runs the
     task of a worker that dies (up to ``distributed.scheduler.allowed-failures`` times, then
-    the run is reported failed with KilledWorker)."""
-    from distributed import as_completed
-
+    the run is reported failed with KilledWorker).  With ``say``, a spell without workers is
+    reported there (``watching_workers``)."""
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()
     todo = prepare(plan, out_dir)
@@ -268,29 +327,38 @@ def run_on_client(plan: StudyPlan, out_dir: Path, client: Client,
         by_key[fut.key] = run
         futures.append(fut)
     try:
-        for fut in as_completed(futures):
-            run = by_key[fut.key]
-            if fut.status == "finished":
-                result = fut.result()
-            else:
-                # result() raises the task's error, or for a cancelled future (a lost
-                # scheduler cancels them all) the reason; exception() gives None for the latter
-                try:
-                    fut.result()
-                    exc = RuntimeError(f"the task ended as '{fut.status}'")
-                except Exception as err:  # noqa: BLE001 - any error is this run's failure
-                    exc = err
-                result = {"id": run.id, "status": "failed",
-                          "error": f"{type(exc).__name__}: {one_line(exc)}"}
-            _record(outcome, run, result)
-            if on_done is not None:
-                on_done(run, result)
+        with watching_workers(client, say):
+            _gather(futures, by_key, outcome, on_done)
     except BaseException:
         client.cancel(futures)
         raise
     clean_stale(plan, out_dir)
     outcome.wall_s = time.perf_counter() - t0
     return outcome
+
+
+def _gather(futures: list, by_key: dict[str, PlannedRun], outcome: StudyOutcome,
+            on_done: Callback | None) -> None:
+    """Record each run's result (or its failure) as its future completes."""
+    from distributed import as_completed
+
+    for fut in as_completed(futures):
+        run = by_key[fut.key]
+        if fut.status == "finished":
+            result = fut.result()
+        else:
+            # result() raises the task's error, or for a cancelled future (a lost
+            # scheduler cancels them all) the reason; exception() gives None for the latter
+            try:
+                fut.result()
+                exc = RuntimeError(f"the task ended as '{fut.status}'")
+            except Exception as err:  # noqa: BLE001 - any error is this run's failure
+                exc = err
+            result = {"id": run.id, "status": "failed",
+                      "error": f"{type(exc).__name__}: {one_line(exc)}"}
+        _record(outcome, run, result)
+        if on_done is not None:
+            on_done(run, result)
 
 
 def local_cluster(workers: int) -> LocalCluster:
