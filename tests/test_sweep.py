@@ -665,3 +665,49 @@ def test_a_sweep_on_a_scheduler_without_workers_says_so_and_finishes_when_one_jo
     assert outcome.computed == len(plan.runs) and not outcome.failed
     finish_study(plan, study_dir, outcome, report=False)  # results.csv, as run_study
     _assert_same_runs(plan, ref_dir, study_dir)
+
+
+@pytest.mark.parametrize("status, error", [
+    ("finished", ("its result was lost with the connection to the scheduler "
+                 "(ConnectionResetError: [Errno 104] Connection reset by peer)")),
+    ("cancelled", "CancelledError: cancelled for reason: scheduler-connection-lost"),
+])
+def test_a_run_whose_result_is_lost_with_the_scheduler_is_read_from_its_folder(
+        serial, tmp_path, monkeypatch, status, error):
+    """The scheduler killed just after a task finished: fetching its result raised
+    ConnectionResetError out of the sweep ('error: in <TCP (closed) ConnectionPool.gather
+    ...>', exit 2, no results.csv; seen with the command line).  A lost scheduler also
+    cancels the futures of runs that their worker then finishes.  Either way a run whose
+    folder is finished is now counted from it, with the summary its task wrote; one that
+    is not is a failure naming the cause, run again by the next invocation."""
+    import shutil
+    from concurrent.futures import CancelledError
+
+    import distributed
+
+    from silodem.study import execute
+
+    plan = _plan(tmp_path)
+    _, ref_dir = serial
+    study_dir = tmp_path / "study"
+    done, lost = plan.runs
+    shutil.copytree(ref_dir / "runs" / done.id, study_dir / "runs" / done.id)
+
+    class LostFuture:
+        def __init__(self, key):
+            self.key, self.status = key, status
+
+        def result(self):
+            if status == "finished":
+                raise ConnectionResetError(104, "Connection reset by peer")
+            raise CancelledError("cancelled for reason: scheduler-connection-lost")
+
+    futures = [LostFuture(f"silodem-{r.id}") for r in plan.runs]
+    monkeypatch.setattr(distributed, "as_completed", iter)
+    outcome = execute.StudyOutcome(plan, study_dir)
+    execute._gather(futures, {f.key: r for f, r in zip(futures, plan.runs)}, outcome, None)
+    summary = json.loads((ref_dir / "runs" / done.id / "summary.json").read_text())
+    assert outcome.results[done.id]["status"] == "computed" and outcome.computed == 1
+    assert outcome.results[done.id]["summary"] == summary
+    assert outcome.results[done.id]["wall_s"] >= 0.0
+    assert outcome.failed == {lost.id: error}

@@ -97,6 +97,7 @@ def sweep(
 
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
         f"-> {out_dir}; those not finished yet run on {where}")
+    _quiet_dask_client()
     outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
     say(f"{outcome.computed} computed, {outcome.skipped} already finished, "
         f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")
@@ -107,6 +108,18 @@ def sweep(
         fail(f"error: {len(outcome.failed)} of {len(plan.runs)} runs failed (first: "
              f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command "
              "again to retry them", 1)
+
+
+def _quiet_dask_client() -> None:
+    """Only critical records from Dask's client logger: a lost scheduler printed 'Failed to
+    reconnect to scheduler after 10.00 seconds, closing client' with a time stamp in the
+    middle of the sweep's lines, while the sweep reports the loss itself (each run it
+    cancelled fails naming it, and the command says to run it again)."""
+    import logging
+
+    import distributed  # noqa: F401 - it configures its loggers when imported
+
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
 
 
 _MAX_BENCH_STEPS = 10**12  # as silo.checks.MAX_STEPS; a 64-bit step count beyond is an overflow

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import shutil
 import socket
@@ -337,6 +338,21 @@ def run_on_client(plan: StudyPlan, out_dir: Path, client: Client,
     return outcome
 
 
+def result_from_folder(out_dir: Path, run_id: str, error: str) -> dict[str, Any]:
+    """The result of a run whose task's result did not come back: read from the run's
+    folder when that is finished (the task got there before the scheduler was lost), else
+    a failure with ``error`` (the next invocation runs it again)."""
+    final = Path(out_dir) / "runs" / run_id
+    if not is_finished(final):
+        return {"id": run_id, "status": "failed", "error": error}
+    attempt = {}
+    with contextlib.suppress(OSError, ValueError):
+        attempt = json.loads((final / ATTEMPT_NAME).read_text(encoding="utf-8"))
+    wall_s = (final / SUMMARY_NAME).stat().st_mtime - attempt.get("started", math.nan)
+    return {"id": run_id, "host": attempt.get("host", "?"), "pid": attempt.get("pid", "?"),
+            "status": "computed", "summary": read_summary(final), "wall_s": wall_s}
+
+
 def _gather(futures: list, by_key: dict[str, PlannedRun], outcome: StudyOutcome,
             on_done: Callback | None) -> None:
     """Record each run's result (or its failure) as its future completes."""
@@ -344,18 +360,21 @@ def _gather(futures: list, by_key: dict[str, PlannedRun], outcome: StudyOutcome,
 
     for fut in as_completed(futures):
         run = by_key[fut.key]
-        if fut.status == "finished":
-            result = fut.result()
-        else:
-            # result() raises the task's error, or for a cancelled future (a lost
-            # scheduler cancels them all) the reason; exception() gives None for the latter
-            try:
+        try:
+            if fut.status != "finished":
+                # raises the task's error, or for a cancelled future (a lost scheduler
+                # cancels them all) the reason; exception() gives None for the latter
                 fut.result()
-                exc = RuntimeError(f"the task ended as '{fut.status}'")
-            except Exception as err:  # noqa: BLE001 - any error is this run's failure
-                exc = err
-            result = {"id": run.id, "status": "failed",
-                      "error": f"{type(exc).__name__}: {one_line(exc)}"}
+                raise RuntimeError(f"the task ended as '{fut.status}'")
+            result = fut.result()
+        except Exception as exc:  # noqa: BLE001 - any error is this run's failure, unless
+            # its folder is finished: the task got there before the scheduler was lost.  (A
+            # finished task whose result could not be fetched raised ConnectionResetError
+            # out of the sweep.)
+            error = f"{type(exc).__name__}: {one_line(exc)}"
+            if fut.status == "finished":
+                error = f"its result was lost with the connection to the scheduler ({error})"
+            result = result_from_folder(outcome.out_dir, run.id, error)
         _record(outcome, run, result)
         if on_done is not None:
             on_done(run, result)
