@@ -372,7 +372,7 @@ def _gather(futures: list, by_key: dict[str, PlannedRun], outcome: StudyOutcome,
             # finished task whose result could not be fetched raised ConnectionResetError
             # out of the sweep.)
             error = f"{type(exc).__name__}: {one_line(exc)}"
-            if fut.status == "finished":
+            if fut.status == "finished" and isinstance(exc, OSError):  # CommClosedError too
                 error = f"its result was lost with the connection to the scheduler ({error})"
             result = result_from_folder(outcome.out_dir, run.id, error)
         _record(outcome, run, result)
