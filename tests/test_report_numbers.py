@@ -667,6 +667,37 @@ def test_en1991_4_skips_frictionless_walls(synth):
     assert b.en1991_4 == {}
 
 
+def test_a_fill_too_shallow_for_the_janssen_fit_says_why_and_keeps_its_en_class(synth):
+    """Filled to 0.9 m, the synthetic silo has one cell-wall bin (z = 0.75) between the switch
+    zone's top (z_j + 2 d) and the surface less half a diameter; the fit needs two.  The key
+    numbers said nothing about Janssen then, and the EN 1991-4 rows vanished with it, though
+    the class needs only h_c / B: now the Janssen row says why it is n/a, and the class row
+    stays, with h_c = 0.9 - z_j and no loads."""
+    from silodem.report.analysis import _fit_theory
+    from silodem.silo.geometry import silo_shape
+
+    a, _ = synth
+    b = copy.copy(a)
+    b.surface = {**a.surface, "fill": 0.9}
+    b.janssen, b.janssen_free, b.janssen_missing = {}, None, {}
+    b.mu_mobilised, b.hopper, b.en1991_4, b.numbers = {}, {}, {}, []
+    _fit_theory(b, silo_shape(b.res.cfg))
+    add_loads(b, 0.9)
+    _numbers(b)
+    assert "fill" not in b.janssen and b.janssen_free is None
+    assert _number(b, "Janssen K fitted to the cell wall profile, after filling") == (
+        f"n/a (1 wall bin(s) on the cell walls between the switch zone's top, z = "
+        f"{SWITCH[1]:.3g} m, and the surface, z = 0.9 m, less half a diameter; the fit needs 2)")
+    assert "discharge" in b.janssen  # the discharge window's own surface is unchanged
+    h_c = 0.9 - Z_J
+    assert b.en1991_4 == {"kind": "squat", "section": "5.3", "h_c": pytest.approx(h_c, rel=REL),
+                          "ratio": pytest.approx(h_c / B, rel=REL),
+                          "missing": "no K: no Janssen fit after filling"}
+    assert _number(b, "EN 1991-4 slenderness") == (
+        f"{significant(h_c / B, 3)}: squat, loads of §5.3 (no K: no Janssen fit after filling)")
+    assert not [row for row in b.numbers if "discharge magnifiers" in row[0]]
+
+
 def test_highest_wall_contact_looks_one_column_from_each_wall():
     """EN 1991-4's highest solid-wall contact: the highest grain top within one column
     (B/12 = 0.1 m) of either wall; a side with no grain there is left out, not replaced by

@@ -50,6 +50,7 @@ class Analysis:
     strips: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     janssen: dict[str, th.JanssenFit] = field(default_factory=dict)  # mu_w = tan(phi_P)
     janssen_free: th.JanssenFit | None = None  # K and mu_w fitted after filling
+    janssen_missing: dict[str, str] = field(default_factory=dict)  # window -> why no fit
     mu_mobilised: dict[str, float] = field(default_factory=dict)
     hopper: dict[str, Any] = field(default_factory=dict)
     peaks: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -196,11 +197,17 @@ def _fit_theory(a: Analysis, shape) -> None:
     for key, e in a.edge.items():
         surface = a.surface[key]
         if not np.isfinite(surface) or not np.isfinite(a.rho_b):
+            a.janssen_missing[key] = "no free surface or bulk density measured"
             continue
         depth = surface - e.z
         cell = e.on_vertical & (e.z > a.switch[1]) & (depth > 0.5 * g["d"])
         sn = e.sigma_n[cell]
         if cell.sum() < 2 or np.sum(sn) <= 0:
+            a.janssen_missing[key] = (
+                f"{int(cell.sum())} wall bin(s) on the cell walls between the switch zone's "
+                f"top, z = {a.switch[1]:.3g} m, and the surface, z = {surface:.3g} m, less "
+                "half a diameter; the fit needs 2" if cell.sum() < 2
+                else "no normal stress on the cell walls above the switch zone")
             continue
         a.mu_mobilised[key] = float(np.sum(e.tau_down[cell]) / np.sum(sn))
         try:
@@ -208,8 +215,8 @@ def _fit_theory(a: Analysis, shape) -> None:
                                             mu_w=g["mu_wall"])
             if key == "fill":
                 a.janssen_free = th.fit_janssen(depth[cell], sn, a.rho_b, g["g"], g["B"])
-        except (ValueError, RuntimeError):
-            pass
+        except (ValueError, RuntimeError) as exc:
+            a.janssen_missing[key] = f"the fit failed: {exc}"
     strips = a.strips.get("fill")
     if shape.kind != "hopper" or strips is None or not np.isfinite(a.rho_b):
         return
@@ -336,10 +343,12 @@ def _numbers(a: Analysis) -> None:
             what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell walls, {label} "
                     f"(tan phi_P = {_fmt(g['mu_wall'], 3)})")
             n.append((what, _fmt(a.mu_mobilised[key], 3), "-"))
+        what = f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)"
         if key in a.janssen:
             j = a.janssen[key]
-            n.append((f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)",
-                      f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}", "-"))
+            n.append((what, f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}", "-"))
+        elif key in a.janssen_missing:  # said, not left out without a word
+            n.append((what, f"n/a ({a.janssen_missing[key]})", "-"))
     if a.janssen_free is not None:
         j = a.janssen_free
         mu = ("~0 (at the fit's lower bound: the profile shows no wall support)"

@@ -36,16 +36,22 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus
     ``wall_top`` [m], the highest wall contact, at least 0); in a hopper silo also §6 on the
     hopper walls (:func:`hopper_loads`).  Sets ``a.en1991_4``.  Nothing for a retaining silo
-    (§5.4, not built), nor for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
+    (§5.4, not built), nor without K (no Janssen fit after filling) or where §5.3's form
+    does not apply (h_o >= z_o): the class alone, with ``"missing"`` saying why.  Nothing
+    at all for frictionless walls (mu = 0: z_o = A/(K mu U) is
+    infinite)."""
     g = a.geom
     top, j = a.surface["fill"], a.janssen.get("fill")
     h_c = top - g["z_j"]
-    if j is None or not (h_c > 0.0 and np.isfinite(a.rho_b) and g["mu_wall"] > 0.0):
+    if not (h_c > 0.0 and np.isfinite(a.rho_b) and g["mu_wall"] > 0.0):
         return
     flat = a.res.cfg.silo.kind != "hopper"
     kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=flat)
-    if kind == "retaining":  # listed in the key numbers, with no loads
-        a.en1991_4 = {"kind": kind, "section": "5.4", "h_c": h_c, "ratio": h_c / g["B"]}
+    section = {"slender": "5.2", "retaining": "5.4"}.get(kind, "5.3")
+    if kind == "retaining" or j is None:  # listed in the key numbers, with no loads
+        a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"]}
+        if kind != "retaining":
+            a.en1991_4["missing"] = "no K: no Janssen fit after filling"
         return
     C_h, C_w = th.en1991_4_discharge_factors(h_c, g["B"], flat_bottom=flat)
     m = a.res.cfg.measure
@@ -61,11 +67,12 @@ def add_loads(a: Analysis, wall_top: float) -> None:
             p_hf, p_wf, p_vf = th.en1991_4_filling_squat(top - z, gamma, j.K, g["mu_wall"],
                                                          A_over_U, phi_r, h_o)
     except ValueError:  # h_o >= z_o (a heap deeper than z_o): the form does not apply
+        a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"],
+                      "missing": f"the form does not apply: h_o = {h_o:.3g} m >= z_o"}
         return
-    a.en1991_4 = {"kind": kind, "section": "5.2" if kind == "slender" else "5.3",
-                  "h_c": h_c, "ratio": h_c / g["B"], "h_o": h_o, "phi_r": phi_r,
-                  "C_h": C_h, "C_w": C_w, "z": z, "p_hf": p_hf, "p_he": C_h * p_hf,
-                  "p_wf": p_wf, "p_we": C_w * p_wf}
+    a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"],
+                  "h_o": h_o, "phi_r": phi_r, "C_h": C_h, "C_w": C_w, "z": z, "p_hf": p_hf,
+                  "p_he": C_h * p_hf, "p_wf": p_wf, "p_we": C_w * p_wf}
     if not flat:
         a.en1991_4["hopper"] = hopper_loads(a, j.K, float(p_vf[0]))
 
@@ -101,7 +108,8 @@ def key_numbers(en: dict[str, Any], measure: Measure) -> list[tuple[str, str, st
     """The report's key-number rows (quantity, value, unit) of :func:`add_loads`'s dict."""
     n: list[tuple[str, str, str]] = []
     if en:
-        built = "" if "p_hf" in en else " (not built in silodem)"
+        built = ("" if "p_hf" in en else f" ({en['missing']})" if "missing" in en
+                 else " (not built in silodem)")
         value = f"{significant(en['ratio'], 3)}: {en['kind']}, loads of §{en['section']}{built}"
         n.append(("EN 1991-4 slenderness h_c/d_c (junction or floor to the surface, over B)",
                   value, "-"))
