@@ -62,7 +62,10 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
             "= - weight (equilibrium)"),
         absolute(label, "horizontal force on floor + walls / weight", 0.0,
                  float(mean[:, 0].sum()) / weight, TOL),
-        info(label, "share of the weight carried by the side walls (friction)", side / weight),
+        info(label, "share of the weight carried by the side walls (friction; < 0: they "
+             "hold the column down)", side / weight, note="the column sprang back up after "
+             "its fall (mean v_y > 0 near t = 0.7 s) and the wall friction, reversed, locked "
+             "in: docs/validation.md section 3"),
         info(label, "unbalanced force ratio when averaging began", ratio),
     ]
     data = {"walls": walls.names, "mean_force": mean, "weight": weight,
