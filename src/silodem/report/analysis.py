@@ -368,10 +368,18 @@ def _numbers(a: Analysis) -> None:
     if "D_fit" in a.hopper:
         n.append(("Walker distribution factor D fitted on the hopper walls (planar)",
                   _fmt(a.hopper["D_fit"], 3), "-"))
-    for name, row in a.change.items():
-        parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
-                 if k.endswith("change_pct")]
-        n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
+    changes = [v for row in a.change.values() for k, v in row.items()
+               if k.endswith("change_pct")]
+    if changes and np.isnan(changes).all():  # one row that says why, not a row of n/a each
+        why = ("the run has no discharge: discharge.enabled = false"
+               if not a.res.cfg.discharge.enabled else
+               "no measurement sample in the fill or the discharge window")
+        n.append(("change fill -> discharge", f"n/a ({why})", "%"))
+    else:
+        for name, row in a.change.items():
+            parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
+                     if k.endswith("change_pct")]
+            n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
     f = a.flow
     if "rate" in f:
         r = f["rate"]
