@@ -56,6 +56,7 @@ class Analysis:
     peaks: dict[str, tuple[float, float]] = field(default_factory=dict)
     switch: tuple[float, float] = (0.0, 0.0)
     change: dict[str, dict[str, float]] = field(default_factory=dict)
+    change_missing: str = ""  # why there is no change fill -> discharge at all ("": there is)
     flow: dict[str, Any] = field(default_factory=dict)
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
@@ -263,6 +264,12 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
     if c is None:
         return
     stress = c["stress"]
+    if not a.res.cfg.discharge.enabled:
+        a.change_missing = "the run has no discharge: discharge.enabled = false"
+    else:
+        empty = [key for key in ("fill", "discharge") if not masks[key].any()]
+        if empty:
+            a.change_missing = f"no measurement sample in the {' and '.join(empty)} window"
     for k, name in enumerate(c["name"]):
         row = {}
         for comp, label in ((0, "sigma_h"), (1, "sigma_v")):
@@ -368,13 +375,8 @@ def _numbers(a: Analysis) -> None:
     if "D_fit" in a.hopper:
         n.append(("Walker distribution factor D fitted on the hopper walls (planar)",
                   _fmt(a.hopper["D_fit"], 3), "-"))
-    changes = [v for row in a.change.values() for k, v in row.items()
-               if k.endswith("change_pct")]
-    if changes and np.isnan(changes).all():  # one row that says why, not a row of n/a each
-        why = ("the run has no discharge: discharge.enabled = false"
-               if not a.res.cfg.discharge.enabled else
-               "no measurement sample in the fill or the discharge window")
-        n.append(("change fill -> discharge", f"n/a ({why})", "%"))
+    if a.change_missing:  # one row that says why, not "h n/a %, v n/a %" for each circle
+        n.append(("change fill -> discharge", f"n/a ({a.change_missing})", "%"))
     else:
         for name, row in a.change.items():
             parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
