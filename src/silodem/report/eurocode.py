@@ -38,8 +38,7 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     hopper walls (:func:`hopper_loads`).  Sets ``a.en1991_4``.  Nothing for a retaining silo
     (§5.4, not built), nor without K (no Janssen fit after filling) or where §5.3's form
     does not apply (h_o >= z_o): the class alone, with ``"missing"`` saying why.  Nothing
-    at all for frictionless walls (mu = 0: z_o = A/(K mu U) is
-    infinite)."""
+    at all for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
     g = a.geom
     top, j = a.surface["fill"], a.janssen.get("fill")
     h_c = top - g["z_j"]
