@@ -47,10 +47,11 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     flat = a.res.cfg.silo.kind != "hopper"
     kind = th.en1991_4_slenderness(h_c, g["B"], flat_bottom=flat)
     section = {"slender": "5.2", "retaining": "5.4"}.get(kind, "5.3")
-    if kind == "retaining" or j is None:  # listed in the key numbers, with no loads
-        a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"]}
-        if kind != "retaining":
-            a.en1991_4["missing"] = "no K: no Janssen fit after filling"
+    a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"]}
+    if kind == "retaining":  # the class in the key numbers, with no loads
+        return
+    if j is None:
+        a.en1991_4["missing"] = "no K: no Janssen fit after filling"
         return
     C_h, C_w = th.en1991_4_discharge_factors(h_c, g["B"], flat_bottom=flat)
     m = a.res.cfg.measure
@@ -66,12 +67,10 @@ def add_loads(a: Analysis, wall_top: float) -> None:
             p_hf, p_wf, p_vf = th.en1991_4_filling_squat(top - z, gamma, j.K, g["mu_wall"],
                                                          A_over_U, phi_r, h_o)
     except ValueError:  # h_o >= z_o (a heap deeper than z_o): the form does not apply
-        a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"],
-                      "missing": f"the form does not apply: h_o = {h_o:.3g} m >= z_o"}
+        a.en1991_4["missing"] = f"the form does not apply: h_o = {h_o:.3g} m >= z_o"
         return
-    a.en1991_4 = {"kind": kind, "section": section, "h_c": h_c, "ratio": h_c / g["B"],
-                  "h_o": h_o, "phi_r": phi_r, "C_h": C_h, "C_w": C_w, "z": z, "p_hf": p_hf,
-                  "p_he": C_h * p_hf, "p_wf": p_wf, "p_we": C_w * p_wf}
+    a.en1991_4.update(h_o=h_o, phi_r=phi_r, C_h=C_h, C_w=C_w, z=z, p_hf=p_hf, p_he=C_h * p_hf,
+                      p_wf=p_wf, p_we=C_w * p_wf)
     if not flat:
         a.en1991_4["hopper"] = hopper_loads(a, j.K, float(p_vf[0]))
 
