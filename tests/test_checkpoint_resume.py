@@ -39,9 +39,11 @@ from silodem.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from silodem.engine.particles import FIELDS
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
+from silodem.silo import frame_store
 from silodem.silo.procedure import SiloRun
 
-COMPARED = ("final/particles", "final/contacts", "settled/particles", "timeseries", "/")
+COMPARED = ("final/particles", "final/contacts", "settled/particles", "timeseries", "frames",
+            "/")
 
 
 @pytest.fixture(scope="module")
@@ -63,6 +65,17 @@ def assert_same_as_reference(out: Path, ref: Path) -> None:
         for key, arr in final.items():
             assert np.array_equal(arr, h5["final/particles"][key][()])
     assert not (out / "checkpoint.h5").exists()  # removed once the run is complete
+    assert_frames_whole(out, tidy=True)
+
+
+def assert_frames_whole(out: Path, tidy: bool = False) -> None:
+    """Every segment file that results.h5 /frames joins is there; with ``tidy``, no other
+    segment file is (those a killed process left are removed by the next save)."""
+    with h5py.File(out / "results.h5") as h5:
+        assert not frame_store.missing_segments(out / "results.h5", h5["frames"])
+        listed = sorted(str(s) for s in h5["frames"].attrs.get("segments", []))
+    if tidy:
+        assert sorted(f"frames/{p.name}" for p in (out / "frames").glob("frames-*.h5")) == listed
 
 
 def assert_partial_results_are_a_prefix(out: Path, ref: Path) -> None:
@@ -76,6 +89,11 @@ def assert_partial_results_are_a_prefix(out: Path, ref: Path) -> None:
     for key, arr in part.items():
         assert arr.tobytes() == full[key][:m].tobytes(), key
     assert m == np.count_nonzero(full["time"] <= saved_time)
+    assert_frames_whole(out)
+    part, full = datasets(out / "results.h5", "frames"), datasets(ref, "frames")
+    m, rows = part["time"].shape[0], part["particle_offset"][-1]
+    assert part["time"].tobytes() == full["time"][:m].tobytes()
+    assert part["particles/x"].tobytes() == full["particles/x"][:rows].tobytes()
     if has_settled:
         assert_bit_identical(out / "results.h5", ref, "settled/particles")
 
@@ -264,18 +282,23 @@ def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, mon
 def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     """An old run's settled.png, report.html and figures stayed beside a new run that drew
     none, and a new run stopped before its first save left its config beside the old run's
-    complete results.h5.  Files silodem does not write are left alone."""
+    complete results.h5.  The old run's frame segments go too.  Files silodem does not
+    write are left alone."""
     out = tmp_path / "run"
-    (out / "figures").mkdir(parents=True)
-    (out / "vtk").mkdir()
+    for folder in ("figures", "vtk", "frames"):
+        (out / folder).mkdir(parents=True)
     for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png",
-                 "vtk/particles_000000.vtu", "vtk/contacts.pvd", "vtk/fields_settled.vtu"):
+                 "vtk/particles_000000.vtu", "vtk/contacts.pvd", "vtk/fields_settled.vtu",
+                 "frames/frames-000000-000999.h5"):
         (out / name).write_bytes(b"old run")
     (out / "notes.txt").write_text("mine")
+    (out / "frames" / "mine.txt").write_text("mine")
     result = cli(*run_args(out))  # output.png, measure.report and VTK output are off in SETS
     assert result.returncode == 0, result.stderr[-2000:]
-    left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
-    assert left == ["config.toml", "notes.txt", "results.h5"]
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*")
+                  if p.is_file() and not p.name.startswith("frames-"))
+    assert left == ["config.toml", "frames/mine.txt", "notes.txt", "results.h5"]
+    assert_frames_whole(out, tidy=True)  # the new run's segments, and only those
     assert list((out / "vtk").iterdir()) == []  # and the views wrote no fields into it
 
 

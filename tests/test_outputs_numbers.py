@@ -37,6 +37,7 @@ from measure_helpers import tiny_hopper_config
 
 from silodem.config import Output
 from silodem.run import run_simulation
+from silodem.silo import frame_store
 from silodem.silo.frames import Frame, Frames, FramesRecorder, WallGeometry, read_frames
 from silodem.study import expand, load_study
 from silodem.study.report import (
@@ -661,7 +662,8 @@ def _engine_state(run) -> dict:
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    """A tiny hopper run (frames every 0.1 s, VTK every 0.5 s); each time the frames recorder
+    """A tiny hopper run (frames every 0.1 s, VTK every 0.5 s; the frames written out to
+    segment files whenever they pass 20 kB, and at every save); each time the frames recorder
     keeps a frame or writes VTK files, the engine's state is copied here."""
     out = tmp_path_factory.mktemp("frames") / "run"
     cfg = tiny_hopper_config(report=False)
@@ -673,28 +675,30 @@ def recorded(tmp_path_factory):
         if not walls:
             walls.update(names=list(run.walls.names),
                          **{k: np.array(getattr(run.walls, k)) for k in ("ax", "ay", "bx", "by")})
-        if len(rec.frames) > n_frames or len(rec.vtk_times) > n_vtk:
+        if rec.count > n_frames or len(rec.vtk_times) > n_vtk:
             state = _engine_state(run)
-            if len(rec.frames) > n_frames:
+            if rec.count > n_frames:
                 frame_states.append(state)
             if len(rec.vtk_times) > n_vtk:
                 vtk_states.append(state)
 
     def spy_record(self, run):
-        before = len(self.frames), len(self.vtk_times)
+        before = self.count, len(self.vtk_times)
         record(self, run)
         capture(self, run, *before)
 
     def spy_phase_ended(self, run, phase):
-        before = len(self.frames), len(self.vtk_times)
+        before = self.count, len(self.vtk_times)
         phase_ended(self, run, phase)
         capture(self, run, *before)
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(FramesRecorder, "record", spy_record)
         mp.setattr(FramesRecorder, "phase_ended", spy_phase_ended)
+        mp.setattr(frame_store, "PENDING_BYTES", 20_000)  # segments written while recording
         run_simulation(cfg, out, progress=False)
     assert len(frame_states) >= 50 and len(vtk_states) >= 10
+    assert len(list((out / "frames").glob("frames-*.h5"))) >= 5
     return out, frame_states, vtk_states, walls
 
 

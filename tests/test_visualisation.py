@@ -121,6 +121,80 @@ def test_recorder_state_restores_to_the_same_frames(frames):
         assert np.array_equal(a[key], b[key]), key
 
 
+def _frames_group(rec: FramesRecorder, path: Path) -> None:
+    """``rec`` writes results.h5 ``/frames`` at ``path`` (a save of the run)."""
+    with h5py.File(path, "w") as h5:
+        rec.write(h5.create_group("frames"))
+
+
+def _datasets(path: Path) -> dict[str, np.ndarray]:
+    out = {}
+    with h5py.File(path) as h5:
+        h5["frames"].visititems(lambda name, obj: out.__setitem__(name, obj[()])
+                                if isinstance(obj, h5py.Dataset) else None)
+    return out
+
+
+def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
+        frames, tmp_path, monkeypatch):
+    """A recorder with a results folder holds at most ``PENDING_BYTES`` of frames and writes
+    the rest to segment files; results.h5 ``/frames`` (the index, and virtual datasets over
+    the segments) reads back bit for bit as the frames written whole into results.h5 by a
+    recorder without a folder (every frame held: the old layout).  A run killed after its
+    checkpoint had written one more segment and a results.h5 listing it; resumed from the
+    checkpoint, it ends with the same /frames, and the killed process's segment is gone."""
+    from silodem.silo import frame_store
+    from silodem.silo.frames import _held_bytes
+
+    frames = list(frames)
+    assert len(frames) >= 30
+    whole = FramesRecorder(0.1)
+    whole.frames = list(frames)
+    _frames_group(whole, tmp_path / "whole.h5")
+    reference = _datasets(tmp_path / "whole.h5")
+
+    cap = 3 * _held_bytes(frames[-1:])
+    monkeypatch.setattr(frame_store, "PENDING_BYTES", cap)
+    run = tmp_path / "run"
+    run.mkdir()
+    store = run / "frames"
+    rec = FramesRecorder(0.1, store_dir=store)
+    for frame in frames[:20]:
+        rec._keep(frame)
+        assert _held_bytes(rec.frames) <= cap
+    _frames_group(rec, run / "results.h5")  # a save: results.h5, then the checkpoint's state
+    checkpoint = rec.state()
+    rec.saved_everywhere()
+    assert rec.frames == [] and rec.count == 20
+    for frame in frames[20:25]:  # then killed after one more save of results.h5 alone
+        rec.frames.append(frame)
+    _frames_group(rec, run / "results.h5")
+    unsaved = rec.store.names[-1]
+    assert unsaved == "frames-000020-000024.h5" and (store / unsaved).is_file()
+
+    resumed = FramesRecorder(0.1, store_dir=store)
+    resumed.restore(checkpoint)
+    assert resumed.count == 20
+    for frame in frames[20:]:
+        resumed._keep(frame)
+    _frames_group(resumed, run / "results.h5")
+    resumed.saved_everywhere()
+    assert not (store / unsaved).exists()
+    with h5py.File(run / "results.h5") as h5:
+        listed = [str(s) for s in h5["frames"].attrs["segments"]]
+        assert h5["frames/particles/x"].is_virtual
+    assert sorted(f"frames/{p.name}" for p in store.iterdir()) == sorted(listed)
+    assert len(listed) > 4  # several segments, the cap's and the saves'
+    got = _datasets(run / "results.h5")
+    assert got.keys() == reference.keys()
+    for key, arr in reference.items():
+        assert got[key].dtype == arr.dtype and got[key].tobytes() == arr.tobytes(), key
+    moved = tmp_path / "moved"  # the folder moved whole reads the same
+    shutil.move(run, moved)
+    got = _datasets(moved / "results.h5")
+    assert all(got[key].tobytes() == arr.tobytes() for key, arr in reference.items())
+
+
 # --- VTK --------------------------------------------------------------------------------------
 def _piece_counts(path: Path) -> tuple[int, int]:
     piece = ET.parse(path).getroot().find(".//Piece")
@@ -298,7 +372,7 @@ def test_output_that_would_not_fit_is_warned_of_before_the_run():
     said = warning(cfg)
     assert said.startswith("output.frame_interval = 1e-09 s may save about "
                            f"{limits / dt:.3g} frames, ")
-    assert "held in memory" in said and "430 grains" in said
+    assert "GB on disk" in said and "430 grains" in said
     cfg = load_config("paper-case2", ["output.vtk_interval=1e-9"])
     said = warning(cfg)
     assert said.startswith(f"output.vtk_interval = 1e-09 s may write about "
@@ -357,7 +431,8 @@ def test_animate_out_without_a_suffix_gets_the_formats(run_dir, tmp_path):
 
 
 @pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color",
-                                  "out_in_proc", "out_a_folder", "walls_missing"])
+                                  "out_in_proc", "out_a_folder", "walls_missing",
+                                  "segments_missing"])
 def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
     target = tmp_path / "r"
     extra: list[str] = []
@@ -372,8 +447,10 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         target, extra = run_dir, ["--out", "/proc/silodem.gif"]
     if case == "out_a_folder":  # '.' crashed (ValueError); a folder failed after rendering
         target, extra = run_dir, ["--out", str(tmp_path)]
-    if case == "walls_missing":  # was told it had no /frames, and to run it again
+    if case in ("walls_missing", "segments_missing"):
         shutil.copy(run_dir / "results.h5", target / "results.h5")
+    if case == "walls_missing":  # was told it had no /frames, and to run it again
+        shutil.copytree(run_dir / "frames", target / "frames")
         with h5py.File(target / "results.h5", "r+") as f:
             del f["walls"]
     res = cli("animate", str(target), *extra)
@@ -386,6 +463,11 @@ def test_animate_bad_input_is_one_line_exit_2(tmp_path, run_dir, case):
         assert "rendering" not in res.stderr and "is a folder" in res.stderr
     if case == "walls_missing":
         assert "cannot be read" in res.stderr and "has no /frames" not in res.stderr
+    if case == "segments_missing":  # results.h5 copied without frames/: its tables are there
+        with h5py.File(run_dir / "results.h5") as f:  # as links to the segment files
+            first = f["frames"].attrs["segments"][0].split("/")[-1]
+        assert (f"keeps its frames in '{target / 'frames'}/', and {first} is not there"
+                in res.stderr), res.stderr
 
 
 def test_force_lines_have_a_key_that_reads_true(frames):

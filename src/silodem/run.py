@@ -159,7 +159,7 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     except OSError as exc:  # a full disk: say what is kept and how to go on
         raise OSError(exc.errno, f"{exc.strerror or exc} while the run's final results were "
                       f"written to {out / 'results.h5'}; {kept}") from None
-    guard.completed()
+    guard.completed(run)
     if guard.stop_signal is not None:  # it came in the last chunk: the run is complete
         raise RunInterrupted(f"as the run ended; its complete results are in {out / 'results.h5'}"
                              f" ('silodem plot {out}' draws its pictures and report.html)",

@@ -47,6 +47,7 @@ from silodem.checkpoint import (
 )
 from silodem.config import Config
 from silodem.errors import RunInterrupted, UnstableRunError, one_line
+from silodem.silo import frame_store
 from silodem.silo.checks import law_key_names
 
 if TYPE_CHECKING:
@@ -65,14 +66,15 @@ _RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTI
 
 def clear_previous_run(out: Path) -> None:
     """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
-    report, a failed run's diagnosis; only these names, ``figures/*.png`` and the VTK writer's
-    own files in ``vtk/``), so that a fresh run's folder never shows the old run's results
-    beside the new config, even if the new run is stopped before its first save or writes no
-    VTK files."""
+    report, a failed run's diagnosis; only these names, ``figures/*.png``, the frames'
+    segment files in ``frames/`` and the VTK writer's own files in ``vtk/``), so that a
+    fresh run's folder never shows the old run's results beside the new config, even if the
+    new run is stopped before its first save or writes no VTK files."""
     from silodem.viz.vtk import remove_written
 
     for name in _RUN_FILES:
         (out / name).unlink(missing_ok=True)
+    frame_store.clear(out / frame_store.FOLDER)
     figures = out / "figures"
     if figures.is_dir():
         for png in figures.glob("*.png"):
@@ -289,9 +291,11 @@ class RunGuard:
                         f"({one_line(exc)}); the run goes on and tries again later")
                 self.save_failed = True
 
-    def completed(self) -> None:
+    def completed(self, run: SiloRun) -> None:
         """The run finished and its results are written: the checkpoint is no longer needed."""
         self.checkpoint_path.unlink(missing_ok=True)
+        for rec in run.recorders:
+            rec.saved_everywhere()
 
     # --- saving ------------------------------------------------------------------------------
     def _write_results(self, run: SiloRun, status: str) -> None:
@@ -306,6 +310,8 @@ class RunGuard:
             save_checkpoint(run, self.checkpoint_path, config_toml=self.config_toml,
                             reason=reason)
             self.last_checkpoint = (run.sim.steps, run.sim.time)
+        for rec in run.recorders:
+            rec.saved_everywhere()
         self.last_step = run.sim.steps
         self.last_wall = wallclock.perf_counter()
 

@@ -2,8 +2,10 @@
 
 ``FramesRecorder`` takes a frame (grains, touching contacts with their forces, walls in place,
 time, phase) every ``output.frame_interval`` seconds of simulated time and at the end of each
-phase, and writes them to results.h5 ``/frames``.  When ``output.vtk_interval`` is set it also
-writes ParaView files into ``DIR/vtk/`` (:mod:`silodem.viz.vtk`) as the run goes.
+phase, and writes them to results.h5 ``/frames``.  With a results folder it keeps only the
+frames not yet written out: they go to segment files in ``DIR/frames/`` that results.h5 joins
+(:mod:`silodem.silo.frame_store`).  When ``output.vtk_interval`` is set it also writes
+ParaView files into ``DIR/vtk/`` (:mod:`silodem.viz.vtk`) as the run goes.
 
 Layout of ``/frames`` (docs/output.md): the frames are *concatenated*.  Frame ``k`` owns rows
 ``particle_offset[k]:particle_offset[k+1]`` of every ``particles/*`` array, rows
@@ -27,7 +29,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem.measure.stress import contact_points_walls
+from silodem.silo import frame_store
 from silodem.silo.checks import phase_time_limits
+from silodem.silo.frame_store import FrameStore
 from silodem.silo.recorders import PHASE_CODES, Recorder, take_snapshot
 
 if TYPE_CHECKING:
@@ -44,7 +48,7 @@ PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}
 FRAME_BYTES_PER_GRAIN = 72  # 40 B of grain fields + 2 contacts of 16 B [B]
 VTK_BYTES_PER_GRAIN = 130  # a grain and 2 contacts in VTK XML [B]
 VTK_FILES_PER_OUTPUT = 3  # particles, contacts, walls
-WARN_BYTES = 1e9  # frames (all held in memory) or VTK files past this draw a warning [B]
+WARN_BYTES = 1e9  # frames or VTK files past this draw a warning [B]
 WARN_VTK_FILES = 10_000  # VTK files past this draw a warning
 
 #: The arrays of a frame, their dtypes and units, by table.
@@ -156,27 +160,41 @@ def frame_of(run: SiloRun) -> Frame:
 
 class FramesRecorder(Recorder):
     """Saves a frame every ``frame_interval`` [s] and at each phase end; with ``vtk_dir`` and
-    ``vtk_interval`` set, also writes ParaView files every ``vtk_interval`` [s]."""
+    ``vtk_interval`` set, also writes ParaView files every ``vtk_interval`` [s].
+
+    With ``store_dir`` (``DIR/frames``) the frames are written out to segment files there at
+    every save of results.h5 and whenever those held pass ``frame_store.PENDING_BYTES``;
+    ``frames`` holds only the ones not yet written, ``saved`` the index of the others.
+    Without it every frame stays in ``frames`` and results.h5 holds them itself."""
 
     name = "frames"
 
     def __init__(self, frame_interval: float, vtk_interval: float | None = None,
-                 vtk_dir: Path | str | None = None) -> None:
+                 vtk_dir: Path | str | None = None,
+                 store_dir: Path | str | None = None) -> None:
         super().__init__(frame_interval)
         if vtk_interval is not None and vtk_interval <= 0:
             raise ValueError("frames: vtk_interval must be positive")
         self.vtk_interval = vtk_interval if vtk_dir is not None else None
         self.vtk_dir = Path(vtk_dir) if vtk_dir is not None else None
-        self.frames: list[Frame] = []
+        self.store = FrameStore(store_dir) if store_dir is not None else None
+        self.frames: list[Frame] = []  # not yet written out
+        self.saved = _empty_index()  # the index of the frames in the store
         self.vtk_times: list[float] = []  # time of VTK file k [s]
         self._vtk = None
+
+    @property
+    def count(self) -> int:
+        """Frames taken so far (written out or held)."""
+        return self.saved["time"].size + len(self.frames)
 
     @classmethod
     def from_config(cls, cfg: Config, out_dir: Path | str | None) -> FramesRecorder:
         """The recorder of ``cfg.output`` for the results folder ``out_dir``."""
         o = cfg.output
         vtk_dir = Path(out_dir) / "vtk" if out_dir is not None and o.vtk_interval else None
-        return cls(o.frame_interval, o.vtk_interval, vtk_dir)
+        store = Path(out_dir) / frame_store.FOLDER if out_dir is not None else None
+        return cls(o.frame_interval, o.vtk_interval, vtk_dir, store)
 
     # --- when -----------------------------------------------------------------------------
     def _frame_steps(self, dt: float) -> int:
@@ -204,8 +222,8 @@ class FramesRecorder(Recorder):
 
     def volume_warning(self, run: SiloRun) -> str | None:
         """A warning when the frames the run may save, up to its phase time limits, pass
-        ``WARN_BYTES`` (they are all held in memory during the run), or the VTK
-        files pass ``WARN_BYTES`` or ``WARN_VTK_FILES``; None otherwise."""
+        ``WARN_BYTES``, or the VTK files pass ``WARN_BYTES`` or ``WARN_VTK_FILES``; None
+        otherwise."""
         dt, n = run.dt, run.cfg.fill.n_particles
         duration, words = phase_time_limits(run.cfg)
         said = []
@@ -213,8 +231,7 @@ class FramesRecorder(Recorder):
         size = frames * n * FRAME_BYTES_PER_GRAIN
         if size > WARN_BYTES:
             said.append(f"output.frame_interval = {self.interval:.3g} s may save about "
-                        f"{frames:.3g} frames, {_bytes(size)}, all held in memory during the "
-                        "run")
+                        f"{frames:.3g} frames, {_bytes(size)} on disk")
         vs = self._vtk_steps(dt)
         if vs is not None:
             outputs = duration / (vs * dt)
@@ -238,15 +255,39 @@ class FramesRecorder(Recorder):
             return
         frame = frame_of(run)
         if want_frame:
-            self.frames.append(frame)
+            self._keep(frame)
         if want_vtk:
             self._write_vtk(run, frame)
 
     def phase_ended(self, run: SiloRun, phase: str) -> None:
         """A frame at the end of each phase (the settled state, the final state)."""
-        if self.frames and self.frames[-1].step == run.sim.steps:
+        last = (self.frames[-1].step if self.frames else
+                int(self.saved["step"][-1]) if self.saved["step"].size else None)
+        if last == run.sim.steps:
             return
-        self.frames.append(frame_of(run))
+        self._keep(frame_of(run))
+
+    def _keep(self, frame: Frame) -> None:
+        self.frames.append(frame)
+        if self.store is not None and _held_bytes(self.frames) > frame_store.PENDING_BYTES:
+            self.write_out()
+
+    def write_out(self) -> None:
+        """Write the frames held to the next segment file of the store (none: nothing)."""
+        if self.store is None or not self.frames:
+            return
+        held = frames_to_arrays(self.frames)
+        rows = tuple(int(held[_OFFSETS[t]][-1]) for t in FIELDS)
+        self.store.append(lambda g: write_frames(g, self.frames, self.interval,
+                                                 self.vtk_interval), len(self.frames), rows)
+        self.saved = _join_index(self.saved, held)
+        self.frames = []
+
+    def saved_everywhere(self) -> None:
+        """results.h5 and checkpoint.h5 are written: remove the segment files neither
+        lists (left by a process killed after its last checkpoint)."""
+        if self.store is not None:
+            self.store.remove_unlisted()
 
     def _write_vtk(self, run: SiloRun, frame: Frame) -> None:
         from silodem.viz.vtk import VtkSeries
@@ -260,23 +301,39 @@ class FramesRecorder(Recorder):
 
     # --- results.h5 -----------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
-        """All frames as flat arrays (the ``/frames`` layout, with '/' read as '_')."""
+        """The frames held (not yet written out) as flat arrays (the ``/frames`` layout)."""
         return frames_to_arrays(self.frames)
 
     def write(self, group: h5py.Group) -> None:
-        write_frames(group, self.frames, self.interval, self.vtk_interval)
+        """results.h5 ``/frames``: with a store, the frames held are written out first and
+        the tables are joined from the segments; without, every frame is written here."""
+        if self.store is None:
+            write_frames(group, self.frames, self.interval, self.vtk_interval)
+            return
+        self.write_out()
+        _write_index(group, self.saved, self.interval, self.vtk_interval)
+        self.store.link(group, FIELDS)
 
     def state(self) -> dict[str, Any]:
         out = {key.replace("/", "__"): arr for key, arr in self.arrays().items()}
         out["vtk_times"] = np.asarray(self.vtk_times, dtype=float)
+        if self.store is not None:
+            out["saved"] = dict(self.saved)
+            out["store"] = self.store.state()
         return out
 
     def restore(self, state: dict[str, Any]) -> None:
         arrays = {key.replace("__", "/"): np.asarray(val) for key, val in state.items()
-                  if key != "vtk_times"}
+                  if key not in ("vtk_times", "saved", "store")}
         self.frames = frames_from_arrays(arrays)
         self.vtk_times = [float(t) for t in np.asarray(state.get("vtk_times", []))]
         self._vtk = None
+        if "store" in state:
+            if self.store is None:
+                raise ValueError("frames: the checkpoint's frames are in segment files, and "
+                                 "this recorder has no results folder to read them from")
+            self.store.restore(state["store"])
+            self.saved = {k: np.asarray(state["saved"][k]) for k in _INDEX}
 
 
 def _bytes(size: float) -> str:
@@ -319,14 +376,41 @@ def frames_from_arrays(a: dict[str, np.ndarray]) -> list[Frame]:
     return frames
 
 
-def write_frames(group: h5py.Group, frames: list[Frame], interval: float,
-                 vtk_interval: float | None = None) -> None:
-    """``frames`` into ``group`` (results.h5 ``/frames``), gzip-compressed."""
+_INDEX = ("time", "step", "phase", "walls_active", "particle_offset", "contact_offset",
+          "wall_contact_offset")  # the per-frame part of the layout (the rest: the tables)
+
+
+def _empty_index() -> dict[str, np.ndarray]:
+    return {k: v for k, v in frames_to_arrays([]).items() if k in _INDEX}
+
+
+def _join_index(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The index of frames ``a`` then ``b`` (each a ``frames_to_arrays`` result)."""
+    out = {}
+    for key in _INDEX:
+        x, y = a[key], b[key]
+        if key.endswith("offset"):
+            out[key] = np.concatenate([x, y[1:] + x[-1]])
+        elif key == "walls_active" and x.shape[0] == 0:
+            out[key] = y.copy()
+        else:
+            out[key] = np.concatenate([x, y])
+    return out
+
+
+def _held_bytes(frames: list[Frame]) -> int:
+    return sum(a.nbytes for f in frames
+               for table in (f.particles, f.contacts, f.wall_contacts) for a in table.values())
+
+
+def _write_index(group: h5py.Group, index: dict[str, np.ndarray], interval: float,
+                 vtk_interval: float | None) -> None:
+    """The attributes of ``/frames`` and its per-frame datasets (``_INDEX``)."""
     group.attrs["interval"] = interval
     group.attrs["unit_interval"] = "s"
     if vtk_interval is not None:
         group.attrs["vtk_interval"] = vtk_interval
-    group.attrs["count"] = len(frames)
+    group.attrs["count"] = int(index["time"].size)
     group.attrs["layout"] = (
         "concatenated: frame k owns rows particle_offset[k]:particle_offset[k+1] of "
         "particles/*, contact_offset[k]:contact_offset[k+1] of contacts/*, "
@@ -334,15 +418,27 @@ def write_frames(group: h5py.Group, frames: list[Frame], interval: float,
         "wall_contacts grain index the frame's own grains; wall indexes /walls"
     )
     group.attrs["phase_codes"] = "fill=0,settle=1,discharge=2"
+    _write_arrays(group, {k: index[k] for k in _INDEX})
+
+
+def _write_arrays(group: h5py.Group, arrays: dict[str, np.ndarray]) -> None:
     units = {"time": "s"}
     for table, fields in FIELDS.items():
         units.update({f"{table}/{k}": u for k, (_, u) in fields.items()})
-    for key, arr in frames_to_arrays(frames).items():
+    for key, arr in arrays.items():
         big = arr.size > 1024
         ds = group.create_dataset(key, data=arr, compression="gzip" if big else None,
                                   shuffle=big)
         if key in units:
             ds.attrs["unit"] = units[key]
+
+
+def write_frames(group: h5py.Group, frames: list[Frame], interval: float,
+                 vtk_interval: float | None = None) -> None:
+    """``frames`` into ``group`` (results.h5 ``/frames``, or a segment's), gzip-compressed."""
+    arrays = frames_to_arrays(frames)
+    _write_index(group, arrays, interval, vtk_interval)
+    _write_arrays(group, {k: v for k, v in arrays.items() if k not in _INDEX})
 
 
 class Frames:
@@ -380,12 +476,14 @@ class Frames:
 
 
 class NoFramesError(ValueError):
-    """A results.h5 without ``/frames`` (written by an older silodem or another program);
-    ``str()`` is one line naming the file."""
+    """A results.h5 without ``/frames`` (written by an older silodem or another program), or
+    whose segment files (``DIR/frames/``) are not beside it; ``str()`` is one line naming the
+    file."""
 
 
 def read_frames(path: Path | str) -> Frames:
-    """The ``/frames`` of a results.h5 (``NoFramesError``, a ValueError, when it has none)."""
+    """The ``/frames`` of a results.h5 (``NoFramesError``, a ValueError, when it has none or
+    its segment files are missing)."""
     import h5py
 
     with h5py.File(path, "r") as h5:
@@ -393,6 +491,13 @@ def read_frames(path: Path | str) -> Frames:
             raise NoFramesError(f"'{path}' has no /frames (saved frames); run it again "
                                 "with this version of silodem")
         g = h5["frames"]
+        missing = frame_store.missing_segments(path, g)
+        if missing:
+            raise NoFramesError(f"'{path}' keeps its frames in "
+                                f"'{Path(path).parent / frame_store.FOLDER}/', and "
+                                f"{Path(missing[0]).name} is not there ({len(missing)} of "
+                                f"{len(g.attrs['segments'])} files missing): copy or move a "
+                                "results folder whole, frames/ with results.h5")
         arrays = {}
         g.visititems(lambda name, obj: arrays.__setitem__(name, obj[()])
                      if isinstance(obj, h5py.Dataset) else None)

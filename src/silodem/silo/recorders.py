@@ -49,6 +49,10 @@ class Recorder:
     def write(self, group: h5py.Group) -> None:  # pragma: no cover - interface
         raise NotImplementedError
 
+    def saved_everywhere(self) -> None:
+        """Called once results.h5, and checkpoint.h5 when enabled, are written with what
+        ``write`` and ``state`` gave (files the recorder keeps beside them may be tidied)."""
+
     def state(self) -> dict[str, Any]:
         """Everything needed to continue recording after a checkpoint (arrays or scalars)."""
         return {}
