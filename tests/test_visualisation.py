@@ -144,7 +144,6 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
     checkpoint had written one more segment and a results.h5 listing it; resumed from the
     checkpoint, it ends with the same /frames, and the killed process's segment is gone."""
     from silodem.silo import frame_store
-    from silodem.silo.frames import _held_bytes
 
     frames = list(frames)
     assert len(frames) >= 30
@@ -153,7 +152,7 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
     _frames_group(whole, tmp_path / "whole.h5")
     reference = _datasets(tmp_path / "whole.h5")
 
-    cap = 3 * _held_bytes(frames[-1:])
+    cap = 3 * frames[-1].nbytes
     monkeypatch.setattr(frame_store, "PENDING_BYTES", cap)
     run = tmp_path / "run"
     run.mkdir()
@@ -161,7 +160,7 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
     rec = FramesRecorder(0.1, store_dir=store)
     for frame in frames[:20]:
         rec._keep(frame)
-        assert _held_bytes(rec.frames) <= cap
+        assert sum(f.nbytes for f in rec.frames) <= cap
     _frames_group(rec, run / "results.h5")  # a save: results.h5, then the checkpoint's state
     checkpoint = rec.state()
     rec.saved_everywhere()
@@ -193,6 +192,26 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
     shutil.move(run, moved)
     got = _datasets(moved / "results.h5")
     assert all(got[key].tobytes() == arr.tobytes() for key, arr in reference.items())
+
+
+def test_frames_that_cannot_be_written_out_stay_held_for_the_next_save(frames, tmp_path,
+                                                                      monkeypatch):
+    """Writing out frames past the cap fails (a full disk): recording goes on with the
+    frames held, and the next save writes every one of them."""
+    from silodem.silo import frame_store
+
+    frames = list(frames)[:12]
+    monkeypatch.setattr(frame_store, "PENDING_BYTES", 1)  # write out after every frame
+    rec = FramesRecorder(0.1, store_dir=tmp_path / "frames")
+    full = OSError(28, "No space left on device")
+    with monkeypatch.context() as mp:
+        mp.setattr(frame_store.FrameStore, "append", lambda *a: (_ for _ in ()).throw(full))
+        for frame in frames:
+            rec._keep(frame)
+    assert rec.frames == frames and rec.store.names == []
+    _frames_group(rec, tmp_path / "results.h5")
+    assert rec.store.names == ["frames-000000-000011.h5"] and rec.frames == []
+    assert _datasets(tmp_path / "results.h5")["time"].tolist() == [f.time for f in frames]
 
 
 # --- VTK --------------------------------------------------------------------------------------
@@ -333,13 +352,14 @@ def test_a_run_shorter_than_its_vtk_interval_ends_well_and_writes_its_fields(tmp
 
 def test_the_output_size_estimates_hold_for_a_real_run(run_dir, frames):
     """The bytes per grain that the output warning (``volume_warning``) counts, against what
-    the fixture's run holds in memory for its frames and wrote as VTK files (both are about
+    the fixture's run saved as frames (uncompressed) and wrote as VTK files (both are about
     a grain's fields and its share of the contacts, so they agree within a factor 2)."""
     from silodem.silo import frames as frames_module
 
     rows = sum(f.n for f in frames)
     held = sum(a.nbytes for f in frames
                for table in (f.particles, f.contacts, f.wall_contacts) for a in table.values())
+    assert held == sum(f.nbytes for f in frames)
     assert 0.5 <= held / rows / frames_module.FRAME_BYTES_PER_GRAIN <= 1.0
     vtk = run_dir / "vtk"
     grains = written = 0

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -121,6 +122,12 @@ class Frame:
     def n(self) -> int:
         return int(self.particles["x"].shape[0])
 
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the frame's tables."""
+        return sum(a.nbytes for table in (self.particles, self.contacts, self.wall_contacts)
+                   for a in table.values())
+
     def coordination(self) -> np.ndarray:
         """Number of touching contacts of each grain, with grains and with walls [-]."""
         n = self.n
@@ -179,6 +186,7 @@ class FramesRecorder(Recorder):
         self.vtk_dir = Path(vtk_dir) if vtk_dir is not None else None
         self.store = FrameStore(store_dir) if store_dir is not None else None
         self.frames: list[Frame] = []  # not yet written out
+        self.held_bytes = 0  # of the frames kept by ``_keep`` since the last write-out [B]
         self.saved = _empty_index()  # the index of the frames in the store
         self.vtk_times: list[float] = []  # time of VTK file k [s]
         self._vtk = None
@@ -269,8 +277,10 @@ class FramesRecorder(Recorder):
 
     def _keep(self, frame: Frame) -> None:
         self.frames.append(frame)
-        if self.store is not None and _held_bytes(self.frames) > frame_store.PENDING_BYTES:
-            self.write_out()
+        self.held_bytes += frame.nbytes
+        if self.store is not None and self.held_bytes > frame_store.PENDING_BYTES:
+            with suppress(OSError):  # a full disk: they stay held; the next save tries again
+                self.write_out()  # (and a failed save warns)
 
     def write_out(self) -> None:
         """Write the frames held to the next segment file of the store (none: nothing)."""
@@ -282,6 +292,7 @@ class FramesRecorder(Recorder):
                                                  self.vtk_interval), len(self.frames), rows)
         self.saved = _join_index(self.saved, held)
         self.frames = []
+        self.held_bytes = 0
 
     def saved_everywhere(self) -> None:
         """results.h5 and checkpoint.h5 are written: remove the segment files neither
@@ -326,6 +337,7 @@ class FramesRecorder(Recorder):
         arrays = {key.replace("__", "/"): np.asarray(val) for key, val in state.items()
                   if key not in ("vtk_times", "saved", "store")}
         self.frames = frames_from_arrays(arrays)
+        self.held_bytes = sum(f.nbytes for f in self.frames)
         self.vtk_times = [float(t) for t in np.asarray(state.get("vtk_times", []))]
         self._vtk = None
         if "store" in state:
@@ -396,11 +408,6 @@ def _join_index(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str,
         else:
             out[key] = np.concatenate([x, y])
     return out
-
-
-def _held_bytes(frames: list[Frame]) -> int:
-    return sum(a.nbytes for f in frames
-               for table in (f.particles, f.contacts, f.wall_contacts) for a in table.values())
 
 
 def _write_index(group: h5py.Group, index: dict[str, np.ndarray], interval: float,
