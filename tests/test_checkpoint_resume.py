@@ -39,7 +39,7 @@ from silodem.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from silodem.engine.particles import FIELDS
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
-from silodem.silo import frame_store
+from silodem.silo.frames import missing_segments
 from silodem.silo.procedure import SiloRun
 
 COMPARED = ("final/particles", "final/contacts", "settled/particles", "timeseries", "frames",
@@ -72,7 +72,7 @@ def assert_frames_whole(out: Path, tidy: bool = False) -> None:
     """Every segment file that results.h5 /frames joins is there; with ``tidy``, no other
     segment file is (those a killed process left are removed by the next save)."""
     with h5py.File(out / "results.h5") as h5:
-        assert not frame_store.missing_segments(out / "results.h5", h5["frames"])
+        assert not missing_segments(out / "results.h5", h5["frames"])
         listed = sorted(str(s) for s in h5["frames"].attrs.get("segments", []))
     if tidy:
         assert sorted(f"frames/{p.name}" for p in (out / "frames").glob("frames-*.h5")) == listed

@@ -38,7 +38,8 @@ from measure_helpers import tiny_hopper_config
 from silodem.config import Output
 from silodem.run import run_simulation
 from silodem.silo import frame_store
-from silodem.silo.frames import Frame, Frames, FramesRecorder, WallGeometry, read_frames
+from silodem.silo.frame_store import FramesRecorder
+from silodem.silo.frames import Frame, Frames, WallGeometry, read_frames
 from silodem.study import expand, load_study
 from silodem.study.report import (
     fig_change,

@@ -25,7 +25,8 @@ import pytest
 from PIL import Image
 
 import silodem
-from silodem.silo.frames import FramesRecorder, read_frames
+from silodem.silo.frame_store import FramesRecorder
+from silodem.silo.frames import read_frames
 
 
 def _env() -> dict[str, str]:
@@ -104,6 +105,43 @@ def test_frames_agree_with_the_time_series(frames, h5):
             assert f.n == ts["n_particles"][k[0]]
             assert f.contacts["fn"].size == ts["n_contacts"][k[0]]
     assert matched >= len(frames) - 3
+
+
+def test_read_frames_reads_a_frame_only_when_it_is_asked_for(run_dir):
+    """read_frames holds the frames' index, not their tables: the arrays it allocates
+    (tracemalloc, which counts NumPy's) are a small part of the tables' bytes, and reading a
+    frame allocates about that frame's bytes; each frame read so equals its rows of the
+    columns read whole with h5py, by the offsets of docs/output.md."""
+    import tracemalloc
+
+    from silodem.silo.frames import FIELDS, OFFSETS
+
+    with h5py.File(run_dir / "results.h5") as f:
+        g = f["frames"]
+        whole = {f"{t}/{k}": g[f"{t}/{k}"][()] for t, keys in FIELDS.items() for k in keys}
+        offsets = {t: g[OFFSETS[t]][()] for t in FIELDS}
+    tables = sum(a.nbytes for a in whole.values())
+    tracemalloc.start()
+    try:
+        frames = read_frames(run_dir / "results.h5")
+        held = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        k = len(frames) // 2
+        middle = frames[k]
+        peak = tracemalloc.get_traced_memory()[1] - held
+    finally:
+        tracemalloc.stop()
+    assert len(frames) > 20 and held < 0.25 * tables, (held, tables)  # all read: > tables
+    assert middle.nbytes <= peak < 4 * middle.nbytes + 20_000, (peak, middle.nbytes)
+    for k, frame in enumerate(frames):
+        for t, keys in FIELDS.items():
+            rows = slice(offsets[t][k], offsets[t][k + 1])
+            for key in keys:
+                got = getattr(frame, t)[key]
+                assert got.tobytes() == whole[f"{t}/{key}"][rows].tobytes(), (k, t, key)
+    assert frames[-1].time == frames.times[-1] and frames[-len(frames)].time == frames.times[0]
+    with pytest.raises(IndexError):
+        frames[len(frames)]
 
 
 def test_recorder_state_restores_to_the_same_frames(frames):
@@ -354,7 +392,7 @@ def test_the_output_size_estimates_hold_for_a_real_run(run_dir, frames):
     """The bytes per grain that the output warning (``volume_warning``) counts, against what
     the fixture's run saved as frames (uncompressed) and wrote as VTK files (both are about
     a grain's fields and its share of the contacts, so they agree within a factor 2)."""
-    from silodem.silo import frames as frames_module
+    from silodem.silo import frame_store as frames_module
 
     rows = sum(f.n for f in frames)
     held = sum(a.nbytes for f in frames

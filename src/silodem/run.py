@@ -19,7 +19,7 @@ from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
 from silodem.safety import RunGuard, clear_previous_run
 from silodem.silo.checks import check_numbers
-from silodem.silo.frames import FramesRecorder
+from silodem.silo.frame_store import FramesRecorder
 from silodem.silo.procedure import PHASES, Progress, SiloRun
 
 

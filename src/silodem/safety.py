@@ -49,6 +49,7 @@ from silodem.config import Config
 from silodem.errors import RunInterrupted, UnstableRunError, one_line
 from silodem.silo import frame_store
 from silodem.silo.checks import law_key_names
+from silodem.silo.frames import FOLDER
 
 if TYPE_CHECKING:
     from silodem.silo.procedure import SiloRun
@@ -74,7 +75,7 @@ def clear_previous_run(out: Path) -> None:
 
     for name in _RUN_FILES:
         (out / name).unlink(missing_ok=True)
-    frame_store.clear(out / frame_store.FOLDER)
+    frame_store.clear(out / FOLDER)
     figures = out / "figures"
     if figures.is_dir():
         for png in figures.glob("*.png"):

@@ -77,8 +77,18 @@ class FrameArtist:
         self.color = color
         self.title = title if title is not None else str(frames.scenario)
         walls = frames.walls
-        radii = [f.particles["radius"] for f in frames]
-        r_max = max((float(r.max()) for r in radii if r.size), default=0.1)
+        # one pass over the frames (read from the file one at a time), keeping only what the
+        # scales need: the largest radius, the contact forces, and the colour's values
+        r_max, fn, values = 0.0, [], []
+        for f in frames:
+            if f.n:
+                r_max = max(r_max, float(f.particles["radius"].max()))
+            fn.append(f.contacts["fn"])
+            if color == "velocity":
+                values.append(f.speed())
+            elif color == "force":
+                values.append(f.normal_force_sum())
+        r_max = r_max if r_max > 0 else 0.1
         xs = np.concatenate([walls.ax, walls.bx])
         ys = np.concatenate([walls.ay, walls.by])
         margin = max(0.05 * (ys.max() - ys.min()), 3 * r_max)
@@ -90,14 +100,14 @@ class FrameArtist:
         ref = [frames.end_of_filling()] if len(frames) else []
         self.force_scale = _positive_percentile(
             [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref], 90.0,
-            _positive_percentile([f.contacts["fn"] for f in frames], 90.0, 1.0))
+            _positive_percentile(fn, 90.0, 1.0))
         if color == "velocity":
-            top = _positive_percentile([f.speed() for f in frames], 95.0, 1.0)
+            top = _positive_percentile(values, 95.0, 1.0)
             self.norm = Normalize(0.0, top)
         elif color == "force":
             top = 1.2 * _positive_percentile(
                 [f.normal_force_sum() for f in ref], 95.0,
-                _positive_percentile([f.normal_force_sum() for f in frames], 95.0, 1.0))
+                _positive_percentile(values, 95.0, 1.0))
             self.norm = Normalize(0.0, top)
         elif color == "coordination":
             self.norm = BoundaryNorm(np.arange(-0.5, _MAX_COORD + 1.0), 256)

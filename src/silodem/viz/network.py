@@ -31,13 +31,14 @@ def select_frame(frames: Frames, which: str | float) -> Frame:
     if which == "final":
         return frames[-1]
     if which in _DISCHARGE_FRACTION:
-        out = [f for f in frames if f.phase == "discharge"]
+        out = [k for k, phase in enumerate(frames.phases) if phase == "discharge"]
         if not out:
             raise ValueError(f"no '{which}' picture: the run has no discharge frames")
-        t0 = float(frames.events.get("discharge_start_time", out[0].time))
-        duration = float(frames.events.get("discharge_time", out[-1].time - t0))
+        times = frames.times
+        t0 = float(frames.events.get("discharge_start_time", times[out[0]]))
+        duration = float(frames.events.get("discharge_time", times[out[-1]] - t0))
         target = t0 + _DISCHARGE_FRACTION[which] * duration
-        return min(out, key=lambda f: abs(f.time - target))
+        return frames[min(out, key=lambda k: abs(times[k] - target))]
     raise ValueError(f"unknown moment {which!r}: use one of {', '.join(VIEWS)}, 'final', "
                      "'settled' or a time in seconds")
 
