@@ -590,6 +590,8 @@ def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
               for png in pictures.values()]
     assert all(png.startswith(b"\x89PNG") for png in pictures.values())
     _check_frames_differ_and_not_blank(images)
+    for view, png in pictures.items():  # one artist for the three: each as drawn on its own
+        assert png == force_network_png(run_dir / "results.h5", view), view
     # the moments: settled packing, then inside the discharge, early before late
     t_open = h5["events"]["discharge_start_time"]
     assert select_frame(frames, "end-of-filling").time == pytest.approx(h5["settled"]["time"])

@@ -57,7 +57,11 @@ def force_network_png(results_h5: Path | str | Frames, which: str | float = "end
 
     frames = results_h5 if isinstance(results_h5, Frames) else read_frames(results_h5)
     frame = select_frame(frames, which)
-    artist = FrameArtist(frames, color, height_px=height_px)
+    return _png(FrameArtist(frames, color, height_px=height_px), frame, which)
+
+
+def _png(artist, frame: Frame, which: str | float) -> bytes:
+    """PNG bytes of ``frame`` drawn by ``artist``, titled with the moment ``which``."""
     label = _LABEL.get(which, "") if isinstance(which, str) else ""
     artist.draw(frame, title=f"{label + ', ' if label else ''}t = {frame.time:.2f} s "
                 f"({frame.n} grains)")
@@ -65,12 +69,19 @@ def force_network_png(results_h5: Path | str | Frames, which: str | float = "end
 
 
 def force_network_pngs(results_h5: Path | str) -> dict[str, bytes]:
-    """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge)."""
+    """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge),
+    drawn by one artist (one pass over the frames for its scales), as ``force_network_png``
+    draws each."""
+    from silodem.viz.draw import FrameArtist
+
     frames = read_frames(results_h5)
+    if len(frames) == 0:
+        return {}
+    artist = FrameArtist(frames, "none", height_px=700)
     out = {}
     for view in VIEWS:
         try:
-            out[view] = force_network_png(frames, view)
+            out[view] = _png(artist, select_frame(frames, view), view)
         except ValueError:
             continue
     return out
