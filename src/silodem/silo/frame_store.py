@@ -48,6 +48,7 @@ from silodem.silo.frames import (
     frames_to_arrays,
     write_frames,
     write_index,
+    write_layout,
 )
 from silodem.silo.recorders import Recorder, take_snapshot
 
@@ -286,8 +287,8 @@ class FramesRecorder(Recorder):
             return
         held = frames_to_arrays(self.frames)
         rows = tuple(int(held[OFFSETS[t]][-1]) for t in FIELDS)
-        self.store.append(lambda g: write_frames(g, self.frames, self.interval,
-                                                 self.vtk_interval), len(self.frames), rows)
+        self.store.append(lambda g: write_layout(g, held, self.interval, self.vtk_interval),
+                          len(self.frames), rows)
         self.saved = _join_index(self.saved, held)
         self.frames = []
         self.held_bytes = 0

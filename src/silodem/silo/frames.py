@@ -207,7 +207,12 @@ def _write_arrays(group: h5py.Group, arrays: dict[str, np.ndarray]) -> None:
 def write_frames(group: h5py.Group, frames: list[Frame], interval: float,
                  vtk_interval: float | None = None) -> None:
     """``frames`` into ``group`` (results.h5 ``/frames``, or a segment's), gzip-compressed."""
-    arrays = frames_to_arrays(frames)
+    write_layout(group, frames_to_arrays(frames), interval, vtk_interval)
+
+
+def write_layout(group: h5py.Group, arrays: dict[str, np.ndarray], interval: float,
+                 vtk_interval: float | None = None) -> None:
+    """Frames already laid out (``frames_to_arrays``) into ``group``, as ``write_frames``."""
     write_index(group, arrays, interval, vtk_interval)
     _write_arrays(group, {k: v for k, v in arrays.items() if k not in INDEX_KEYS})
 
