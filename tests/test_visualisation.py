@@ -107,13 +107,15 @@ def test_frames_agree_with_the_time_series(frames, h5):
     assert matched >= len(frames) - 3
 
 
-def test_read_frames_reads_a_frame_only_when_it_is_asked_for(run_dir):
+def test_read_frames_reads_frames_a_block_at_a_time_when_asked_for(run_dir, monkeypatch):
     """read_frames holds the frames' index, not their tables: the arrays it allocates
     (tracemalloc, which counts NumPy's) are a small part of the tables' bytes, and reading a
-    frame allocates about that frame's bytes; each frame read so equals its rows of the
-    columns read whole with h5py, by the offsets of docs/output.md."""
+    frame allocates no more than its block (``BLOCK_BYTES`` here a few frames' worth).
+    Every frame read so equals its rows of the columns read whole with h5py, by the offsets
+    of docs/output.md, the frames without a contact (a block of no rows) included."""
     import tracemalloc
 
+    from silodem.silo import frames as frames_module
     from silodem.silo.frames import FIELDS, OFFSETS
 
     with h5py.File(run_dir / "results.h5") as f:
@@ -121,27 +123,35 @@ def test_read_frames_reads_a_frame_only_when_it_is_asked_for(run_dir):
         whole = {f"{t}/{k}": g[f"{t}/{k}"][()] for t, keys in FIELDS.items() for k in keys}
         offsets = {t: g[OFFSETS[t]][()] for t in FIELDS}
     tables = sum(a.nbytes for a in whole.values())
+    count = offsets["particles"].size - 1
+    budget = 3 * tables / count
+    monkeypatch.setattr(frames_module, "BLOCK_BYTES", budget)
     tracemalloc.start()
     try:
         frames = read_frames(run_dir / "results.h5")
         held = tracemalloc.get_traced_memory()[0]
         tracemalloc.reset_peak()
-        k = len(frames) // 2
-        middle = frames[k]
+        middle = frames[count // 2]
         peak = tracemalloc.get_traced_memory()[1] - held
     finally:
         tracemalloc.stop()
-    assert len(frames) > 20 and held < 0.25 * tables, (held, tables)  # all read: > tables
-    assert middle.nbytes <= peak < 4 * middle.nbytes + 20_000, (peak, middle.nbytes)
+    assert count > 20 and held < 0.25 * tables, (held, tables)  # all read: more than tables
+    largest = max(frame.nbytes for frame in frames)
+    assert middle.nbytes <= peak < max(budget, largest) + 20_000, (peak, budget)
+    assert len(frames.frames.blocks) > count / 10  # (the blocks as asked)
+    empty = 0
     for k, frame in enumerate(frames):
+        empty += frame.contacts["fn"].size == 0
         for t, keys in FIELDS.items():
             rows = slice(offsets[t][k], offsets[t][k + 1])
             for key in keys:
                 got = getattr(frame, t)[key]
                 assert got.tobytes() == whole[f"{t}/{key}"][rows].tobytes(), (k, t, key)
-    assert frames[-1].time == frames.times[-1] and frames[-len(frames)].time == frames.times[0]
+                assert got.dtype == whole[f"{t}/{key}"].dtype
+    assert empty > 0
+    assert frames[-1].time == frames.times[-1] and frames[-count].time == frames.times[0]
     with pytest.raises(IndexError):
-        frames[len(frames)]
+        frames[count]
 
 
 def test_recorder_state_restores_to_the_same_frames(frames):
