@@ -241,13 +241,15 @@ class FramesFile:
         k %= n
         b = int(np.searchsorted(self.blocks, k, side="right")) - 1
         if self._block is None or self._block[0] != b:
+            self._block = None  # (not two blocks in memory at once)
             self._block = (b, self._read(int(self.blocks[b]), int(self.blocks[b + 1])))
         columns, first = self._block[1], int(self.blocks[b])
         tables = {}
         for table, fields in FIELDS.items():
             off = self.index[OFFSETS[table]]
             rows = slice(int(off[k] - off[first]), int(off[k + 1] - off[first]))
-            tables[table] = {key: columns[f"{table}/{key}"][rows] for key in fields}
+            tables[table] = {key: columns[f"{table}/{key}"][rows].copy()  # (a frame kept
+                             for key in fields}  # keeps no block alive)
         i = self.index
         return Frame(float(i["time"][k]), int(i["step"][k]), PHASE_NAMES[int(i["phase"][k])],
                      tables["particles"], tables["contacts"], tables["wall_contacts"],
