@@ -243,6 +243,20 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
     assert all(got[key].tobytes() == arr.tobytes() for key, arr in reference.items())
 
 
+def test_a_checkpoint_whose_frames_file_is_gone_is_refused_naming_it(frames, tmp_path):
+    """A checkpoint lists the segment files written before it; restoring it when one of them
+    is gone (deleted by hand) is a ValueError naming the file (``silodem run --resume``
+    then ends in one line: 'holds a state this run cannot take (...)', exit 2)."""
+    rec = FramesRecorder(0.1, store_dir=tmp_path / "frames")
+    for frame in list(frames)[:6]:
+        rec.frames.append(frame)
+        rec.write_out()
+    state = rec.state()
+    (tmp_path / "frames" / "frames-000003-000003.h5").unlink()
+    with pytest.raises(ValueError, match=r"frames-000003-000003\.h5 is missing \(1 of 6"):
+        FramesRecorder(0.1, store_dir=tmp_path / "frames").restore(state)
+
+
 def test_frames_that_cannot_be_written_out_stay_held_for_the_next_save(frames, tmp_path,
                                                                       monkeypatch):
     """Writing out frames past the cap fails (a full disk): recording goes on with the
