@@ -289,7 +289,7 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
         (out / folder).mkdir(parents=True)
     for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png",
                  "vtk/particles_000000.vtu", "vtk/contacts.pvd", "vtk/fields_settled.vtu",
-                 "frames/frames-000000-000999.h5"):
+                 "frames/frames-000000-000999.h5", "frames/.frames-001000-001001.h5.tmp"):
         (out / name).write_bytes(b"old run")
     (out / "notes.txt").write_text("mine")
     (out / "frames" / "mine.txt").write_text("mine")

@@ -219,6 +219,9 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
     _frames_group(rec, run / "results.h5")
     unsaved = rec.store.names[-1]
     assert unsaved == "frames-000020-000024.h5" and (store / unsaved).is_file()
+    partial = store / ".frames-000025-000026.h5.tmp"  # a segment being written when killed
+    partial.write_bytes(b"half")
+    (store / "notes.txt").write_text("mine")
 
     resumed = FramesRecorder(0.1, store_dir=store)
     resumed.restore(checkpoint)
@@ -227,11 +230,12 @@ def test_frames_written_out_read_back_as_taken_and_a_resume_drops_the_unsaved(
         resumed._keep(frame)
     _frames_group(resumed, run / "results.h5")
     resumed.saved_everywhere()
-    assert not (store / unsaved).exists()
+    assert not (store / unsaved).exists() and not partial.exists()
     with h5py.File(run / "results.h5") as h5:
         listed = [str(s) for s in h5["frames"].attrs["segments"]]
         assert h5["frames/particles/x"].is_virtual
-    assert sorted(f"frames/{p.name}" for p in store.iterdir()) == sorted(listed)
+    assert sorted(f"frames/{p.name}" for p in store.iterdir()) == sorted([*listed,
+                                                                          "frames/notes.txt"])
     assert len(listed) > 4  # several segments, the cap's and the saves'
     got = _datasets(run / "results.h5")
     assert got.keys() == reference.keys()

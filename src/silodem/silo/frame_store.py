@@ -69,6 +69,7 @@ VTK_FILES_PER_OUTPUT = 3  # particles, contacts, walls
 WARN_BYTES = 1e9  # frames or VTK files past this draw a warning [B]
 WARN_VTK_FILES = 10_000  # VTK files past this draw a warning
 _NAME = re.compile(r"frames-\d{6,}-\d{6,}\.h5")
+_PARTIAL = re.compile(r"\.frames-\d{6,}-\d{6,}\.h5\.tmp")  # atomic_file's, left by a SIGKILL
 
 
 def segment_name(first: int, last: int) -> str:
@@ -120,12 +121,14 @@ class FrameStore:
 
     def remove_unlisted(self) -> None:
         """Remove segment files in the folder that this store does not list (written by a
-        process killed after its last checkpoint); other files are left alone."""
+        process killed after its last checkpoint), and the temporary files of segments whose
+        writing a SIGKILL cut short; other files are left alone."""
         if not self.folder.is_dir():
             return
         keep = set(self.names)
         for path in self.folder.iterdir():
-            if _NAME.fullmatch(path.name) and path.name not in keep:
+            if (_NAME.fullmatch(path.name) and path.name not in keep
+                    or _PARTIAL.fullmatch(path.name)):
                 path.unlink(missing_ok=True)
 
     def state(self) -> dict[str, Any]:
@@ -144,10 +147,11 @@ class FrameStore:
 
 
 def clear(folder: Path) -> None:
-    """Remove every segment file from ``folder`` (a new run in a used results folder)."""
+    """Remove every segment file (and partial one) from ``folder`` (a new run in a used
+    results folder)."""
     if folder.is_dir():
         for path in folder.iterdir():
-            if _NAME.fullmatch(path.name):
+            if _NAME.fullmatch(path.name) or _PARTIAL.fullmatch(path.name):
                 path.unlink(missing_ok=True)
 
 
