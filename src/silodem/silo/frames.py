@@ -55,7 +55,7 @@ FIELDS: dict[str, dict[str, tuple[type, str]]] = {
     },
 }
 OFFSETS = {"particles": "particle_offset", "contacts": "contact_offset",
-            "wall_contacts": "wall_contact_offset"}
+           "wall_contacts": "wall_contact_offset"}
 
 
 @dataclass
