@@ -153,6 +153,7 @@ def test_read_frames_reads_frames_a_block_at_a_time_when_asked_for(run_dir, monk
     assert frames[-1].time == frames.times[-1] and frames[-count].time == frames.times[0]
     with pytest.raises(IndexError):
         frames[count]
+    assert [f.step for f in frames[1:7:2]] == frames.frames.index["step"][1:7:2].tolist()
 
 
 def test_recorder_state_restores_to_the_same_frames(frames):

@@ -234,8 +234,10 @@ class FramesFile:
     def __len__(self) -> int:
         return int(self.index["time"].size)
 
-    def __getitem__(self, k: int) -> Frame:
+    def __getitem__(self, k: int | slice) -> Frame | list[Frame]:
         n = len(self)
+        if isinstance(k, slice):  # as a list's slice
+            return [self[i] for i in range(*k.indices(n))]
         if not -n <= k < n:
             raise IndexError(f"frame {k} of {n}")
         k %= n
