@@ -139,6 +139,9 @@ def test_report_views_and_summary(res):
     assert numbers["quantity"].str.contains("Janssen").any()
     assert res.summary()["n_poured"] == res.events["n_poured"] == 150
     assert len(res.frames()) > 0 and res.status == "complete"
+    assert "frames" not in res._raw.data  # the frames stay on disk until asked for
+    with h5py.File(res.folder / "results.h5", "r") as h5:
+        assert res.frames()[-1].time == h5["frames/time"][-1]
     with h5py.File(res.folder / "results.h5", "r") as h5:
         assert res.dt == h5.attrs["dt"]
 

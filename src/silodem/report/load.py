@@ -13,14 +13,15 @@ from silodem.errors import InputError
 from silodem.scenario_files import config_from_text
 
 
-def _tree(group, only: tuple[str, ...] | None = None) -> dict[str, Any]:
+def _tree(group, only: tuple[str, ...] | None = None,
+          skip: tuple[str, ...] = ()) -> dict[str, Any]:
     """A nested dict of an HDF5 group: datasets as NumPy arrays, attributes under '@attrs'
-    (of the members named ``only``, if given)."""
+    (of the members named ``only``, if given; never of those named ``skip``)."""
     import h5py
 
     out: dict[str, Any] = {"@attrs": {k: _plain(v) for k, v in group.attrs.items()}}
     for key, item in group.items():
-        if only is not None and key not in only:
+        if only is not None and key not in only or key in skip:
             continue
         if isinstance(item, h5py.Group):
             out[key] = _tree(item)
@@ -90,7 +91,9 @@ def _check_samples(res: Results) -> None:
 
 def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Results:
     """Load ``folder``/results.h5 (its attributes and config, and of its groups only those
-    named ``only``, if given); InputError (one line) when it is missing or unreadable."""
+    named ``only``, if given); InputError (one line) when it is missing or unreadable.  The
+    saved frames (``/frames``, the bulk of a run's data) are left on the disk:
+    ``silodem.silo.frames.read_frames`` reads them a block at a time."""
     import h5py
 
     folder = Path(folder)
@@ -105,7 +108,7 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
         raise InputError(f"{folder} holds no results.h5 (run 'silodem run --out {folder}' first)")
     try:
         with h5py.File(path, "r") as h5:
-            data = _tree(h5, only)
+            data = _tree(h5, only, skip=("frames",))
     except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
         raise InputError(f"cannot read {path} (damaged?): {type(exc).__name__}: {exc}") from None
     measure = data.get("measure")
