@@ -77,8 +77,8 @@ class FrameArtist:
         self.color = color
         self.title = title if title is not None else str(frames.scenario)
         walls = frames.walls
-        # one pass over the frames (read from the file one at a time), keeping only what the
-        # scales need: the largest radius, the contact forces, and the colour's values
+        # one pass over the frames (read from the file a block at a time), keeping only what
+        # the scales need: the largest radius, the contact forces, and the colour's values
         r_max, fn, values = 0.0, [], []
         for f in frames:
             if f.n:
