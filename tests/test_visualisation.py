@@ -154,6 +154,8 @@ def test_read_frames_reads_frames_a_block_at_a_time_when_asked_for(run_dir, monk
     with pytest.raises(IndexError):
         frames[count]
     assert [f.step for f in frames[1:7:2]] == frames.frames.index["step"][1:7:2].tolist()
+    radius = whole["particles/radius"]  # read column-wise in slices of BLOCK_BYTES
+    assert budget < radius.nbytes and frames.largest_radius() == float(radius.max())
 
 
 def test_recorder_state_restores_to_the_same_frames(frames):

@@ -257,6 +257,19 @@ class FramesFile:
                      tables["particles"], tables["contacts"], tables["wall_contacts"],
                      np.asarray(i["walls_active"][k], dtype=bool))
 
+    def column_max(self, name: str) -> float:
+        """The largest value of column ``name`` (``"particles/radius"``...) over every frame,
+        read in slices of ``BLOCK_BYTES`` (0 when the column has no rows)."""
+        import h5py
+
+        top = 0.0
+        with h5py.File(self.path, "r") as h5:
+            column = h5["frames"][name]
+            rows, step = column.shape[0], max(1, int(BLOCK_BYTES // column.dtype.itemsize))
+            for a in range(0, rows, step):
+                top = max(top, float(column[a:min(a + step, rows)].max()))
+        return top
+
     def _read(self, first: int, end: int) -> dict[str, np.ndarray]:
         """Every column's rows of frames ``first`` to ``end - 1``."""
         import h5py
@@ -323,6 +336,13 @@ class Frames:
         if isinstance(self.frames, FramesFile):
             return [PHASE_NAMES[int(c)] for c in self.frames.index["phase"]]
         return [f.phase for f in self.frames]
+
+    def largest_radius(self) -> float:
+        """The largest grain radius in any frame [m] (0 without grains)."""
+        if isinstance(self.frames, FramesFile):
+            return self.frames.column_max("particles/radius")
+        return max((float(f.particles["radius"].max()) for f in self.frames if f.n),
+                   default=0.0)
 
     def end_of_filling(self) -> Frame:
         """The last frame before the gate opened (the settled packing), else the last one."""

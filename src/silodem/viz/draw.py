@@ -59,7 +59,9 @@ def _even16(px: float) -> int:
     return max(16, round(px / 16.0) * 16)
 
 
-def _positive_percentile(values: list[np.ndarray], q: float, default: float) -> float:
+def _positive_percentile(values: list[np.ndarray], q: float,
+                         default: float | None) -> float | None:
+    """The ``q``-th percentile of the finite positive values, else ``default``."""
     data = np.concatenate([np.asarray(v, dtype=float).ravel() for v in values]) if values \
         else np.zeros(0)
     data = data[np.isfinite(data) & (data > 0)]
@@ -77,18 +79,7 @@ class FrameArtist:
         self.color = color
         self.title = title if title is not None else str(frames.scenario)
         walls = frames.walls
-        # one pass over the frames (read from the file a block at a time), keeping only what
-        # the scales need: the largest radius, the contact forces, and the colour's values
-        r_max, fn, values = 0.0, [], []
-        for f in frames:
-            if f.n:
-                r_max = max(r_max, float(f.particles["radius"].max()))
-            fn.append(f.contacts["fn"])
-            if color == "velocity":
-                values.append(f.speed())
-            elif color == "force":
-                values.append(f.normal_force_sum())
-        r_max = r_max if r_max > 0 else 0.1
+        r_max = frames.largest_radius() or 0.1  # (read column-wise, not frame by frame)
         xs = np.concatenate([walls.ax, walls.bx])
         ys = np.concatenate([walls.ay, walls.by])
         margin = max(0.05 * (ys.max() - ys.min()), 3 * r_max)
@@ -96,19 +87,22 @@ class FrameArtist:
         self.ylim = (float(ys.min()) - 5.5 * r_max, float(ys.max()) + margin)
 
         # scales fixed over the run, taken from the settled packing (the end of filling) so that
-        # the impacts of pouring do not flatten the static force network
+        # the impacts of pouring do not flatten the static force network; all the frames
+        # (read a block at a time) only where that has no value, and for the velocity colour
         ref = [frames.end_of_filling()] if len(frames) else []
         self.force_scale = _positive_percentile(
-            [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref], 90.0,
-            _positive_percentile(fn, 90.0, 1.0))
+            [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref], 90.0, None)
+        if self.force_scale is None:
+            self.force_scale = _positive_percentile([f.contacts["fn"] for f in frames], 90.0,
+                                                    1.0)
         if color == "velocity":
-            top = _positive_percentile(values, 95.0, 1.0)
+            top = _positive_percentile([f.speed() for f in frames], 95.0, 1.0)
             self.norm = Normalize(0.0, top)
         elif color == "force":
-            top = 1.2 * _positive_percentile(
-                [f.normal_force_sum() for f in ref], 95.0,
-                _positive_percentile(values, 95.0, 1.0))
-            self.norm = Normalize(0.0, top)
+            top = _positive_percentile([f.normal_force_sum() for f in ref], 95.0, None)
+            if top is None:
+                top = _positive_percentile([f.normal_force_sum() for f in frames], 95.0, 1.0)
+            self.norm = Normalize(0.0, 1.2 * top)
         elif color == "coordination":
             self.norm = BoundaryNorm(np.arange(-0.5, _MAX_COORD + 1.0), 256)
         else:
