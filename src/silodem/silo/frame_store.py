@@ -87,27 +87,28 @@ class FrameStore:
         self.folder = Path(folder)
         self.names: list[str] = []
         self.rows = np.zeros((0, 3), dtype=np.int64)
-        self.frames = 0  # frames in the segments
 
-    def append(self, write: Any, count: int, rows: tuple[int, int, int]) -> None:
-        """Write the next segment, ``count`` frames with ``rows`` table rows: ``write(group)``
-        fills its ``/frames`` group (``frames.write_frames``)."""
-        name = segment_name(self.frames, self.frames + count - 1)
+    def append(self, first: int, arrays: dict[str, np.ndarray], interval: float,
+               vtk_interval: float | None) -> None:
+        """Write the next segment: the frames laid out in ``arrays`` (``frames_to_arrays``),
+        numbered from ``first``, with the ``/frames`` attributes of the run's intervals."""
+        count = arrays["time"].size
+        name = segment_name(first, first + count - 1)
         self.folder.mkdir(parents=True, exist_ok=True)
         with atomic_hdf5(self.folder / name) as h5:
-            write(h5.create_group("frames"))
+            write_layout(h5.create_group("frames"), arrays, interval, vtk_interval)
+        rows = [int(arrays[OFFSETS[t]][-1]) for t in FIELDS]
         self.names.append(name)
         self.rows = np.vstack([self.rows, np.asarray(rows, dtype=np.int64)[None, :]])
-        self.frames += count
 
-    def link(self, group: h5py.Group, tables: dict[str, dict[str, tuple[type, str]]]) -> None:
-        """Into ``group`` (results.h5 ``/frames``): every column of ``tables`` (name: dtype,
-        unit) as a virtual dataset joining the segments' columns, with its ``unit``; and the
+    def link(self, group: h5py.Group) -> None:
+        """Into ``group`` (results.h5 ``/frames``): every table column of ``frames.FIELDS``
+        as a virtual dataset joining the segments' columns, with its ``unit``; and the
         attribute ``segments`` (the files, relative to results.h5's folder)."""
         import h5py
 
         group.attrs["segments"] = [f"{FOLDER}/{name}" for name in self.names]
-        for t, (table, fields) in enumerate(tables.items()):
+        for t, (table, fields) in enumerate(FIELDS.items()):
             total = int(self.rows[:, t].sum())
             for key, (dtype, unit) in fields.items():
                 layout = h5py.VirtualLayout(shape=(total,), dtype=dtype)
@@ -132,14 +133,12 @@ class FrameStore:
                 path.unlink(missing_ok=True)
 
     def state(self) -> dict[str, Any]:
-        return {"names": np.array(self.names, dtype=str), "rows": self.rows.copy(),
-                "frames": self.frames}
+        return {"names": np.array(self.names, dtype=str), "rows": self.rows.copy()}
 
     def restore(self, state: dict[str, Any]) -> None:
         """Inverse of ``state``; a listed segment file that is not there is a ValueError."""
         self.names = [str(n) for n in np.asarray(state["names"]).tolist()]
         self.rows = np.asarray(state["rows"], dtype=np.int64).reshape(-1, 3)
-        self.frames = int(state["frames"])
         gone = [n for n in self.names if not (self.folder / n).is_file()]
         if gone:
             raise ValueError(f"the saved frames' file {self.folder / gone[0]} is missing "
@@ -149,10 +148,7 @@ class FrameStore:
 def clear(folder: Path) -> None:
     """Remove every segment file (and partial one) from ``folder`` (a new run in a used
     results folder)."""
-    if folder.is_dir():
-        for path in folder.iterdir():
-            if _NAME.fullmatch(path.name) or _PARTIAL.fullmatch(path.name):
-                path.unlink(missing_ok=True)
+    FrameStore(folder).remove_unlisted()  # (it lists none)
 
 
 def frame_of(run: SiloRun) -> Frame:
@@ -290,9 +286,7 @@ class FramesRecorder(Recorder):
         if self.store is None or not self.frames:
             return
         held = frames_to_arrays(self.frames)
-        rows = tuple(int(held[OFFSETS[t]][-1]) for t in FIELDS)
-        self.store.append(lambda g: write_layout(g, held, self.interval, self.vtk_interval),
-                          len(self.frames), rows)
+        self.store.append(self.saved["time"].size, held, self.interval, self.vtk_interval)
         self.saved = _join_index(self.saved, held)
         self.frames = []
         self.held_bytes = 0
@@ -326,7 +320,7 @@ class FramesRecorder(Recorder):
             return
         self.write_out()
         write_index(group, self.saved, self.interval, self.vtk_interval)
-        self.store.link(group, FIELDS)
+        self.store.link(group)
 
     def state(self) -> dict[str, Any]:
         out = {key.replace("/", "__"): arr for key, arr in self.arrays().items()}

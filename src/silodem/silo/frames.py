@@ -157,18 +157,27 @@ def frames_to_arrays(frames: list[Frame]) -> dict[str, np.ndarray]:
 
 
 def frames_from_arrays(a: dict[str, np.ndarray]) -> list[Frame]:
-    frames = []
-    for k in range(a["time"].shape[0]):
-        tables = {}
-        for table, fields in FIELDS.items():
-            off = a[OFFSETS[table]]
-            s = slice(int(off[k]), int(off[k + 1]))
-            tables[table] = {key: np.asarray(a[f"{table}/{key}"][s]) for key in fields}
-        frames.append(Frame(float(a["time"][k]), int(a["step"][k]),
-                            PHASE_NAMES[int(a["phase"][k])], tables["particles"],
-                            tables["contacts"], tables["wall_contacts"],
-                            np.asarray(a["walls_active"][k], dtype=bool)))
-    return frames
+    return [frame_at(a, k, a) for k in range(a["time"].shape[0])]
+
+
+def frame_at(index: dict[str, np.ndarray], k: int, columns: dict[str, np.ndarray],
+             first: int = 0, copy: bool = False) -> Frame:
+    """Frame ``k`` of the layout: ``index`` holds the per-frame datasets (``INDEX_KEYS``),
+    ``columns`` the table columns (``"particles/x"``...) from frame ``first``'s rows on;
+    ``copy``: the frame's arrays are copies, not views of ``columns``."""
+    tables = {}
+    for table, fields in FIELDS.items():
+        off = index[OFFSETS[table]]
+        rows = slice(int(off[k] - off[first]), int(off[k + 1] - off[first]))
+        tables[table] = {key: _array(columns[f"{table}/{key}"][rows], copy)
+                         for key in fields}
+    return Frame(float(index["time"][k]), int(index["step"][k]),
+                 PHASE_NAMES[int(index["phase"][k])], tables["particles"], tables["contacts"],
+                 tables["wall_contacts"], np.asarray(index["walls_active"][k], dtype=bool))
+
+
+def _array(a: np.ndarray, copy: bool) -> np.ndarray:
+    return np.array(a) if copy else np.asarray(a)
 
 
 INDEX_KEYS = ("time", "step", "phase", "walls_active", "particle_offset", "contact_offset",
@@ -223,7 +232,7 @@ class FramesFile:
     (``[k]``), so that a run's frames need not fit in memory together: the per-frame index
     (``index``: time, step, phase, walls in place, offsets) is held, and the last block read:
     consecutive frames of at most ``BLOCK_BYTES`` together (or one larger frame), read with
-    one slice per column (a frame a read cost 10 ms, mostly HDF5's, 100 s for 10,000 frames)."""
+    one slice per column (a read per frame cost 10 ms, mostly HDF5's: 100 s for 10,000 frames)."""
 
     def __init__(self, path: Path | str, index: dict[str, np.ndarray]) -> None:
         self.path = Path(path)
@@ -245,17 +254,8 @@ class FramesFile:
         if self._block is None or self._block[0] != b:
             self._block = None  # (not two blocks in memory at once)
             self._block = (b, self._read(int(self.blocks[b]), int(self.blocks[b + 1])))
-        columns, first = self._block[1], int(self.blocks[b])
-        tables = {}
-        for table, fields in FIELDS.items():
-            off = self.index[OFFSETS[table]]
-            rows = slice(int(off[k] - off[first]), int(off[k + 1] - off[first]))
-            tables[table] = {key: columns[f"{table}/{key}"][rows].copy()  # (a frame kept
-                             for key in fields}  # keeps no block alive)
-        i = self.index
-        return Frame(float(i["time"][k]), int(i["step"][k]), PHASE_NAMES[int(i["phase"][k])],
-                     tables["particles"], tables["contacts"], tables["wall_contacts"],
-                     np.asarray(i["walls_active"][k], dtype=bool))
+        # copies: a frame the caller keeps keeps no block alive
+        return frame_at(self.index, k, self._block[1], int(self.blocks[b]), copy=True)
 
     def column_max(self, name: str) -> float:
         """The largest value of column ``name`` (``"particles/radius"``...) over every frame,
