@@ -100,20 +100,25 @@ def deck_lattice(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, float, float
 
 def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
           copies: int = 1) -> tuple[Simulation, float, float]:
-    """The deck's silo (``copies = 1``), or ``copies`` identical silos side by side,
-    ``COPY_GAP`` apart, each with its own walls, outlet and grains (the same radii in each): N
-    grows while every silo does the same work, which isolates what the system size alone costs
-    (``--scaling``).  Returns the simulation, the width of one silo [m] and the top of the
-    lattice [m]."""
+    """The deck's silo (``copies = 1``), or ``copies`` such silos side by side, ``COPY_GAP``
+    apart, each with its own walls, outlet and grains: N grows while every silo does the same
+    kind and amount of work, which isolates what the system size alone costs (``--scaling``).
+    The first silo is the deck's; each other draws its own radii from the same distribution
+    (the same lattice), so that the silos are alike but not identical.  Identical silos stay
+    identical to round-off for thousands of steps (3000 from the lattice), and then every cell
+    row repeats one silo's pattern of touching and apart pairs ``copies`` times, which the
+    branch predictor learns: 100 such copies ran the step faster per grain than one silo
+    (docs/performance.md, thirty-fifth session).  Returns the simulation, the width of one
+    silo [m] and the top of the lattice [m]."""
     x0, y0, width, top = deck_lattice(nx, ny)
     rng = np.random.default_rng(seed)
-    r0 = 0.5 * (0.18 + 0.04 * rng.random(x0.size))
+    radii = [0.5 * (0.18 + 0.04 * rng.random(x0.size)) for _ in range(copies)]
     # copies COPY_GAP apart: no grain is then a contact candidate of a grain or a wall of
     # another copy (side by side, a grain pressed against its silo's left wall was within
     # reach of the next silo's right wall and of the grains behind it)
     pitch = width + COPY_GAP
     x = np.concatenate([x0 + c * pitch for c in range(copies)])
-    y, radius = np.tile(y0, copies), np.tile(r0, copies)
+    y, radius = np.tile(y0, copies), np.concatenate(radii)
     p = Particles(x.size)
     p.add(x, y, radius, 835.0)
     k_grain = 2 * K_CONTACT  # two equal grains in series give K_CONTACT
