@@ -57,44 +57,32 @@ STATE_NB = ("pair_fs", "pair_fn", "wc_fs", "wc_fn", "wc_fx", "wc_fy")
 
 
 @numba.njit
-def single_steps(levels, strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
-                 w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega,
-                 radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref, kn, ks, mu, zeta,
-                 allow_tension, alpha, gravity, dt, runs, wall_gap, fast):
-    """``levels`` steps as the engine takes them: the pair loop over all strips, then the
-    leap-frog over all grains (no list test, no fast grains listed)."""
-    for _ in range(levels):
-        _pairs(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
-               x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
-               kn, ks, mu, zeta, allow_tension, dt)
-        _leap(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
-              x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
-              zeta, allow_tension, alpha, dt, runs, False, wall_gap, 0.0, 1.0, fast)
-
-
-@numba.njit
-def wave_steps(levels, strip_start, unit, i_start, i_apart, pair_j, pair_fs, pair_fn,
-               w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega,
-               radius, mass, inv_mass, fx, fy, torque, x_ref, y_ref, kn, ks, mu, zeta,
-               allow_tension, alpha, gravity, dt, runs, wall_gap, fast):
-    """The same ``levels`` steps as a skewed wave over units of two strips (module
-    docstring).  Unit k is strips 2k - 1 and 2k; given as the run of strips ``unit`` (a
-    2-entry array overwritten here), the engine's kernels do exactly that unit: the pair loop
-    zeroes the sums of strips 2k, 2k + 1, works strip 2k, then strip 2k - 1; the leap-frog
-    moves both."""
+def steps(levels, wave, strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
+          w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls, x, y, vx, vy, omega, radius, mass,
+          inv_mass, fx, fy, torque, x_ref, y_ref, kn, ks, mu, zeta, allow_tension, alpha,
+          gravity, dt, runs, wall_gap, fast):
+    """``levels`` steps of the strips ``blocks[0]:blocks[1]`` (all of them), with no list
+    test and no fast grains listed: as the engine takes them (``wave`` False: the pair loop
+    over all strips, then the leap-frog over all grains), or as a skewed wave over units of
+    two strips (module docstring).  Unit k is strips 2k - 1 and 2k: given the run of strips
+    2k - 1 ... 2k (``blocks`` is overwritten), the engine's kernels do exactly that unit (the
+    pair loop zeroes the sums of strips 2k, 2k + 1, works strip 2k, then strip 2k - 1; the
+    leap-frog moves both)."""
     n_strips = strip_start.shape[0] - 1
-    n_units = n_strips // 2 + 1
-    for front in range(n_units + levels - 1):
-        for level in range(levels):
-            k = front - level  # unit k at this level, right after unit k + 1 one level down
+    n_units = n_strips // 2 + 1 if wave else 1
+    for front in range(n_units + levels - 1 if wave else levels):
+        for level in range(levels if wave else 1):
+            # unit k at this level, right after unit k + 1 one level down
+            k = front - level if wave else 0
             if k < 0 or k >= n_units:
                 continue
-            unit[0] = max(2 * k - 1, 0)
-            unit[1] = min(2 * k + 1, n_strips)
-            _pairs(strip_start, unit, i_start, i_apart, pair_j, pair_fs, pair_fn,
+            if wave:
+                blocks[0] = max(2 * k - 1, 0)
+                blocks[1] = min(2 * k + 1, n_strips)
+            _pairs(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
                    x, y, vx, vy, omega, radius, inv_mass, fx, fy, torque,
                    kn, ks, mu, zeta, allow_tension, dt)
-            _leap(strip_start, unit, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
+            _leap(strip_start, blocks, w_start, wc_w, wc_fs, wc_fn, wc_fx, wc_fy, walls,
                   x, y, vx, vy, omega, fx, fy, torque, radius, mass, x_ref, y_ref, gravity,
                   zeta, allow_tension, alpha, dt, runs, False, wall_gap, 0.0, 1.0, fast)
 
@@ -156,9 +144,9 @@ def put(sim, values: list[np.ndarray]) -> None:
         (getattr(p, k)[:p.n] if k in STATE_P else getattr(nb, k))[:] = v
 
 
-def timed(fn, levels: int, args: tuple) -> float:
+def timed(levels: int, wave: bool, args: tuple) -> float:
     t = time.perf_counter()
-    fn(levels, *args)
+    steps(levels, wave, *args)
     return time.perf_counter() - t
 
 
@@ -183,10 +171,10 @@ def main() -> None:
                 everything = np.array([0, nb.strip_start.size - 1], dtype=nb.strip_start.dtype)
                 start = state(sim)
                 single, wave = times[id(sim)]
-                single.append(timed(single_steps, levels, kernel_args(sim, everything)))
+                single.append(timed(levels, False, kernel_args(sim, everything)))
                 reference = state(sim)
                 put(sim, start)
-                wave.append(timed(wave_steps, levels, kernel_args(sim, everything.copy())))
+                wave.append(timed(levels, True, kernel_args(sim, everything.copy())))
                 if not all(np.array_equal(a, b) for a, b in zip(reference, state(sim))):
                     raise SystemExit(f"N={sim.particles.n}: the wave's bits differ from the "
                                      "single steps'")
