@@ -61,10 +61,10 @@ def row(n: int, threads: int, settle: int, steps: int, lammps: bool) -> dict:
     return json.loads(out)
 
 
-# copies of one silo (NX = 32, NY = 200: 10,144 grains) side by side: N from 1e4 to 1e6, and
-# every silo does the same work at every N, so the cost per particle-step shows what N alone
-# costs (caches, memory), not a different flow state (a wider silo with one outlet has a
-# smaller share of flowing grains)
+# copies of one silo (NX = 32, NY = 200: 10,144 grains) side by side, each with its own radii
+# (``bench.build``): N from 1e4 to 1e6, and every silo does the same kind and amount of work
+# at every N, so the cost per particle-step shows what N alone costs (caches, memory), not a
+# different flow state (a wider silo with one outlet has a smaller share of flowing grains)
 SCALING_COPIES = [1, 3, 10, 30, 100]
 SCALING_N, SCALING_ROWS, SCALING_SETTLE, SCALING_STEPS = 10_000, 200, 3_000, 1_000
 
