@@ -26,8 +26,9 @@ strips a unit is 32,000 grains, so a wave of 4 levels outgrows the 32 MB L3 cach
 
 Why not the same state in every copy: with 100 identical copies every cell row repeats one
 silo's pattern of touching and non-touching pairs 100 times, which the branch predictor
-learns; the step at 1e6 grains then ran *faster* than one silo's (39.8 against 42.1 ns per
-particle-step in the thirty-fifth session), hiding what the size costs.
+learns; the single steps at 1e6 grains then cost no more than one silo's (40.5 against 41.0
+ns per particle-step in the thirty-fifth session, and 44.2 against 40.9 with every copy in
+its own state), hiding what the size costs.
 
 Prints ns per particle-step (median and minimum over the rounds after the first) of both
 variants at every size.
