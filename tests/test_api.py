@@ -142,7 +142,6 @@ def test_report_views_and_summary(res):
     assert "frames" not in res._raw.data  # the frames stay on disk until asked for
     with h5py.File(res.folder / "results.h5", "r") as h5:
         assert res.frames()[-1].time == h5["frames/time"][-1]
-    with h5py.File(res.folder / "results.h5", "r") as h5:
         assert res.dt == h5.attrs["dt"]
 
 

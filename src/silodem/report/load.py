@@ -21,7 +21,7 @@ def _tree(group, only: tuple[str, ...] | None = None,
 
     out: dict[str, Any] = {"@attrs": {k: _plain(v) for k, v in group.attrs.items()}}
     for key, item in group.items():
-        if only is not None and key not in only or key in skip:
+        if key in skip or (only is not None and key not in only):
             continue
         if isinstance(item, h5py.Group):
             out[key] = _tree(item)

@@ -68,6 +68,13 @@ def _positive_percentile(values: list[np.ndarray], q: float,
     return float(np.percentile(data, q)) if data.size else default
 
 
+def _settled_or_all(q: float, settled: list[np.ndarray], every) -> float:
+    """The ``q``-th percentile of the positive values of the settled packing's frame, else
+    of ``every()`` (all the frames' values, read only then), else 1."""
+    top = _positive_percentile(settled, q, None)
+    return top if top is not None else _positive_percentile(every(), q, 1.0)
+
+
 class FrameArtist:
     """Draws the frames of ``frames`` coloured by ``color`` on a figure ``height_px`` tall."""
 
@@ -90,18 +97,15 @@ class FrameArtist:
         # the impacts of pouring do not flatten the static force network; all the frames
         # (read a block at a time) only where that has no value, and for the velocity colour
         ref = [frames.end_of_filling()] if len(frames) else []
-        self.force_scale = _positive_percentile(
-            [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref], 90.0, None)
-        if self.force_scale is None:
-            self.force_scale = _positive_percentile([f.contacts["fn"] for f in frames], 90.0,
-                                                    1.0)
+        self.force_scale = _settled_or_all(
+            90.0, [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref],
+            lambda: [f.contacts["fn"] for f in frames])
         if color == "velocity":
             top = _positive_percentile([f.speed() for f in frames], 95.0, 1.0)
             self.norm = Normalize(0.0, top)
         elif color == "force":
-            top = _positive_percentile([f.normal_force_sum() for f in ref], 95.0, None)
-            if top is None:
-                top = _positive_percentile([f.normal_force_sum() for f in frames], 95.0, 1.0)
+            top = _settled_or_all(95.0, [f.normal_force_sum() for f in ref],
+                                  lambda: [f.normal_force_sum() for f in frames])
             self.norm = Normalize(0.0, 1.2 * top)
         elif color == "coordination":
             self.norm = BoundaryNorm(np.arange(-0.5, _MAX_COORD + 1.0), 256)
