@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import math
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from reliability_helpers import command, env
 
-import silodem
 from silodem.config import Config
 from silodem.errors import InputError, schema_keys
 from silodem.scenario_files import (
@@ -26,22 +24,13 @@ from silodem.scenario_files import (
 SCENARIOS = [name for name, _ in list_scenarios()]
 
 
-def _env() -> dict[str, str]:
-    """The environment for a subprocess that imports the same silodem as these tests."""
-    env = dict(os.environ)
-    package_parent = str(Path(next(iter(silodem.__path__))).parent)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH")) if p)
-    env.setdefault("NUMBA_NUM_THREADS", "2")
-    return env
-
-
 def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "silodem", *args],
+        command(*args),
         check=False,
         capture_output=True,
         text=True,
-        env=_env(),
+        env=env(),
         cwd=cwd,
         timeout=120,
     )

@@ -11,10 +11,8 @@ from __future__ import annotations
 import io
 import itertools
 import math
-import os
 import shutil
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -23,23 +21,15 @@ import meshio
 import numpy as np
 import pytest
 from PIL import Image
+from reliability_helpers import command, env
 
-import silodem
 from silodem.silo.frame_store import FramesRecorder
 from silodem.silo.frames import read_frames
 
 
-def _env() -> dict[str, str]:
-    env = dict(os.environ)
-    package_parent = str(Path(next(iter(silodem.__path__))).parent)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH")) if p)
-    env.setdefault("NUMBA_NUM_THREADS", "2")
-    return env
-
-
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "silodem", *args], capture_output=True,
-                          text=True, env=_env(), timeout=300, check=False)
+    return subprocess.run(command(*args), capture_output=True,
+                          text=True, env=env(), timeout=300, check=False)
 
 
 @pytest.fixture(scope="module")
