@@ -185,6 +185,8 @@ def _unfinished(parent):
     (lambda r: study.run_study("paper-study", r.folder / "s"), "run_study takes a plan"),
     (lambda r: study.run_study(_plan(), None), "out_dir must be"),
     (lambda r: study.run_study(_plan(), r.folder / "s", workers=0), "workers must be"),
+    (lambda r: study.run_study(_plan(), r.folder / "s", workers=4096),
+     "a local cluster takes at most"),
 ])
 def test_bad_requests_are_one_line_input_errors(res, call, needle):
     with pytest.raises(InputError, match=needle):

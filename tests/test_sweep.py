@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from silodem.cli import main
+from silodem.errors import InputError
 from silodem.study import expand, load_study, run_study
 from silodem.study.execute import local_cluster
 
@@ -354,6 +355,29 @@ def test_missing_study_and_bad_options_give_one_line_and_exit_2(tmp_path, capsys
         assert exc.value.code == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_a_local_cluster_takes_at_most_four_workers_per_core(tmp_path, capsys):
+    """--workers 4096 started 4096 worker processes of about 180 MB each (some 740 GB) on
+    whatever machine it was given; a local cluster now takes at most 4 per core this process
+    may use (os.sched_getaffinity), and refuses more before anything is written.  An external
+    scheduler's count is not bounded by this machine's cores."""
+    from silodem.study.execute import check_workers
+
+    cores = len(os.sched_getaffinity(0))
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "paper-study", "--quick", "--workers", str(4 * cores + 1), "--out",
+              str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"--workers {4 * cores + 1}: a local cluster takes at most {4 * cores} workers" in err
+    assert not out.exists()
+    check_workers(4 * cores, local=True)  # the bound itself is allowed
+    check_workers(4096, local=False)      # e.g. --scheduler with --workers 4096
+    with pytest.raises(InputError, match="from 1 to 4096"):
+        check_workers(4097, local=False)
 
 
 def test_paper_study_is_the_papers_grid_and_every_case_is_valid(capsys):

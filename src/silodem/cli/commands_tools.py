@@ -73,7 +73,7 @@ def sweep(
     from silodem.study import expand, load_study, run_study
     from silodem.study.execute import check_workers, default_workers
 
-    check_workers(workers, "--workers")
+    check_workers(workers, "--workers", local=scheduler is None)
     if scheduler is not None and not scheduler.strip():
         raise InputError("--scheduler needs an address, e.g. tcp://127.0.0.1:8786")
 

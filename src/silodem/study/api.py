@@ -122,7 +122,7 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
                          f"{type(plan).__name__}")
     if not isinstance(out_dir, str | Path) or not str(out_dir).strip():
         raise InputError(f"out_dir must be the study's folder path; got {out_dir!r}")
-    check_workers(workers)
+    check_workers(workers, local=scheduler is None and client is None and not serial)
     say = _stderr_line if progress else None
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()

@@ -183,13 +183,26 @@ def default_workers() -> int:
 
 
 MAX_WORKERS = 4096
+LOCAL_WORKERS_PER_CORE = 4
+"""The most worker processes per core a local cluster may have.  A run is single-threaded and
+CPU-bound, so workers beyond one per core only share the cores, and each holds its own
+interpreter (about 180 MB once silodem's engine is imported, measured with a LocalCluster
+worker) besides its run: 4096 workers would need some 740 GB before a run starts."""
 
 
-def check_workers(workers: int | None, what: str = "workers") -> None:
-    """InputError unless ``workers`` is None (one per core) or a count from 1 to MAX_WORKERS."""
+def check_workers(workers: int | None, what: str = "workers", *, local: bool = False) -> None:
+    """InputError unless ``workers`` is None (one per core) or a count from 1 to MAX_WORKERS;
+    for a ``local`` cluster from 1 to LOCAL_WORKERS_PER_CORE per core this process may use."""
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or not 1 <= workers <= MAX_WORKERS):
         raise InputError(f"{what} must be an integer from 1 to {MAX_WORKERS}, got {workers!r}")
+    cores = default_workers()
+    if local and workers is not None and workers > LOCAL_WORKERS_PER_CORE * cores:
+        raise InputError(
+            f"{what} {workers}: a local cluster takes at most {LOCAL_WORKERS_PER_CORE * cores} "
+            f"workers here ({LOCAL_WORKERS_PER_CORE} per core, {cores} core(s)); more would only "
+            "share the cores, each with its own ~180 MB process. For more, start a Dask "
+            "scheduler and workers on other machines and pass its address as the scheduler")
 
 
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
