@@ -1,5 +1,6 @@
 """Drawing a frame: disks to scale, the force network (line width ~ normal force, with a key
-of three widths), the walls.
+of three widths), the walls; grains under ``RASTER_BELOW_PX`` across as cells of pixels
+(``viz.raster``: mean colour per cell, chains' opacity ~ the cell's largest normal force).
 
 ``FrameArtist`` owns one matplotlib figure (Agg canvas, no pyplot) and redraws only what changes
 from frame to frame, so animations render fast.  Colour scales and the force-line scale are
@@ -17,12 +18,19 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
 from matplotlib.collections import LineCollection
-from matplotlib.colors import BoundaryNorm, Normalize
+from matplotlib.colors import BoundaryNorm, Normalize, to_rgb
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from silodem.report.draw import PNG_COMPRESSION, grain_disks
 from silodem.silo.frames import Frame, Frames
+from silodem.viz.raster import (
+    RASTER_BELOW_PX,
+    pixel_count_and_mean,
+    pixel_index,
+    pixel_max,
+    raster_shape,
+)
 
 COLORS = ("velocity", "force", "coordination", "none")
 _LABELS = {"velocity": "grain speed |v| [m/s]",
@@ -45,11 +53,25 @@ def chain_widths(fn: np.ndarray, force_scale: float) -> np.ndarray:
     return np.clip(CHAIN_WIDTH * np.asarray(fn, dtype=float) / force_scale, *CHAIN_WIDTHS)
 
 
-def key_forces(force_scale: float) -> list[float]:
+CHAIN_ALPHA = 0.9  # the opacity of a force line (and of a cell of chains at full force)
+
+
+def chain_alphas(force_max: np.ndarray, force_scale: float) -> np.ndarray:
+    """Opacity of the chains' cells of a frame drawn as pixels (``viz.raster``): proportional
+    to the largest normal force [N] of the contacts centred in the cell, ``CHAIN_ALPHA`` (a
+    force line's) from the run's force scale [N] up, as a line is ``CHAIN_WIDTH`` wide there."""
+    return CHAIN_ALPHA * np.clip(np.asarray(force_max, dtype=float) / force_scale, 0.0, 1.0)
+
+
+def key_forces(force_scale: float, raster: bool = False) -> list[float]:
     """Forces [N] for the line-width key: the run's force scale to one significant figure, and
     half and twice that, less any whose line would be clipped (``CHAIN_WIDTHS``: twice a scale
-    rounded up, e.g. 1.5 -> 2, would be drawn 6.7 pt wide, which the network draws at 6)."""
+    rounded up, e.g. 1.5 -> 2, would be drawn 6.7 pt wide, which the network draws at 6).
+    For a frame drawn as pixels (``raster``, opacity full from the scale up, ``chain_alphas``):
+    a quarter, half and the whole of that force."""
     base = float(f"{force_scale:.0e}")
+    if raster:
+        return [0.25 * base, 0.5 * base, base]
     lo, hi = CHAIN_WIDTHS
     return [f for f in (0.5 * base, base, 2.0 * base)
             if lo <= CHAIN_WIDTH * f / force_scale <= hi]
@@ -122,6 +144,10 @@ class FrameArtist:
         plot_w = aspect * plot_h
         right = 120 if self.norm is not None else 24
         self.width_px = w = _even16(left + plot_w + right + 8)
+        # grains under RASTER_BELOW_PX across even at their largest: drawn as cells of pixels
+        diameter_px = 2.0 * r_max * plot_h / (self.ylim[1] - self.ylim[0])
+        self.raster = diameter_px < RASTER_BELOW_PX
+        self.raster_shape = raster_shape(plot_h, plot_w, diameter_px)
         self.fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi, facecolor="white")
         self.canvas = FigureCanvasAgg(self.fig)
         ax = self.fig.add_axes((left / w, bottom / h, plot_w / w, plot_h / h))
@@ -145,10 +171,17 @@ class FrameArtist:
                            for k in range(len(walls))]
         self.text = ax.set_title("", fontsize=9, loc="left")
         # the key of the force lines' widths, fixed over the run like their scale
-        handles = [Line2D([], [], color=CHAIN_COLOR, alpha=0.9, solid_capstyle="round",
-                          lw=float(chain_widths(f, self.force_scale)), label=f"{f:g} N")
-                   for f in key_forces(self.force_scale)]
-        self.force_key = ax.legend(handles=handles, title="contact normal force",
+        if self.raster:  # one width, the opacity of a cell whose largest force is f
+            handles = [Line2D([], [], color=CHAIN_COLOR, solid_capstyle="butt", lw=5.0,
+                              alpha=float(chain_alphas(f, self.force_scale)), label=f"{f:g} N")
+                       for f in key_forces(self.force_scale, raster=True)]
+        else:
+            handles = [Line2D([], [], color=CHAIN_COLOR, alpha=CHAIN_ALPHA, solid_capstyle="round",
+                              lw=float(chain_widths(f, self.force_scale)), label=f"{f:g} N")
+                       for f in key_forces(self.force_scale)]
+        key_title = ("largest contact normal\nforce in each cell" if self.raster
+                     else "contact normal force")
+        self.force_key = ax.legend(handles=handles, title=key_title,
                                    loc="upper right", fontsize=7, title_fontsize=7,
                                    framealpha=0.85, handlelength=2.2)
         self._artists: list = []
@@ -160,6 +193,21 @@ class FrameArtist:
         self._artists = []
         p = frame.particles
         x, y, r = (p[k].astype(float) for k in ("x", "y", "radius"))
+        if self.raster:
+            self._draw_pixels(frame, x, y)
+        else:
+            self._draw_disks(frame, x, y, r)
+        for k, line in enumerate(self.wall_lines):
+            on = bool(frame.walls_active[k]) if k < frame.walls_active.size else True
+            line.set_linestyle("-" if on else ":")
+            line.set_alpha(1.0 if on else 0.5)
+        self.text.set_text(title if title is not None else
+                           f"{self.title}   t = {frame.time:6.2f} s   {frame.phase:<9}   "
+                           f"{frame.n} grains")
+
+    def _draw_disks(self, frame: Frame, x: np.ndarray, y: np.ndarray, r: np.ndarray) -> None:
+        """The grains of ``frame`` as disks to scale, its contacts as lines whose width grows
+        with the normal force (``chain_widths``)."""
         ax = self.ax
         if frame.n:
             kw: dict = {"facecolors": PLAIN_GRAIN} if self.norm is None else {
@@ -170,17 +218,39 @@ class FrameArtist:
         segs, fn = self._chains(frame, x, y)
         if fn.size:
             widths = chain_widths(fn, self.force_scale)
-            chains = LineCollection(segs, linewidths=widths, colors=CHAIN_COLOR, alpha=0.9,
-                                    capstyle="round", zorder=3)
+            chains = LineCollection(segs, linewidths=widths, colors=CHAIN_COLOR,
+                                    alpha=CHAIN_ALPHA, capstyle="round", zorder=3)
             ax.add_collection(chains, autolim=False)
             self._artists.append(chains)
-        for k, line in enumerate(self.wall_lines):
-            on = bool(frame.walls_active[k]) if k < frame.walls_active.size else True
-            line.set_linestyle("-" if on else ":")
-            line.set_alpha(1.0 if on else 0.5)
-        self.text.set_text(title if title is not None else
-                           f"{self.title}   t = {frame.time:6.2f} s   {frame.phase:<9}   "
-                           f"{frame.n} grains")
+
+    def _draw_pixels(self, frame: Frame, x: np.ndarray, y: np.ndarray) -> None:
+        """The grains and chains of ``frame`` as two images of cells of the plot's pixels
+        (``raster_shape``): a cell with grains' centres in it takes their mean colour value (or
+        the plain grain colour); the chains' cell is opaque in proportion to the largest normal
+        force of the contacts centred in it (``chain_alphas``)."""
+        shape, extent = self.raster_shape, (*self.xlim, *self.ylim)
+        index = pixel_index(x, y, self.xlim, self.ylim, shape)
+        values = self._values(frame) if self.norm is not None else None
+        count, mean = pixel_count_and_mean(index, values, shape)
+        if self.norm is None:
+            grains = np.empty((*shape, 4))
+            grains[..., :3] = to_rgb(PLAIN_GRAIN)
+        else:
+            grains = self.cmap(self.norm(np.nan_to_num(mean)))
+        grains[..., 3] = count > 0
+        segs, fn = self._chains(frame, x, y)
+        middle = segs.mean(axis=1) if fn.size else np.zeros((0, 2))
+        force = pixel_max(pixel_index(middle[:, 0], middle[:, 1], self.xlim, self.ylim, shape),
+                          fn, shape)
+        chains = np.empty((*shape, 4))
+        chains[..., :3] = to_rgb(CHAIN_COLOR)
+        chains[..., 3] = chain_alphas(force, self.force_scale)
+        for rgba, z in ((grains, 2), (chains, 3)):
+            self._artists.append(self.ax.imshow(rgba, extent=extent, origin="lower",
+                                                interpolation="nearest", zorder=z))
+        self.ax.set_xlim(*self.xlim)  # (imshow sets the limits to its extent: the same)
+        self.ax.set_ylim(*self.ylim)
+        self.ax.set_aspect("equal")
 
     def _values(self, frame: Frame) -> np.ndarray:
         if self.color == "velocity":

@@ -1,0 +1,147 @@
+"""Frames of very many grains drawn as pixels (viz/raster.py, FrameArtist): the binning against
+a brute-force loop over the pixels, and the drawn images against the same reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.colors import to_rgb
+
+from silodem.silo.frames import Frame, Frames, WallGeometry
+from silodem.viz.draw import CHAIN_ALPHA, CHAIN_COLOR, FrameArtist
+from silodem.viz.raster import RASTER_BELOW_PX, pixel_count_and_mean, pixel_index, pixel_max
+
+
+def _brute_force(x, y, v, xlim, ylim, shape):
+    """count, mean and maximum of ``v`` per pixel, each point's pixel found by comparing it
+    with every pixel edge (a pixel holds [left, right) x [bottom, top)), the rest by a loop."""
+    nrow, ncol = shape
+    x_edges = xlim[0] + (xlim[1] - xlim[0]) / ncol * np.arange(ncol + 1)
+    y_edges = ylim[0] + (ylim[1] - ylim[0]) / nrow * np.arange(nrow + 1)
+    col = (x[:, None] >= x_edges[None, :]).sum(axis=1) - 1
+    row = (y[:, None] >= y_edges[None, :]).sum(axis=1) - 1
+    count, total, top = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    for r, c, value in zip(row, col, v, strict=True):
+        if 0 <= r < nrow and 0 <= c < ncol:
+            count[r, c] += 1
+            total[r, c] += value
+            top[r, c] = max(top[r, c], value)
+    with np.errstate(invalid="ignore"):
+        return count, total / count, top
+
+
+def test_pixel_binning_matches_a_loop_over_the_pixels():
+    """Points in and around a 7 x 5 pixel grid (some outside on every side): the count, the
+    mean and the maximum per pixel equal those of a loop over the points."""
+    rng = np.random.default_rng(7)
+    xlim, ylim, shape = (-1.0, 2.5), (0.5, 3.0), (5, 7)
+    x = rng.uniform(-1.5, 3.0, 400)
+    y = rng.uniform(0.0, 3.5, 400)
+    v = rng.uniform(0.0, 4.0, 400)
+    count, mean, top = _brute_force(x, y, v, xlim, ylim, shape)
+    assert 0 < count.sum() < 400  # some points are outside
+    index = pixel_index(x, y, xlim, ylim, shape)
+    assert np.sum(index < 0) == 400 - count.sum()
+    got_count, got_mean = pixel_count_and_mean(index, v, shape)
+    np.testing.assert_array_equal(got_count, count)
+    np.testing.assert_allclose(got_mean, mean, rtol=1e-12, equal_nan=True)
+    np.testing.assert_array_equal(pixel_max(index, v, shape), top)
+    assert np.isnan(pixel_count_and_mean(index, None, shape)[1]).all()
+
+
+def _many_grains(n_side: int = 400) -> Frames:
+    """A settled frame of n_side^2 grains on a square lattice filling a 1 m box, radius 0.48 x
+    the spacing, shifted by up to a tenth of the spacing at random (walls: floor, left,
+    right), each touching its right-hand neighbour with F_n = its column index + 1 [N],
+    moving at (row + 1) / n_side m/s."""
+    step = 1.0 / n_side
+    col, row = np.meshgrid(np.arange(n_side), np.arange(n_side))
+    col, row = col.ravel(), row.ravel()
+    n = col.size
+    jitter = np.random.default_rng(3).uniform(-0.1, 0.1, (2, n))
+    particles = {"x": ((col + 0.5 + jitter[0]) * step).astype(np.float32),
+                 "y": ((row + 0.5 + jitter[1]) * step).astype(np.float32),
+                 "vx": np.zeros(n, np.float32),
+                 "vy": (-(row + 1.0) / n_side).astype(np.float32),
+                 "omega": np.zeros(n, np.float32), "radius": np.full(n, 0.48 * step, np.float32),
+                 "fx": np.zeros(n, np.float32), "fy": np.zeros(n, np.float32),
+                 "uid": np.arange(n)}
+    i = np.flatnonzero(col < n_side - 1)
+    contacts = {"i": i.astype(np.int32), "j": (i + 1).astype(np.int32),
+                "fn": (col[i] + 1.0).astype(np.float32), "fs": np.zeros(i.size, np.float32)}
+    none = np.zeros(0, np.int32)
+    wall_contacts = {"grain": none, "wall": none, "fn": np.zeros(0, np.float32),
+                     "fs": np.zeros(0, np.float32)}
+    walls = WallGeometry(["floor", "left", "right"], np.array([0.0, 0.0, 1.0]),
+                         np.array([0.0, 1.0, 1.0]), np.array([1.0, 0.0, 1.0]),
+                         np.array([0.0, 0.0, 0.0]))
+    frame = Frame(1.0, 1000, "settle", particles, contacts, wall_contacts,
+                  np.array([True, True, True]))
+    return Frames([frame], walls, {}, {}, "lattice")
+
+
+def _px_per_m(artist: FrameArtist) -> float:
+    """Pixels per metre of the artist's plot, from the axes' size on the canvas."""
+    artist.canvas.draw()
+    return artist.ax.get_window_extent().height / (artist.ylim[1] - artist.ylim[0])
+
+
+@pytest.mark.parametrize("color", ["none", "velocity"])
+def test_a_frame_of_grains_under_two_pixels_is_drawn_as_pixels(color):
+    """160,000 grains 2.4 mm across filling a 1 m box, 800 px tall: under RASTER_BELOW_PX, so drawn
+    as two images of cells of the plot's pixels, each cell at least two grain diameters wide
+    (so the packed lattice leaves none empty).  The grains' image: opaque exactly where the loop
+    finds grains' centres, in the plain grain colour or the colour map at the pixel's mean
+    speed; the chains' image: opacity CHAIN_ALPHA x (largest F_n of the contacts centred in the
+    cell) / (the force scale: the settled frame's 90th percentile of F_n), at most CHAIN_ALPHA."""
+    frames = _many_grains()
+    artist = FrameArtist(frames, color, height_px=800)
+    frame = frames[0]
+    r_max = float(frame.particles["radius"].max())
+    px_per_m = _px_per_m(artist)
+    assert 2 * r_max * px_per_m < RASTER_BELOW_PX and artist.raster
+    cell = (artist.ylim[1] - artist.ylim[0]) / artist.raster_shape[0]  # [m]
+    assert cell >= 2 * (2 * r_max) and cell == pytest.approx(
+        (artist.xlim[1] - artist.xlim[0]) / artist.raster_shape[1], rel=0.02)
+    artist.draw(frame)
+    grains, chains = (im.get_array() for im in artist.ax.images)
+    x, y = frame.particles["x"].astype(float), frame.particles["y"].astype(float)
+    speed = np.hypot(frame.particles["vx"], frame.particles["vy"]).astype(float)
+    count, mean, _ = _brute_force(x, y, speed, artist.xlim, artist.ylim, artist.raster_shape)
+    np.testing.assert_array_equal(grains[..., 3], (count > 0).astype(float))
+    has = count > 0
+    # the lattice fills the box: no cell wholly inside it is left empty
+    rows, cols = artist.raster_shape
+    left = artist.xlim[0] + (artist.xlim[1] - artist.xlim[0]) / cols * np.arange(cols)
+    bottom = artist.ylim[0] + (artist.ylim[1] - artist.ylim[0]) / rows * np.arange(rows)
+    inner = np.outer((bottom >= 0) & (bottom + cell <= 1), (left >= 0) & (left + cell <= 1))
+    assert inner.sum() > 100 and has[inner].all()
+    if color == "none":
+        np.testing.assert_allclose(grains[has][:, :3], np.tile(to_rgb("#ddd5c4"), (has.sum(), 1)))
+    else:
+        expected = artist.cmap(artist.norm(mean[has]))[:, :3]
+        np.testing.assert_allclose(grains[has][:, :3], expected, atol=1e-12)
+    c = frame.contacts
+    mid_x = 0.5 * (x[c["i"]] + x[c["j"]])
+    mid_y = 0.5 * (y[c["i"]] + y[c["j"]])
+    _, _, force = _brute_force(mid_x, mid_y, c["fn"].astype(float), artist.xlim, artist.ylim,
+                               artist.raster_shape)
+    scale = np.percentile(c["fn"].astype(float), 90)
+    expected_alpha = CHAIN_ALPHA * np.minimum(force / scale, 1)
+    np.testing.assert_allclose(chains[..., 3], expected_alpha, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(chains[0, 0, :3], to_rgb(CHAIN_COLOR))
+    assert 0 < chains[..., 3].max() <= CHAIN_ALPHA
+    rgb = artist.rgb()
+    assert rgb.shape == (artist.height_px, artist.width_px, 3)
+
+
+def test_grains_two_pixels_across_or_more_are_drawn_as_disks():
+    """The same lattice with 400 grains a side drawn 1600 px tall: the largest grain is over
+    RASTER_BELOW_PX across, so the disks and lines of every frame are drawn as before (no
+    image)."""
+    frames = _many_grains(400)
+    artist = FrameArtist(frames, "none", height_px=1600)
+    diameter = 2 * float(frames[0].particles["radius"].max())
+    assert diameter * _px_per_m(artist) >= RASTER_BELOW_PX and not artist.raster
+    artist.draw(frames[0])
+    assert not artist.ax.images and len(artist.ax.collections) == 2
