@@ -145,3 +145,22 @@ def test_grains_two_pixels_across_or_more_are_drawn_as_disks():
     assert diameter * _px_per_m(artist) >= RASTER_BELOW_PX and not artist.raster
     artist.draw(frames[0])
     assert not artist.ax.images and len(artist.ax.collections) == 2
+
+
+def test_the_colour_scale_over_many_grains_is_taken_from_a_thinned_sample(monkeypatch):
+    """The velocity colour scale is the 95th percentile of the speeds over all frames; where
+    the frames hold more than SCALE_SAMPLE values, every k-th is kept (about SCALE_SAMPLE in
+    all).  On the 160,000-grain lattice (speeds (row + 1) / 400, uniform over the rows) with a
+    sample of 4000, the scale is within 0.5 % of the 95th percentile of every speed."""
+    from silodem.viz import draw
+
+    frames = _many_grains()
+    speeds = frames[0].speed().astype(float)
+    monkeypatch.setattr(draw, "SCALE_SAMPLE", 4000)
+    kept = draw._every_frame(frames, draw.Frame.speed)
+    assert sum(v.size for v in kept) == 4000
+    top = FrameArtist(frames, "velocity").norm.vmax
+    assert top == pytest.approx(np.percentile(speeds, 95.0), rel=5e-3)
+    monkeypatch.setattr(draw, "SCALE_SAMPLE", 10**9)  # all of them: the exact percentile
+    assert FrameArtist(frames, "velocity").norm.vmax == pytest.approx(
+        np.percentile(speeds, 95.0), rel=1e-6)

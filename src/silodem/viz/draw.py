@@ -10,6 +10,7 @@ fixed over all the frames of a run, so frames (and the report's pictures) compar
 from __future__ import annotations
 
 import io
+import math
 
 import matplotlib
 
@@ -90,6 +91,21 @@ def _positive_percentile(values: list[np.ndarray], q: float,
     return float(np.percentile(data, q)) if data.size else default
 
 
+SCALE_SAMPLE = 8_000_000  # at most about this many values kept for a scale over all frames
+
+
+def _every_frame(frames: Frames, column) -> list[np.ndarray]:
+    """``column(frame)`` of every frame, read a block at a time, each thinned to every k-th
+    value where the frames hold more than SCALE_SAMPLE in all (k = ceil(values in the frame x
+    frames / SCALE_SAMPLE)): a percentile of a million grains over 200 frames kept 800 MB."""
+    out = []
+    for frame in frames:
+        values = np.asarray(column(frame))
+        stride = max(1, math.ceil(values.size * len(frames) / SCALE_SAMPLE))
+        out.append(values[::stride])
+    return out
+
+
 def _settled_or_all(q: float, settled: list[np.ndarray], every) -> float:
     """The ``q``-th percentile of the positive values of the settled packing's frame, else
     of ``every()`` (all the frames' values, read only then), else 1."""
@@ -121,13 +137,13 @@ class FrameArtist:
         ref = [frames.end_of_filling()] if len(frames) else []
         self.force_scale = _settled_or_all(
             90.0, [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref],
-            lambda: [f.contacts["fn"] for f in frames])
+            lambda: _every_frame(frames, lambda f: f.contacts["fn"]))
         if color == "velocity":
-            top = _positive_percentile([f.speed() for f in frames], 95.0, 1.0)
+            top = _positive_percentile(_every_frame(frames, Frame.speed), 95.0, 1.0)
             self.norm = Normalize(0.0, top)
         elif color == "force":
             top = _settled_or_all(95.0, [f.normal_force_sum() for f in ref],
-                                  lambda: [f.normal_force_sum() for f in frames])
+                                  lambda: _every_frame(frames, Frame.normal_force_sum))
             self.norm = Normalize(0.0, 1.2 * top)
         elif color == "coordination":
             self.norm = BoundaryNorm(np.arange(-0.5, _MAX_COORD + 1.0), 256)
