@@ -21,19 +21,20 @@ from silodem.silo.frames import Frame, Frames, WallGeometry
 from silodem.viz.draw import FrameArtist
 
 
-def lattice_frames(n: int) -> Frames:
-    """One settle frame of about ``n`` grains (radius 0.3 x the lattice spacing)."""
-    side = max(2, round(n ** 0.5))
+def lattice_frames(side: int, radius_fraction: float = 0.3, seed: int = 1) -> Frames:
+    """One settle frame of ``side``^2 grains on a square lattice filling a 1 m box, radius
+    ``radius_fraction`` x the spacing, shifted by up to a tenth of the spacing at random
+    (walls: floor, left, right), each touching its right-hand neighbour with F_n = its column
+    index + 1 [N], moving at (row + 1) / side m/s (tests/test_raster.py draws it too)."""
     step = 1.0 / side
     col, row = (a.ravel() for a in np.meshgrid(np.arange(side), np.arange(side)))
-    jitter = np.random.default_rng(1).uniform(-0.1, 0.1, (2, col.size))
-    k = col.size
-    zeros = np.zeros(k, np.float32)
+    jitter = np.random.default_rng(seed).uniform(-0.1, 0.1, (2, col.size))
+    zeros = np.zeros(col.size, np.float32)
     particles = {"x": ((col + 0.5 + jitter[0]) * step).astype(np.float32),
                  "y": ((row + 0.5 + jitter[1]) * step).astype(np.float32),
                  "vx": zeros, "vy": (-(row + 1.0) / side).astype(np.float32), "omega": zeros,
-                 "radius": np.full(k, 0.3 * step, np.float32), "fx": zeros, "fy": zeros,
-                 "uid": np.arange(k)}
+                 "radius": np.full(col.size, radius_fraction * step, np.float32),
+                 "fx": zeros, "fy": zeros, "uid": np.arange(col.size)}
     i = np.flatnonzero(col < side - 1)
     contacts = {"i": i.astype(np.int32), "j": (i + 1).astype(np.int32),
                 "fn": (col[i] + 1.0).astype(np.float32), "fs": np.zeros(i.size, np.float32)}
@@ -63,7 +64,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{'grains':>9} {'disks [s]':>10} {'pixels [s]':>11}  picked")
     for n in args.grains:
-        frames = lattice_frames(int(n))
+        frames = lattice_frames(max(2, round(n ** 0.5)))
         artist = FrameArtist(frames, "velocity", height_px=800)
         picked = "pixels" if artist.raster else "disks"
         out = {}

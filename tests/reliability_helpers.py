@@ -1,5 +1,5 @@
 """Helpers for the reliability tests: a small quick case, the command line in a subprocess,
-and comparing two results files bit for bit."""
+and comparing two results files bit for bit; the benchmark scripts imported as modules."""
 
 from __future__ import annotations
 
@@ -40,6 +40,17 @@ def env() -> dict[str, str]:
     out["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, out.get("PYTHONPATH")) if p)
     out.setdefault("NUMBA_NUM_THREADS", "2")
     return out
+
+
+def benchmark_module(name: str):
+    """A script of the top-level ``benchmarks/`` folder, imported as a module."""
+    import importlib.util
+
+    path = Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def command(*args: str) -> list[str]:

@@ -10,6 +10,7 @@ import sys
 
 import numpy as np
 import pytest
+from reliability_helpers import benchmark_module
 
 from silodem.bench import deck_lattice, deck_path, lattice_size
 
@@ -120,23 +121,11 @@ def test_lattice_vs_lammps_runs_both_codes_on_the_same_grains():
     assert "N =      400 (     400 in LAMMPS)" in proc.stdout  # 20 x 20 in both codes
 
 
-def _benchmark_module(name):
-    """A script of the top-level ``benchmarks/`` folder, imported as a module."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_matrix_keeps_each_codes_best_pass():
     """``performance_matrix.py --passes``: the row of several passes holds silodem's fastest
     pass and LAMMPS's fastest pass, even when they come from different passes, and their
     ratio; every pass's pair of figures is kept."""
-    best_of = _benchmark_module("performance_matrix").best_of
+    best_of = benchmark_module("performance_matrix").best_of
     runs = [{"n": 990, "threads": 2, "particle_steps_per_s": ps,
              "lammps": {"particle_steps_per_s": lam}, "ratio_vs_lammps": ps / lam}
             for ps, lam in ((30e6, 16e6), (20e6, 18e6), (36e6, 15e6))]
@@ -162,7 +151,7 @@ def test_profile_step_times_a_run_without_changing_it():
     import silodem.engine.neighbors as nbm
     from silodem.bench import advance, build
 
-    prof = _benchmark_module("profile_step")
+    prof = benchmark_module("profile_step")
     original = nbm._pairs_of
     plain, _, top = build(12, 24)
     timed, _, _ = build(12, 24)
@@ -202,7 +191,7 @@ def test_interleaved_scaling_runs_every_size_the_same_steps(monkeypatch):
     from pathlib import Path
 
     monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "benchmarks"))
-    measure = _benchmark_module("interleaved_scaling").measure
+    measure = benchmark_module("interleaved_scaling").measure
     sims, seconds = measure([1, 2], steps=20, turn=10, settle=5, log=lambda line: None)
     assert [sim.particles.n for sim in sims] == [10_144, 20_288]
     assert [sim.steps for sim in sims] == [25, 25]

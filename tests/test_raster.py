@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
+from reliability_helpers import benchmark_module
 
-from silodem.silo.frames import Frame, Frames, WallGeometry
+from silodem.silo.frames import Frames
 from silodem.viz.draw import CHAIN_ALPHA, CHAIN_COLOR, FrameArtist
 from silodem.viz.raster import RASTER_BELOW_PX, pixel_count_and_mean, pixel_index, pixel_max
 
@@ -49,35 +50,10 @@ def test_pixel_binning_matches_a_loop_over_the_pixels():
     assert np.isnan(pixel_count_and_mean(index, None, shape)[1]).all()
 
 
-def _many_grains(n_side: int = 400) -> Frames:
-    """A settled frame of n_side^2 grains on a square lattice filling a 1 m box, radius 0.48 x
-    the spacing, shifted by up to a tenth of the spacing at random (walls: floor, left,
-    right), each touching its right-hand neighbour with F_n = its column index + 1 [N],
-    moving at (row + 1) / n_side m/s."""
-    step = 1.0 / n_side
-    col, row = np.meshgrid(np.arange(n_side), np.arange(n_side))
-    col, row = col.ravel(), row.ravel()
-    n = col.size
-    jitter = np.random.default_rng(3).uniform(-0.1, 0.1, (2, n))
-    particles = {"x": ((col + 0.5 + jitter[0]) * step).astype(np.float32),
-                 "y": ((row + 0.5 + jitter[1]) * step).astype(np.float32),
-                 "vx": np.zeros(n, np.float32),
-                 "vy": (-(row + 1.0) / n_side).astype(np.float32),
-                 "omega": np.zeros(n, np.float32), "radius": np.full(n, 0.48 * step, np.float32),
-                 "fx": np.zeros(n, np.float32), "fy": np.zeros(n, np.float32),
-                 "uid": np.arange(n)}
-    i = np.flatnonzero(col < n_side - 1)
-    contacts = {"i": i.astype(np.int32), "j": (i + 1).astype(np.int32),
-                "fn": (col[i] + 1.0).astype(np.float32), "fs": np.zeros(i.size, np.float32)}
-    none = np.zeros(0, np.int32)
-    wall_contacts = {"grain": none, "wall": none, "fn": np.zeros(0, np.float32),
-                     "fs": np.zeros(0, np.float32)}
-    walls = WallGeometry(["floor", "left", "right"], np.array([0.0, 0.0, 1.0]),
-                         np.array([0.0, 1.0, 1.0]), np.array([1.0, 0.0, 1.0]),
-                         np.array([0.0, 0.0, 0.0]))
-    frame = Frame(1.0, 1000, "settle", particles, contacts, wall_contacts,
-                  np.array([True, True, True]))
-    return Frames([frame], walls, {}, {}, "lattice")
+def _many_grains(side: int = 400) -> Frames:
+    """``side``^2 grains filling a 1 m box, radius 0.48 x the spacing, F_n = column + 1 [N],
+    speed (row + 1) / side [m/s] (``benchmarks/frame_drawing.py``'s lattice)."""
+    return benchmark_module("frame_drawing").lattice_frames(side, radius_fraction=0.48, seed=3)
 
 
 def _px_per_m(artist: FrameArtist) -> float:

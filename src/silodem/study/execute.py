@@ -196,8 +196,8 @@ def check_workers(workers: int | None, what: str = "workers", *, local: bool = F
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or not 1 <= workers <= MAX_WORKERS):
         raise InputError(f"{what} must be an integer from 1 to {MAX_WORKERS}, got {workers!r}")
-    cores = default_workers()
-    if local and workers is not None and workers > LOCAL_WORKERS_PER_CORE * cores:
+    cores = default_workers() if local and workers is not None else 0
+    if cores and workers > LOCAL_WORKERS_PER_CORE * cores:
         raise InputError(
             f"{what} {workers}: a local cluster takes at most {LOCAL_WORKERS_PER_CORE * cores} "
             f"workers here ({LOCAL_WORKERS_PER_CORE} per core, {cores} core(s)); more would only "
