@@ -32,13 +32,15 @@ from silodem.silo.checks import check_numbers
 from silodem.silo.procedure import SiloRun
 
 
-def refused(capsys, *args: str) -> str:
-    """Run the command line in process; assert exit code 2 and one line; return the line."""
+def refused(capsys, *args: str, silent: bool = False) -> str:
+    """Run the command line in process; assert exit code 2 and one line; return the line.
+    ``silent``: also assert that nothing was printed on stdout (no work was announced)."""
     with pytest.raises(SystemExit) as exit_info:
         main(list(args))
     captured = capsys.readouterr()
     assert exit_info.value.code == 2, captured.err
     assert "Traceback" not in captured.err + captured.out
+    assert not (silent and captured.out), captured.out
     lines = captured.err.splitlines()
     assert len(lines) == 1 and lines[0].strip(), captured.err
     return lines[0]
@@ -348,7 +350,7 @@ def test_resume_without_a_usable_checkpoint_is_refused(capsys, tmp_path, prepare
     folder = tmp_path / "run"
     if prepare is not None:
         prepare(folder)
-    line = refused(capsys, "run", "--resume", str(folder))
+    line = refused(capsys, "run", "--resume", str(folder), silent=True)  # no "resuming ..."
     assert_names(line, str(folder), *needles)
 
 

@@ -194,10 +194,14 @@ def _write_report(out: Path, warnings: list[str]) -> None:
 
 
 def resume_simulation(out_dir: Path | str, *, threads: int | None = None,
-                      progress: bool = True) -> RunSummary:
+                      progress: bool = True,
+                      checkpoint: LoadedCheckpoint | None = None) -> RunSummary:
     """Continue the interrupted run whose results folder is ``out_dir`` from its
     checkpoint.h5, with the config saved in it; it ends bit-identical to an uninterrupted run
-    (docs/reliability.md).  A missing or unreadable checkpoint raises CheckpointError."""
-    checkpoint = read_checkpoint(out_dir)
+    (docs/reliability.md).  A missing or unreadable checkpoint raises CheckpointError.
+    ``checkpoint``: that file already read with :func:`read_checkpoint` (the CLI reads it
+    first, so that it announces only a run it can resume)."""
+    if checkpoint is None:
+        checkpoint = read_checkpoint(out_dir)
     return run_simulation(checkpoint.config, out_dir, threads=threads, progress=progress,
                           resume_from=checkpoint)

@@ -33,12 +33,13 @@ def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
                          f"give no {', '.join(extra)} with it")
     if folder.exists() and not folder.is_dir():
         raise InputError(f"--resume {folder} is a file; give the results folder of the run")
-    from silodem.run import resume_simulation  # imports numba: only when running
+    from silodem.run import read_checkpoint, resume_simulation  # imports numba: only when running
 
+    checkpoint = read_checkpoint(folder)  # a one-line error before anything is announced
     console = Console()
     console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False,
                   soft_wrap=True)
-    summary = resume_simulation(folder, threads=threads, progress=True)
+    summary = resume_simulation(folder, threads=threads, progress=True, checkpoint=checkpoint)
     for line in summary.lines():
         console.print(line, markup=False, highlight=False, soft_wrap=True)
 
