@@ -106,7 +106,8 @@ def test_lattice_deck_runs_the_cache_probe_law():
     kn, kt, gamma_n, mu = float(words[2]), float(words[3]), float(words[4]), float(words[6])
     m_eff = 1000.0 * np.pi * 0.0975**2 / 2
     assert (kn, kt, mu) == (1e5, 1e5, 0.5) and "timestep        1.0e-5" in deck
-    assert gamma_n == pytest.approx(2 * 0.1 * np.sqrt(kn / m_eff), rel=0.01)
+    # given to three figures (16.37 -> 16.4): within half a unit of the last
+    assert abs(gamma_n - 2 * 0.1 * np.sqrt(kn / m_eff)) <= 0.05
 
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")

@@ -91,7 +91,8 @@ def test_restitution_is_the_same_at_every_speed(v, tension):
     sim = pair_impact(hertz_law(zeta=zeta, tension=tension), v=v, dt=t_c / 2000)
     run_until_separated(sim, lambda: sim.neighbors.pair_fn[0] != 0.0)
     p = sim.particles
-    assert (p.vx[1] - p.vx[0]) / (2 * v) == pytest.approx(expected, rel=2e-3)
+    # the central-difference scheme's error in e is of order dt / t_c = 5e-4: within two
+    assert (p.vx[1] - p.vx[0]) / (2 * v) == pytest.approx(expected, rel=1e-3)
     if not tension:
         assert expected > e + 0.02  # the no-tension contact loses less, as for the linear law
 
@@ -148,14 +149,20 @@ def hertz_run():
 
 
 def test_the_walls_carry_the_settled_hertz_fill(hertz_run):
-    """At the end of settling the wall forces add up to the weight of the grains (force
-    balance; the settling criterion leaves an unbalanced force of 1e-3 of the mean contact
-    force), and the run then discharges."""
+    """At the end of settling the walls carry the weight of the grains: the wall forces are
+    the grains' contact resultants summed (Newton's third law: the grain-grain forces
+    cancel), and these differ from the weight by at most the grains' leftover resultants,
+    sum |F_i - m_i g| (as tests/test_silo_run.py checks for the linear law); the run then
+    discharges."""
     snap = hertz_run.snapshots["settled"]
     m = hertz_run.cfg.material
     r = snap.particles["radius"]
-    weight = np.sum(m.density * np.pi * r**2 * m.thickness) * hertz_run.cfg.gravity
-    assert np.sum(snap.wall_contacts["fy"]) == pytest.approx(weight, rel=1e-2)
+    mass = m.density * np.pi * r**2 * m.thickness
+    g = hertz_run.cfg.gravity
+    fy = snap.particles["fy"]
+    assert np.sum(snap.wall_contacts["fy"]) == pytest.approx(np.sum(fy), rel=1e-12)
+    leftover = np.sum(np.hypot(snap.particles["fx"], fy - mass * g))
+    assert abs(np.sum(fy) - np.sum(mass) * g) <= leftover < 0.01 * np.sum(mass) * g
     assert hertz_run.discharged_count > 0
 
 

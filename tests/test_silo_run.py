@@ -194,6 +194,12 @@ def test_paper_case1_stiffness_warns_with_the_numbers():
     cfg = load_config("paper-case1")
     est = estimate_overlap(cfg)
     rho_b, mu_w, B, K = 0.82 * 1607.0, math.tan(math.radians(26.5)), 3.4, 0.4
+    # the flat silo's fill: the grains' area (uniform radii: <r^2> = (b^3 - a^3) / (3 (b - a)))
+    # at packing fraction 0.82 over the cell width
+    m = cfg.material
+    mean_r2 = (m.radius_max**3 - m.radius_min**3) / (3 * (m.radius_max - m.radius_min))
+    assert est.fill_height == pytest.approx(
+        cfg.fill.n_particles * math.pi * mean_r2 / (0.82 * B), rel=1e-12)
     a = 2 * K * mu_w / B
     sigma = rho_b * 9.81 / a * (1 - math.exp(-a * est.fill_height))
     assert est.sigma_v == pytest.approx(sigma, rel=1e-12)
