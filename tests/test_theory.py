@@ -138,6 +138,17 @@ def test_paper_eq12_is_the_conical_form_with_D_1():
         0.5 * th.walker_exponent(alpha, mu, planar=False))
 
 
+def test_paper_eq12_at_n_i_0_is_its_limit():
+    """alpha = 45 deg, mu_w = 0.5: n_i = 2 (1 + 0.5) - 3 = 0, where eq. (12) as printed divides
+    by zero; its limit solves the conical slice balance (D = 1), integrated numerically."""
+    H, q, h_end = 1.7, 12000.0, 0.2
+    sol = solve_ivp(_slice_ode(45.0, 0.5, 1.0, planar=False), (H, h_end), [q], method="DOP853",
+                    rtol=1e-12, atol=1e-10, dense_output=True)
+    z = np.linspace(0.0, H - h_end, 20)
+    np.testing.assert_allclose(th.paper_eq12(z, H, q, GAMMA, 45.0, 0.5), sol.sol(H - z)[0],
+                               rtol=1e-6, atol=1e-6 * max(q, GAMMA * H))
+
+
 def test_alpha_is_the_complement_of_theta():
     assert th.alpha_from_theta(60.0) == 30.0
     assert th.apex_below_outlet(1.0, 45.0) == pytest.approx(0.5)

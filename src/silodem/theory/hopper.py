@@ -97,12 +97,17 @@ def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamm
     n_i = 2 (1 + tan(phi_P)/tan(alpha)) - 3,
 
     z measured down from the transition, h' the distance from the transition to the apex [m].
-    It equals :func:`hopper_sigma_v` with planar=False, D = 1, h = h' - z, H = h'.
+    It equals :func:`hopper_sigma_v` with planar=False, D = 1, h = h' - z, H = h'.  With x =
+    1 - z/h' it reads gamma h' x (1 - x^n_i) / n_i + q x^(n_i + 1), whose limit at n_i = 0
+    (mu_w = tan(alpha) / 2, e.g. alpha = 45 deg, mu_w = 0.5) is -gamma h' x ln x + q x.
     """
     z = np.asarray(z_below_transition, dtype=float)
     n_i = 2.0 * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 3.0
-    return gamma * ((h_prime - z) / n_i + (q / gamma - h_prime / n_i)
-                    * (1.0 - z / h_prime) ** (n_i + 1.0))
+    if abs(n_i) > 1e-12:
+        return gamma * ((h_prime - z) / n_i + (q / gamma - h_prime / n_i)
+                        * (1.0 - z / h_prime) ** (n_i + 1.0))
+    x = 1.0 - z / h_prime
+    return -gamma * h_prime * x * np.log(np.clip(x, 1e-300, None)) + q * x
 
 
 def walker_distribution_factor(delta_deg: float, phi_w_deg: float, alpha_deg: float) -> float:
