@@ -181,6 +181,17 @@ def _unfinished(parent):
     (lambda r: api.run(r.config.model_copy(update={"fill": r.config.fill.model_copy(
         update={"n_particles": 2.5})}), r.folder / "n"), "fill.n_particles"),
     (lambda r: api.run(r.config, out=3), "out must be a results folder's path"),
+    # a key model_copy(update=...) does not know was dropped without a word before
+    (lambda r: api.run(r.config.model_copy(update={"sed": 7}), r.folder / "n"),
+     r"unknown key 'sed' \(did you mean 'seed'\?\)"),
+    (lambda r: api.run(r.config.model_copy(update={"material": r.config.material.model_copy(
+        update={"friction": 5.0})}), r.folder / "n"), r"unknown key 'material.friction' "),
+    # flags: the string 'no' is truthy, it switched the option on
+    (lambda r: api.run(r.config, r.folder / "n", progress="no"), "progress must be True or"),
+    (lambda r: study.expand(study.load_study("paper-study"), quick="no"), "quick must be True"),
+    (lambda r: study.run_study(_plan(), r.folder / "s", serial="no"), "serial must be True"),
+    (lambda r: study.run_study(_plan(), r.folder / "s", client="tcp://127.0.0.1:1"),
+     "client must be a dask.distributed Client.*scheduler="),
     (lambda r: study.expand("paper-study"), "expand takes a study from load_study"),
     (lambda r: study.run_study("paper-study", r.folder / "s"), "run_study takes a plan"),
     (lambda r: study.run_study(_plan(), None), "out_dir must be"),
@@ -191,3 +202,16 @@ def _unfinished(parent):
 def test_bad_requests_are_one_line_input_errors(res, call, needle):
     with pytest.raises(InputError, match=needle):
         call(res)
+
+
+def test_a_run_refused_for_its_numbers_makes_no_folder_and_numpy_threads_run(res, tmp_path):
+    """A time step over the stability limit is refused before the results folder is made
+    (as on the command line); a thread count that is a numpy integer runs, to the same
+    grains as the fixture's run (the kernels' sums do not depend on the thread count)."""
+    cfg = tiny_hopper_config()
+    with pytest.raises(InputError, match="exceeds the stability limit"):
+        api.run(cfg.model_copy(update={"time": cfg.time.model_copy(update={"dt": 1.0})}),
+                tmp_path / "refused")
+    assert not (tmp_path / "refused").exists()
+    again = api.run(cfg, tmp_path / "again", threads=np.int64(1))
+    assert again.particles("final").equals(res.particles("final"))

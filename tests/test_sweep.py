@@ -347,6 +347,19 @@ def test_bad_study_files_give_one_line_and_exit_2(tmp_path, capsys, text, needle
     assert not (tmp_path / "out").exists()  # refused before anything was written
 
 
+def test_grid_values_that_quick_makes_one_run_are_refused(tmp_path):
+    """--quick keeps 0.36 of the grains, rounded (at least 50): 200 and 201 grains both become
+    72, one simulation that results.csv would list under two particle counts."""
+    path = tmp_path / "counts.toml"
+    path.write_text('name = "counts"\nbase = "paper-case2"\nseeds = [1]\n[grid]\n'
+                    '"fill.n_particles" = [200, 201]\n', encoding="utf-8")
+    full = expand(load_study(str(path)))
+    assert [run.cfg.fill.n_particles for run in full.runs] == [200, 201]
+    with pytest.raises(InputError, match=r"n_particles = 200.* and .*n_particles = 201.*"
+                                         r"same config once --quick has shrunk them"):
+        expand(load_study(str(path)), quick=True)
+
+
 def test_missing_study_and_bad_options_give_one_line_and_exit_2(tmp_path, capsys):
     for argv in (["sweep", str(tmp_path / "nope.toml")], ["sweep", "paper-stdy"],
                  ["sweep", "paper-study", "--workers", "0"]):

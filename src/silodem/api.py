@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from silodem.config import Config
-from silodem.errors import InputError
+from silodem.errors import InputError, check_flag
 from silodem.report.load import Results as _Raw
 from silodem.report.load import load_results
 
@@ -46,8 +46,7 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
 
     if not isinstance(source, str | Path):
         raise InputError(f"source must be a scenario name or a TOML file's path; got {source!r}")
-    if not isinstance(quick, bool):
-        raise InputError(f"quick must be True or False; got {quick!r}")
+    check_flag(quick, "quick")
     if set is not None and not isinstance(set, Mapping):
         raise InputError("set must map dotted keys to values, e.g. {'material.kn': 2e7}; got "
                          f"{type(set).__name__}")
@@ -71,13 +70,18 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     and open its results."""
     from silodem.run import check_out, check_threads, run_simulation
     from silodem.scenario_files import revalidated
+    from silodem.silo.checks import check_numbers
 
     if not isinstance(cfg, Config):
         raise InputError(f"cfg must be a Config (from api.scenario); got {type(cfg).__name__}")
     cfg = revalidated(cfg)  # a model_copy(update=...) of it skipped the schema's checks
     if out is not None and (not isinstance(out, str | Path) or not str(out).strip()):
         raise InputError(f"out must be a results folder's path; got {out!r}")
+    if isinstance(threads, np.integer):  # numpy's integers, as notebooks make them
+        threads = int(threads)
     check_threads(threads)
+    check_flag(progress, "progress")
+    check_numbers(cfg)  # values that make no run together: refused before any folder is made
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
     run_simulation(cfg, folder, threads=threads, progress=progress)

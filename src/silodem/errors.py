@@ -23,6 +23,13 @@ class InputError(Exception):
         super().__init__(one_line(message))
 
 
+def check_flag(value: Any, name: str) -> None:
+    """InputError unless ``value`` is True or False (a string such as 'no' is truthy: it
+    would switch the option on)."""
+    if not isinstance(value, bool):
+        raise InputError(f"{name} must be True or False; got {value!r}")
+
+
 def parse_toml(text: str, where: str) -> dict[str, Any]:
     """The dict of TOML ``text``; an InputError naming ``where`` if it is not TOML.
 

@@ -209,8 +209,23 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
 
 def revalidated(cfg: Config) -> Config:
     """``cfg`` validated again (pydantic's ``model_copy(update=...)`` and attribute
-    assignment skip the checks): InputError, one line, naming the key that is out of range."""
-    return _validate(cfg.model_dump(warnings=False))
+    assignment skip the checks): InputError, one line, naming the key that is out of range,
+    or unknown (``model_copy(update={"sed": 7})`` keeps 'sed' beside the fields, which
+    ``model_dump`` would drop without a word)."""
+    data = cfg.model_dump(warnings=False)
+    _put_strays(cfg, data)
+    return _validate(data)
+
+
+def _put_strays(model: BaseModel, data: dict[str, Any]) -> None:
+    """Copy into ``data`` (``model``'s dump) the attributes of ``model`` and of its sections
+    that are no fields of theirs, so that validation names them."""
+    fields = type(model).model_fields
+    for key, value in vars(model).items():
+        if key not in fields:
+            data[key] = value
+        elif isinstance(value, BaseModel) and isinstance(data.get(key), dict):
+            _put_strays(value, data[key])
 
 
 def load_config(source: str, sets: Iterable[str] = ()) -> Config:

@@ -23,7 +23,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from silodem.config import Config
-from silodem.errors import InputError, format_validation_error
+from silodem.errors import InputError, check_flag, format_validation_error
 from silodem.scenario_files import load_config, quick_variant
 from silodem.study.spec import GRID_BASE, LoadedStudy
 
@@ -160,6 +160,8 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
     naming the grid point, for a run that is not valid."""
     if not isinstance(study, LoadedStudy):
         raise InputError(f"expand takes a study from load_study(...); got a {type(study).__name__}")
+    check_flag(quick, "quick")
+    check_flag(check, "check")
     spec = study.spec
     names = spec.grid.get(GRID_BASE, [spec.base])
     bases = {name: _base_config(study, name).model_dump() for name in names}
@@ -193,13 +195,15 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
                     check_numbers(cfg)
                 except InputError as exc:
                     raise InputError(f"{where}: {exc}") from None
-            slug = slug_of(point, seed)
-            run_id = f"{slug}-{config_hash(cfg)}"
-            if run_id in seen:
-                raise InputError(f"study {study.source}: runs {seen[run_id]} and "
-                                 f"{label_of(point, seed)} have the same config; remove the "
-                                 "repeated grid value")
-            seen[run_id] = label_of(point, seed)
+            slug, digest = slug_of(point, seed), config_hash(cfg)
+            run_id = f"{slug}-{digest}"
+            if digest in seen:  # one simulation under two labels, e.g. two particle counts
+                # that --quick (x 0.36, at least 50) rounds to one
+                how = " once --quick has shrunk them" if quick else ""
+                raise InputError(f"study {study.source}: runs {seen[digest]} and "
+                                 f"{label_of(point, seed)} have the same config{how}; remove "
+                                 "the repeated grid value")
+            seen[digest] = label_of(point, seed)
             name = f"{spec.name}-{slug}" + ("-quick" if quick else "")
             cfg = cfg.model_copy(update={"name": name,
                                          "description": f"{spec.name}: {label_of(point, seed)}"})
