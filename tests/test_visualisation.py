@@ -628,3 +628,35 @@ def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
     # a time picks the nearest frame
     assert force_network_png(run_dir / "results.h5", 2.0).startswith(b"\x89PNG")
     assert select_frame(frames, 2.03).time == pytest.approx(2.0, abs=0.05 + h5["dt"])
+    # the results folder is read as its results.h5
+    assert force_network_png(run_dir, "final") == force_network_png(run_dir / "results.h5",
+                                                                    "final")
+
+
+@pytest.mark.parametrize("call, needle", [
+    (lambda d: _network(d, float("inf")), "a time in seconds; got inf"),
+    (lambda d: _network(d, float("nan")), "a time in seconds; got nan"),
+    (lambda d: _network(d, True), "a time in seconds; got True"),
+    (lambda d: _network(d, height_px=0), "height_px must be an integer from 200"),
+    (lambda d: _network(d, height_px=10**6), "height_px must be an integer from 200"),
+    (lambda d: _network(d, height_px=None), "height_px must be an integer from 200"),
+    (lambda d: _network(d, color="red"), "color must be one of"),
+    (lambda d: _network(d / "nothing.h5"), "does not exist"),
+    (lambda d: _network(d / "config.toml"), "cannot read"),
+    (lambda d: _network(d / "figures"), "has no results.h5|does not exist"),
+    (lambda d: _network(None), "results_h5 must be a run's results.h5 or its results folder"),
+    (lambda d: read_frames(d / "results.h5").nearest(float("nan")), "finite number of seconds"),
+])
+def test_bad_requests_for_pictures_are_one_line_errors(run_dir, call, needle):
+    """ValueError (TypeError for an argument of the wrong type), one line.  Before: inf and
+    nan drew the first frame, a folder or a missing file raised h5py's errors several lines
+    deep, a height of 0 or 1e6 px matplotlib's or a bad_alloc."""
+    with pytest.raises((ValueError, TypeError), match=needle) as err:
+        call(run_dir)
+    assert "\n" not in str(err.value)
+
+
+def _network(path, which="final", **kwargs):
+    from silodem.viz import force_network_png
+
+    return force_network_png(path, which, **kwargs)

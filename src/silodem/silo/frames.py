@@ -19,6 +19,8 @@ Layout of ``/frames`` (docs/output.md): the frames are *concatenated*.  Frame ``
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -350,7 +352,10 @@ class Frames:
         return self.frames[before[-1] if before else -1]
 
     def nearest(self, time: float) -> Frame:
-        """The frame closest in time to ``time`` [s]."""
+        """The frame closest in time to ``time`` [s] (a finite number; ValueError else)."""
+        if isinstance(time, bool) or not isinstance(time, numbers.Real) \
+                or not math.isfinite(time):
+            raise ValueError(f"time must be a finite number of seconds; got {time!r}")
         return self.frames[int(np.argmin(np.abs(self.times - time)))]
 
 

@@ -46,8 +46,21 @@ def load_run_frames(run_dir: Path | str) -> Frames:
     h5 = d / "results.h5"
     if not h5.is_file():
         raise InputError(f"'{d}' has no results.h5; make one with: silodem run ... --out {d}")
+    frames = read_run_frames(h5)
+    if len(frames) == 0:
+        raise InputError(f"'{h5}' holds no frames: the run was shorter than "
+                         "output.frame_interval")
+    return frames
+
+
+def read_run_frames(h5: Path) -> Frames:
+    """The frames of the results file ``h5``; an InputError (one line) when it cannot be read
+    or has no /frames."""
+    if not h5.is_file():
+        raise InputError(f"'{h5}' does not exist" if not h5.exists() else
+                         f"'{h5}' is not a file; give a run's results.h5 or its folder")
     try:
-        frames = read_frames(h5)
+        return read_frames(h5)
     except NoFramesError as exc:
         raise InputError(str(exc)) from None
     except OSError as exc:  # h5py cannot open it
@@ -56,10 +69,6 @@ def load_run_frames(run_dir: Path | str) -> Frames:
         raise InputError(f"'{h5}': its /frames (or /walls) cannot be read "
                          f"({type(exc).__name__}: {exc}); damaged, or written by another "
                          "version") from None
-    if len(frames) == 0:
-        raise InputError(f"'{h5}' holds no frames: the run was shorter than "
-                         "output.frame_interval")
-    return frames
 
 
 def _choose_format(out: Path | None, fmt: str | None) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import math
+import numbers
 
 import matplotlib
 
@@ -41,6 +42,7 @@ _CMAPS = {"velocity": "viridis", "force": "YlGnBu", "coordination": "viridis"}
 CHAIN_COLOR = "#c0152f"
 PLAIN_GRAIN = "#ddd5c4"
 _MAX_COORD = 7
+HEIGHT_PX = (200, 8000)  # the heights [px] a figure may have (room for its axes and key)
 
 
 # force-line widths [pt]: CHAIN_WIDTH at the run's force scale, clipped to CHAIN_WIDTHS
@@ -118,8 +120,15 @@ class FrameArtist:
 
     def __init__(self, frames: Frames, color: str = "velocity", height_px: int = 800,
                  title: str | None = None) -> None:
+        if not isinstance(frames, Frames):
+            raise TypeError(f"frames must be a run's Frames (silodem.silo.frames.read_frames); "
+                             f"got a {type(frames).__name__}")
         if color not in COLORS:
             raise ValueError(f"color must be one of {', '.join(COLORS)}; got {color!r}")
+        if isinstance(height_px, bool) or not isinstance(height_px, numbers.Integral) \
+                or not HEIGHT_PX[0] <= height_px <= HEIGHT_PX[1]:
+            raise ValueError(f"height_px must be an integer from {HEIGHT_PX[0]} to "
+                             f"{HEIGHT_PX[1]}; got {height_px!r}")
         self.frames = frames
         self.color = color
         self.title = title if title is not None else str(frames.scenario)

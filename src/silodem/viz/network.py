@@ -12,9 +12,11 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 from pathlib import Path
 
-from silodem.silo.frames import Frame, Frames, read_frames
+from silodem.silo.frames import Frame, Frames
 
 VIEWS = ("end-of-filling", "early-discharge", "late-discharge")
 _DISCHARGE_FRACTION = {"early-discharge": 0.15, "late-discharge": 0.75}
@@ -25,6 +27,10 @@ def select_frame(frames: Frames, which: str | float) -> Frame:
     if len(frames) == 0:
         raise ValueError("the run has no frames")
     if not isinstance(which, str):
+        if isinstance(which, bool) or not isinstance(which, numbers.Real) \
+                or not math.isfinite(which):
+            raise ValueError(f"the moment must be one of {', '.join(VIEWS)}, 'final', "
+                             f"'settled' or a time in seconds; got {which!r}")
         return frames.nearest(float(which))
     if which in ("end-of-filling", "settled"):
         return frames.end_of_filling()
@@ -50,14 +56,34 @@ _LABEL = {"end-of-filling": "end of filling", "early-discharge": "early discharg
 def force_network_png(results_h5: Path | str | Frames, which: str | float = "end-of-filling",
                       *, color: str = "none", height_px: int = 700) -> bytes:
     """PNG bytes of the grains and the force network (line width ~ normal force) of one moment
-    of a run (``which``, see the module), from its results.h5 (or already read ``Frames``).
+    of a run (``which``, see the module), from its results.h5 or its results folder (or
+    already read ``Frames``).  ValueError (one line) for a file without frames, a moment the
+    run does not have, or a bad ``color`` or ``height_px``.
 
     ``color``: "none" (plain grains, the default), "velocity", "force" or "coordination"."""
     from silodem.viz.draw import FrameArtist
 
-    frames = results_h5 if isinstance(results_h5, Frames) else read_frames(results_h5)
+    frames = _frames(results_h5)
     frame = select_frame(frames, which)
     return _png(FrameArtist(frames, color, height_px=height_px), frame, which)
+
+
+def _frames(results_h5: Path | str | Frames) -> Frames:
+    """The frames of a run's results.h5, of its results folder, or ``results_h5`` itself;
+    ValueError (one line) when there are none to read."""
+    from silodem.errors import InputError
+    from silodem.viz.animate import read_run_frames
+
+    if isinstance(results_h5, Frames):
+        return results_h5
+    if not isinstance(results_h5, str | Path):
+        raise TypeError(f"results_h5 must be a run's results.h5 or its results folder (or "
+                         f"Frames); got a {type(results_h5).__name__}")
+    path = Path(results_h5)
+    try:
+        return read_run_frames(path / "results.h5" if path.is_dir() else path)
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
 
 
 def _png(artist, frame: Frame, which: str | float) -> bytes:
@@ -68,13 +94,13 @@ def _png(artist, frame: Frame, which: str | float) -> bytes:
     return artist.png()
 
 
-def force_network_pngs(results_h5: Path | str) -> dict[str, bytes]:
+def force_network_pngs(results_h5: Path | str | Frames) -> dict[str, bytes]:
     """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge),
     drawn by one artist (one pass over the frames for its scales), as ``force_network_png``
     draws each."""
     from silodem.viz.draw import FrameArtist
 
-    frames = read_frames(results_h5)
+    frames = _frames(results_h5)
     if len(frames) == 0:
         return {}
     artist = FrameArtist(frames, "none", height_px=700)
