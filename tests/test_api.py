@@ -181,6 +181,9 @@ def _unfinished(parent):
     (lambda r: api.run(r.config.model_copy(update={"fill": r.config.fill.model_copy(
         update={"n_particles": 2.5})}), r.folder / "n"), "fill.n_particles"),
     (lambda r: api.run(r.config, out=3), "out must be a results folder's path"),
+    (lambda r: api.open_results(""), "folder must be"),  # was the current folder
+    (lambda r: api.scenario(set={"material.kn=3": 1e7}), "a key is a dotted name"),
+    (lambda r: study.load_study(None), "source must be a study's name"),
     # a key model_copy(update=...) does not know was dropped without a word before
     (lambda r: api.run(r.config.model_copy(update={"sed": 7}), r.folder / "n"),
      r"unknown key 'sed' \(did you mean 'seed'\?\)"),

@@ -508,6 +508,14 @@ def test_animate_out_without_a_suffix_gets_the_formats(run_dir, tmp_path):
     assert plan_animation(run_dir, tmp_path / "movie").out == tmp_path / "movie.mp4"
     assert plan_animation(run_dir, tmp_path / "movie", fmt="gif").out == tmp_path / "movie.gif"
     assert plan_animation(run_dir, tmp_path / "m.gif").out == tmp_path / "m.gif"
+    # from Python: a format or a path of the wrong type is a one-line InputError
+    from silodem.errors import InputError
+
+    for call, needle in ((lambda: plan_animation(run_dir, fmt=3), "--format must be one of"),
+                         (lambda: plan_animation(run_dir, 5), "--out must be a path"),
+                         (lambda: plan_animation(None), "results folder must be a path")):
+        with pytest.raises(InputError, match=needle):
+            call()
 
 
 @pytest.mark.parametrize("case", ["missing", "no_results", "no_frames", "bad_color",

@@ -56,6 +56,9 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
             value = value.item()
         if isinstance(value, Mapping):
             raise InputError(f"set {key!r}: give each value by its dotted key, not a table")
+        if not isinstance(key, str) or "=" in key:
+            raise InputError(f"set {key!r}: a key is a dotted name such as 'material.kn' "
+                             "(its value goes on the right of the colon)")
         try:
             sets.append(f"{key}={_toml_value(value)}")
         except TypeError:
@@ -90,7 +93,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
 
 def open_results(folder: Path | str) -> RunResults:
     """The results of the run in ``folder`` (its results.h5, read once)."""
-    if not isinstance(folder, str | Path):
+    if not isinstance(folder, str | Path) or not str(folder).strip():
         raise InputError(f"folder must be a results folder's path; got {folder!r}")
     return RunResults(load_results(folder))
 

@@ -281,6 +281,8 @@ class LoadedStudy(BaseModel):
 
 def load_study(source: str) -> LoadedStudy:
     """Read and validate an embedded study or a study file; InputError (one line) if bad."""
+    if not isinstance(source, str | Path):
+        raise InputError(f"source must be a study's name or a TOML file's path; got {source!r}")
     text, default_name, folder = _read(str(source))
     where = f"study {source}"
     data = parse_toml(text, where)

@@ -77,6 +77,8 @@ def _choose_format(out: Path | None, fmt: str | None) -> str:
         raise InputError(f"--out {out} ends in .{suffix}, not a video's suffix; give a file "
                          f"name ending in {' or '.join('.' + f for f in FORMATS)}")
     if fmt is not None:
+        if not isinstance(fmt, str):
+            raise InputError(f"--format must be one of {', '.join(FORMATS)}; got {fmt!r}")
         fmt = fmt.lower()
         if fmt not in FORMATS:
             raise InputError(f"--format must be one of {', '.join(FORMATS)}; got '{fmt}'")
@@ -101,6 +103,9 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
                    color: str = "velocity", fmt: str | None = None,
                    fps: int = 10) -> AnimationPlan:
     """Check the request and read the frames; every bad input is an InputError (one line)."""
+    for value, name in ((run_dir, "the results folder"), (out, "--out")):
+        if not (isinstance(value, str | Path) or (value is None and name == "--out")):
+            raise InputError(f"{name} must be a path; got {value!r}")
     if color not in ANIMATION_COLORS:
         raise InputError(f"--color must be one of {', '.join(ANIMATION_COLORS)}; got '{color}'")
     if isinstance(fps, bool) or not isinstance(fps, int) or not 1 <= fps <= 60:
