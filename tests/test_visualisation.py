@@ -654,6 +654,7 @@ def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
     (lambda d: _network(d / "figures"), "has no results.h5|does not exist"),
     (lambda d: _network(None), "results_h5 must be a run's results.h5 or its results folder"),
     (lambda d: read_frames(d / "results.h5").nearest(float("nan")), "finite number of seconds"),
+    (lambda d: read_frames(d / "results.h5")[1.5], "indexed by an integer"),
 ])
 def test_bad_requests_for_pictures_are_one_line_errors(run_dir, call, needle):
     """ValueError (TypeError for an argument of the wrong type), one line.  Before: inf and

@@ -320,6 +320,9 @@ class Frames:
         return len(self.frames)
 
     def __getitem__(self, k: int) -> Frame:
+        if isinstance(k, bool) or not isinstance(k, numbers.Integral | slice):
+            raise TypeError(f"frames are indexed by an integer (or a slice); got {k!r} (a time: "
+                            "Frames.nearest)")
         return self.frames[k]
 
     def __iter__(self) -> Iterator[Frame]:
