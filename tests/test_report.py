@@ -203,9 +203,27 @@ def _slices_as_text(h5):  # valid shapes, but a figure cannot use the numbers
     h5["measure/profiles/slices"] = data.astype("S8")
 
 
+def _no_dt(h5):
+    del h5.attrs["dt"]
+
+
+def _no_walls(h5):
+    del h5["walls"]
+
+
+def _shorten_a_timeseries_column(h5):
+    data = h5["timeseries/time"][:5]
+    del h5["timeseries/time"]
+    h5["timeseries/time"] = data
+
+
 @pytest.mark.parametrize("damage, needle", [(_edit_config_attr, "config_toml"),
                                             (_shorten_stress, "/measure/circles/stress"),
-                                            (_slices_as_text, "could not be drawn")])
+                                            (_slices_as_text, "could not be drawn"),
+                                            (_no_dt, "no attribute dt"),
+                                            (_no_walls, "no /walls"),
+                                            (_shorten_a_timeseries_column,
+                                             "/timeseries/time has 5 rows")])
 def test_plot_of_a_results_file_edited_inconsistently_is_one_line(run_dir, tmp_path, capsys,
                                                                   damage, needle):
     """Valid HDF5 with wrong contents (an AttributeError, IndexError or other traceback

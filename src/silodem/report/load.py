@@ -75,9 +75,29 @@ SAMPLED = ("step", "phase", "circles/stress", "circles/porosity", "circles/coord
 """The datasets of /measure with one row per sample (docs/output.md: shape (S, ...))."""
 
 
-def _check_samples(res: Results) -> None:
-    """InputError when a per-sample dataset of /measure has another number of rows than
-    /measure/time (a damaged or hand-edited file), before a figure trips over it."""
+WALL_KEYS = ("name", "ax", "ay", "bx", "by")  # /walls: every run writes these
+
+
+def _check_samples(res: Results, only: tuple[str, ...] | None) -> None:
+    """InputError when a part every run writes is missing (the time step, the walls of the
+    loaded groups) or when the columns of /timeseries, or the per-sample datasets of /measure
+    and /measure/time, have different numbers of rows (a damaged or hand-edited file), before
+    a reader or a figure trips over it."""
+    where = res.folder / "results.h5"
+    if "dt" not in res.attrs:
+        raise InputError(f"{where} has no attribute dt (damaged, or not written by silodem)")
+    walls = res.group("walls")
+    if (only is None or "walls" in only) and not (
+            isinstance(walls, dict) and all(k in walls for k in WALL_KEYS)):
+        raise InputError(f"{where} has no /walls with {', '.join(WALL_KEYS)} (damaged?)")
+    series = res.group("timeseries") or {}
+    lengths = {k: np.shape(v)[0] for k, v in series.items()
+               if isinstance(v, np.ndarray) and v.ndim == 1}
+    if len(set(lengths.values())) > 1:
+        (a, n_a), (b, n_b) = min(lengths.items(), key=lambda kv: kv[1]), max(
+            lengths.items(), key=lambda kv: kv[1])
+        raise InputError(f"{where}: /timeseries/{a} has {n_a} rows where /timeseries/{b} has "
+                         f"{n_b} (damaged?)")
     samples = np.size(res.group("measure", "time"))
     for name in SAMPLED:
         node = res.group("measure", *name.split("/"))
@@ -85,8 +105,8 @@ def _check_samples(res: Results) -> None:
             continue
         rows = np.shape(node)[0] if np.ndim(node) else 0
         if rows != samples:
-            raise InputError(f"{res.folder / 'results.h5'}: /measure/{name} has {rows} rows "
-                             f"where /measure/time has {samples} (damaged?)")
+            raise InputError(f"{where}: /measure/{name} has {rows} rows where /measure/time "
+                             f"has {samples} (damaged?)")
 
 
 def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Results:
@@ -131,5 +151,5 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     events = dict(data.get("events", {}).get("@attrs", {}))
     warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
     res = Results(folder, cfg, toml_text, attrs, events, warnings, data)
-    _check_samples(res)
+    _check_samples(res, only)
     return res
