@@ -182,6 +182,7 @@ def _unfinished(parent):
         update={"n_particles": 2.5})}), r.folder / "n"), "fill.n_particles"),
     (lambda r: api.run(r.config, out=3), "out must be a results folder's path"),
     (lambda r: api.open_results(""), "folder must be"),  # was the current folder
+    (lambda r: api.run(r.config, r.folder.parent / "a\0b"), "not a usable path"),
     (lambda r: api.scenario(set={"material.kn=3": 1e7}), "a key is a dotted name"),
     (lambda r: study.load_study(None), "source must be a study's name"),
     # a key model_copy(update=...) does not know was dropped without a word before

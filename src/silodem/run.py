@@ -59,6 +59,8 @@ def check_out(out: Path, flag: str = "out") -> None:
         _check_out_folder(Path(out), flag)
     except OSError as exc:  # a name too long, a system folder (/proc, /sys), ...
         raise InputError(f"{flag} {out}: cannot write a folder there ({exc.strerror})") from None
+    except ValueError as exc:  # a NUL character in the path
+        raise InputError(f"{flag} {out!r}: not a usable path ({exc})") from None
 
 
 def _check_out_folder(out: Path, flag: str) -> None:
