@@ -9,7 +9,9 @@ theory, every name importable from here (``from silodem import theory as th``):
 Units are SI throughout: lengths [m], densities [kg/m^3], g [m/s^2], stresses [Pa], angles in
 degrees where the argument name ends in ``_deg``.  Stresses are compressive positive (soil
 mechanics).  The depth and height arguments (and the data of the fits) may be NumPy arrays;
-the material and geometry parameters are scalars.
+the material and geometry parameters are scalars.  Bad input (a parameter out of its range,
+NaN, a string, a bool for a number, a non-bool flag) is a one-line ValueError that names the
+function, the argument, its allowed range and the value got (``_checks``).
 """
 
 from silodem.theory.beverloo import (

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from silodem.theory import _checks as ck
 from silodem.theory._fit import curve_fit_quiet
 
 
@@ -22,16 +23,55 @@ def beverloo_2d(D: float, d: float, rho_b: float, g: float, C: float, k: float,
     slot (W per unit thickness times t).  Zero when D <= k d.  Source: Beverloo, Leniger & van de
     Velde (1961), Chem. Eng. Sci. 15, 260 (3D form W ~ (D - k d)^(5/2)); Nedderman (1992) ch. 10;
     the 3/2 power of a 2D silo: Janda, Zuriguel & Maza (2012), Phys. Rev. Lett. 108, 248001.
+    ValueError unless D, d, C, thickness > 0, rho_b, g >= 0 and k finite (scalars all; a fit
+    may give k < 0).
     """
+    _check_law("beverloo_2d", D, d, rho_b, g, k, thickness)
+    ck.positive("beverloo_2d", "C", C)
+    return _rate(D, d, rho_b, g, C, k, thickness)
+
+
+def _check_law(func: str, D, d, rho_b, g, k, thickness) -> None:
+    ck.positive(func, "D", D)
+    ck.positive(func, "d", d)
+    ck.non_negative(func, "rho_b", rho_b)
+    ck.non_negative(func, "g", g)
+    ck.number(func, "k", k)
+    ck.positive(func, "thickness", thickness)
+
+
+def _rate(D, d, rho_b, g, C, k, thickness) -> float:
     open_width = max(D - k * d, 0.0)
     return C * rho_b * math.sqrt(g) * open_width**1.5 * thickness
 
 
 def beverloo_2d_C(rate: float, D: float, d: float, rho_b: float, g: float, k: float,
                   thickness: float = 1.0) -> float:
-    """The Beverloo constant C [-] that a measured rate [kg/s] implies for a given k."""
-    base = beverloo_2d(D, d, rho_b, g, 1.0, k, thickness)
+    """The Beverloo constant C [-] that a measured rate [kg/s] implies for a given k; NaN where
+    the law gives no flow (D <= k d, or rho_b or g 0).  ValueError unless the rate is finite
+    (of either sign: a measured rate may be) and the conditions of :func:`beverloo_2d`."""
+    ck.number("beverloo_2d_C", "rate", rate)
+    _check_law("beverloo_2d_C", D, d, rho_b, g, k, thickness)
+    base = _rate(D, d, rho_b, g, 1.0, k, thickness)
     return rate / base if base > 0 else float("nan")
+
+
+def _check_data(func: str, min_widths: int, fitted: str, D, W, W_err, d, rho_b, g,
+                t) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The data of a fit as float arrays of one length, every value finite and > 0 (W_err may
+    be None), at least ``min_widths`` distinct widths; the constants finite and > 0."""
+    arrays = {"D": D, "W": W} | ({} if W_err is None else {"W_err": W_err})
+    arrays = {name: ck.array(func, name, v, vector=True) for name, v in arrays.items()}
+    ck.same_length(func, tuple(arrays), *arrays.values())
+    for name, a in arrays.items():
+        ck.positive_values(func, name, a)
+    widths = np.unique(arrays["D"]).size
+    if widths < min_widths:
+        raise ValueError(f"{func}: D must hold at least {min_widths} distinct outlet widths to "
+                         f"fit {fitted}; got {widths}")
+    for name, value in (("d", d), ("rho_b", rho_b), ("g", g), ("t", t)):
+        ck.positive(func, name, value)
+    return arrays["D"], arrays["W"], arrays.get("W_err")
 
 
 @dataclass(frozen=True)
@@ -51,11 +91,14 @@ def fit_beverloo_free(D: npt.ArrayLike, W: npt.ArrayLike, W_err: npt.ArrayLike, 
                       rho_b: float, g: float, t: float) -> BeverlooFit:
     """C, k and the exponent b free: weighted least squares on ln W (scipy ``curve_fit``,
     sigma = W_err / W, absolute); k is bounded above by 0.95 min(D)/d (so that D - k d > 0 at
-    every width).  Needs four outlet widths or
+    every width).  Needs four distinct outlet widths or
     more (three parameters).  D, W, W_err: arrays [m, kg/s, kg/s]; d [m], rho_b [kg/m^3],
-    g [m/s^2], t [m] as in :func:`beverloo_2d`."""
-
-    D, W, W_err = (np.asarray(a, dtype=float) for a in (D, W, W_err))
+    g [m/s^2], t [m] as in :func:`beverloo_2d`.  ValueError for fewer widths, arrays of
+    different lengths, values of D, W or W_err that are not finite and > 0, or d, rho_b, g,
+    t not > 0."""
+    if W_err is None:
+        ck.fail("fit_beverloo_free", "W_err", "an array of the rates' errors", W_err)
+    D, W, W_err = _check_data("fit_beverloo_free", 4, "C, k and b", D, W, W_err, d, rho_b, g, t)
     scale = rho_b * math.sqrt(g) * t
 
     def model(x, lnC, k, b):
@@ -79,8 +122,10 @@ def fit_beverloo_three_halves(D: npt.ArrayLike, W: npt.ArrayLike, d: float, rho_
     straight line in D (least squares, weighted by the errors of W^(2/3) when ``W_err`` is
     given).  Two outlet widths determine it; the errors of C and k need three or more.
     ValueError when the line does not rise with D: rates that do not grow with the outlet
-    follow no Beverloo law."""
-    D, W = np.asarray(D, dtype=float), np.asarray(W, dtype=float)
+    follow no Beverloo law; and for fewer than two distinct widths, arrays of different
+    lengths, values of D, W or W_err that are not finite and > 0, or d, rho_b, g, t not > 0."""
+    D, W, W_err = _check_data("fit_beverloo_three_halves", 2, "C and k", D, W, W_err, d, rho_b,
+                              g, t)
     y = W ** (2.0 / 3.0)
     w = None
     if W_err is not None:

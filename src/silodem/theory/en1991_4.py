@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from silodem.theory.hopper import hopper_sigma_v, walker_distribution_factor, walker_exponent
+from silodem.theory import _checks as ck
+from silodem.theory.hopper import _exponent, _sigma_v, walker_distribution_factor
 
 
 def en1991_4_slenderness(h_c: float, d_c: float, flat_bottom: bool) -> str:
@@ -18,9 +19,19 @@ def en1991_4_slenderness(h_c: float, d_c: float, flat_bottom: bool) -> str:
     dimension d_c [m] (the width B of a planar silo): "slender" for h_c/d_c >= 2,
     "intermediate" for 1 < h_c/d_c < 2, "squat" for 0.4 < h_c/d_c <= 1 and, with a hopper,
     below; "retaining" for a flat bottom and h_c/d_c <= 0.4.  The Janssen-form loads below
-    (§5.2) are the standard's rules for slender silos only."""
-    if not (h_c > 0.0 and d_c > 0.0):
-        raise ValueError(f"h_c and d_c must be positive, got {h_c} and {d_c}")
+    (§5.2) are the standard's rules for slender silos only.  ValueError unless h_c, d_c > 0
+    and flat_bottom is a bool."""
+    _check_silo("en1991_4_slenderness", h_c, d_c, flat_bottom)
+    return _slenderness(h_c, d_c, flat_bottom)
+
+
+def _check_silo(func: str, h_c, d_c, flat_bottom) -> None:
+    ck.positive(func, "h_c", h_c)
+    ck.positive(func, "d_c", d_c)
+    ck.flag(func, "flat_bottom", flat_bottom)
+
+
+def _slenderness(h_c, d_c, flat_bottom) -> str:
     ratio = h_c / d_c
     if ratio >= 2.0:
         return "slender"
@@ -40,9 +51,23 @@ def en1991_4_filling(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
     depth z [m] below the equivalent surface; gamma [N/m^3]; K, mu [-]; A/U hydraulic radius [m]
     (B/2 for a 2D slot of width B).  Returns (p_h, p_w, p_v) [Pa].  The characteristic values
     of the standard use K and mu at their extremes (K = 1.1 (1 - sin phi_i) as a mean value);
-    give the values to compare.
+    give the values to compare.  ValueError unless gamma >= 0 and K, mu, A_over_U > 0 (mu = 0
+    makes z_o infinite).
     """
-    z = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    return _filling("en1991_4_filling", depth, gamma, K, mu, A_over_U)
+
+
+def _check_wall(func: str, gamma, K, mu, A_over_U) -> None:
+    """The material and section of the vertical walls' loads (z_o = A / (K mu U) finite)."""
+    ck.non_negative(func, "gamma", gamma)
+    ck.positive(func, "K", K)
+    ck.positive(func, "mu", mu)
+    ck.positive(func, "A_over_U", A_over_U)
+
+
+def _filling(func: str, depth, gamma, K, mu, A_over_U):
+    _check_wall(func, gamma, K, mu, A_over_U)
+    z = np.maximum(ck.array(func, "depth", depth), 0.0)
     z_o = A_over_U / (K * mu)
     p_ho = gamma * K * z_o
     yj = -np.expm1(-z / z_o)
@@ -55,8 +80,11 @@ def en1991_4_discharge(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
                        C_w: float = 1.10) -> tuple[np.ndarray | float, np.ndarray | float]:
     """EN 1991-4:2006 §5.2.2.2 fixed discharge loads of slender silos: p_he = C_h p_hf,
     p_we = C_w p_wf [Pa] (C_h = 1.15, C_w = 1.10; 1.0 for a silo emptied from the top).
-    The patch load is not included.  Returns (p_he, p_we)."""
-    p_h, p_w, _ = en1991_4_filling(depth, gamma, K, mu, A_over_U)
+    The patch load is not included.  Returns (p_he, p_we).  ValueError unless C_h, C_w >= 1
+    (magnifiers) and the conditions of :func:`en1991_4_filling`."""
+    ck.between("en1991_4_discharge", "C_h", C_h, 1.0, math.inf, lo_in=True)
+    ck.between("en1991_4_discharge", "C_w", C_w, 1.0, math.inf, lo_in=True)
+    p_h, p_w, _ = _filling("en1991_4_discharge", depth, gamma, K, mu, A_over_U)
     return C_h * p_h, C_w * p_w
 
 
@@ -66,7 +94,11 @@ def en1991_4_h_o(d_c: float, phi_r_deg: float, planar: bool = True) -> float:
     Fig. 1.1): d_c tan(phi_r) / 4 for a planar (or rectangular) silo of width d_c, and
     r tan(phi_r) / 3 for a circular one of radius r = d_c / 2.  Geometry: the heap is a
     triangle (a cone) of height (d_c/2) tan(phi_r) on the level of the wall contacts; the level
-    surface of the same volume lies 1/2 (1/3) of that height above it."""
+    surface of the same volume lies 1/2 (1/3) of that height above it.  ValueError unless
+    d_c > 0, 0 <= phi_r < 90 deg (0: a level top, h_o = 0) and planar is a bool."""
+    ck.positive("en1991_4_h_o", "d_c", d_c)
+    ck.between("en1991_4_h_o", "phi_r_deg", phi_r_deg, 0.0, 90.0, lo_in=True)
+    ck.flag("en1991_4_h_o", "planar", planar)
     rise = 0.5 * d_c * math.tan(math.radians(phi_r_deg))
     return rise / 2.0 if planar else rise / 3.0
 
@@ -90,11 +122,17 @@ def en1991_4_filling_squat(depth: npt.ArrayLike, gamma: float, K: float, mu: flo
 
     depth z [m] below the equivalent surface; gamma [N/m^3]; K, mu [-]; A/U [m] (B/2 for a
     2D slot); phi_r the angle of repose [deg]; h_o [m] (:func:`en1991_4_h_o` for a heap, 0 for
-    a levelled top).  Returns (p_h, p_w, p_v) [Pa]."""
+    a levelled top).  Returns (p_h, p_w, p_v) [Pa].  ValueError unless 0 <= phi_r < 90 deg,
+    0 <= h_o < z_o and the conditions of :func:`en1991_4_filling`."""
+    func = "en1991_4_filling_squat"
+    _check_wall(func, gamma, K, mu, A_over_U)
+    ck.between(func, "phi_r_deg", phi_r_deg, 0.0, 90.0, lo_in=True)
+    ck.number(func, "h_o", h_o)
     z_o = A_over_U / (K * mu)
     if not 0.0 <= h_o < z_o:
-        raise ValueError(f"h_o must lie in [0, z_o = {z_o:.4g} m), got {h_o}")
-    z = np.maximum(np.asarray(depth, dtype=float), 0.0)
+        raise ValueError(f"{func}: h_o must lie in [0, z_o = A_over_U / (K mu) = {z_o:.4g} m); "
+                         f"got {ck.show(h_o)}")
+    z = np.maximum(ck.array(func, "depth", depth), 0.0)
     below = np.maximum(z, h_o)  # the wall-loaded part starts at the highest wall contact
     n = -(1.0 + math.tan(math.radians(phi_r_deg))) * (1.0 - h_o / z_o)
     ratio = 1.0 + (below - h_o) / (z_o - h_o)  # = (z + z_o - 2 h_o) / (z_o - h_o) >= 1
@@ -113,8 +151,10 @@ def en1991_4_discharge_factors(h_c: float, d_c: float, flat_bottom: bool) -> tup
     (§5.2.2.2) 1.15 and 1.10; intermediate (§5.3.2.2) 1 + 0.15 C_S and 1 + 0.1 C_S with
     C_S = h_c/d_c - 1 (so the two rules meet at h_c/d_c = 2); squat (§5.3.2.2) 1 and 1 (the
     discharge loads equal the filling loads).  Retaining silos (§5.4) are not covered: a
-    ValueError.  For a silo emptied from the top both are 1 whatever the class."""
-    kind = en1991_4_slenderness(h_c, d_c, flat_bottom)
+    ValueError (and for the arguments :func:`en1991_4_slenderness` refuses).  For a silo
+    emptied from the top both are 1 whatever the class."""
+    _check_silo("en1991_4_discharge_factors", h_c, d_c, flat_bottom)
+    kind = _slenderness(h_c, d_c, flat_bottom)
     if kind == "slender":
         return 1.15, 1.10
     if kind == "intermediate":
@@ -122,8 +162,8 @@ def en1991_4_discharge_factors(h_c: float, d_c: float, flat_bottom: bool) -> tup
         return 1.0 + 0.15 * c_s, 1.0 + 0.10 * c_s
     if kind == "squat":
         return 1.0, 1.0
-    raise ValueError("EN 1991-4 loads of retaining silos (§5.4, h_c/d_c <= 0.4 on a flat "
-                     "bottom) are not built")
+    raise ValueError("en1991_4_discharge_factors: EN 1991-4 loads of retaining silos (§5.4, "
+                     "h_c/d_c <= 0.4 on a flat bottom) are not built")
 
 
 @dataclass(frozen=True)
@@ -147,9 +187,19 @@ def en1991_4_hopper_kind(beta_deg: float, K: float, mu_h: float) -> str:
     """EN 1991-4:2006 §6.1 class of a hopper of apex half-angle beta [deg] (from the vertical,
     alpha of this module): "flat" when its walls lie within 5 deg of the horizontal (beta > 85),
     "steep" when tan(beta) < (1 - K) / (2 mu_h) (the wall friction is then fully mobilised),
-    "shallow" otherwise.  K: lateral pressure ratio [-]; mu_h: hopper wall friction [-]."""
-    if not 0.0 < beta_deg < 90.0:
-        raise ValueError(f"beta must lie in (0, 90) deg, got {beta_deg}")
+    "shallow" otherwise.  K: lateral pressure ratio [-]; mu_h: hopper wall friction [-].
+    ValueError unless 0 < beta < 90 deg, K > 0 and mu_h >= 0."""
+    _check_hopper("en1991_4_hopper_kind", beta_deg, K, mu_h)
+    return _hopper_kind(beta_deg, K, mu_h)
+
+
+def _check_hopper(func: str, beta_deg, K, mu_h) -> None:
+    ck.between(func, "beta_deg", beta_deg, 0.0, 90.0)
+    ck.positive(func, "K", K)
+    ck.non_negative(func, "mu_h", mu_h)
+
+
+def _hopper_kind(beta_deg, K, mu_h) -> str:
     if beta_deg > 85.0:
         return "flat"
     # tan(beta) < (1 - K) / (2 mu_h), multiplied out so that mu_h = 0 needs no division
@@ -160,8 +210,8 @@ def _hopper_load(x, h_h, p_vft, gamma, beta_deg, kind, mu, F, planar) -> HopperL
     """p_v of the slice balance with p_n = F p_v (:func:`hopper_sigma_v` with D = F): EN's p_v
     expression, with the slice balance's exponent n = S (F mu cot(beta) + F) - S (S = 1 for a
     wedge, 2 for a cone; for a cone it is the standard's n for a pressure ratio F)."""
-    p_v = hopper_sigma_v(x, h_h, p_vft, gamma, beta_deg, mu, F, planar)
-    n = walker_exponent(beta_deg, mu, F, planar)
+    p_v = _sigma_v(x, h_h, p_vft, gamma, beta_deg, mu, F, planar)
+    n = _exponent(beta_deg, mu, F, planar)
     return HopperLoad(kind, mu, F, n, F * p_v, mu * F * p_v, p_v)
 
 
@@ -183,15 +233,39 @@ def en1991_4_hopper_filling(x: npt.ArrayLike, h_h: float, p_vft: float, gamma: f
     walls; C_b = 1.0, more for some silo classes and solids); gamma [N/m^3];
     beta: apex half-angle from the vertical [deg]; K, mu_h [-]; b = 0.2, EN's empirical
     coefficient.  A shallow hopper needs K < 1 (mu_heff > 0); a flat bottom (beta > 85 deg)
-    has no hopper rule: ValueError for both."""
-    kind = en1991_4_hopper_kind(beta_deg, K, mu_h)
+    has no hopper rule: ValueError for both, and unless 0 <= x <= h_h (the hopper, apex to
+    transition), h_h > 0, p_vft >= 0, gamma >= 0, 0 <= b < 1, planar a bool and the conditions
+    of :func:`en1991_4_hopper_kind`."""
+    x = _check_hopper_loads("en1991_4_hopper_filling", x, h_h, p_vft, gamma, beta_deg, K,
+                            mu_h, planar, b)
+    return _hopper_filling("en1991_4_hopper_filling", x, h_h, p_vft, gamma, beta_deg, K, mu_h,
+                           planar, b)
+
+
+def _check_hopper_loads(func: str, x, h_h, p_vft, gamma, beta_deg, K, mu_h, planar,
+                        b) -> np.ndarray:
+    """The arguments of the hopper loads, ``x`` as an array in [0, h_h]."""
+    ck.positive(func, "h_h", h_h)
+    ck.non_negative(func, "p_vft", p_vft)
+    ck.non_negative(func, "gamma", gamma)
+    _check_hopper(func, beta_deg, K, mu_h)
+    ck.flag(func, "planar", planar)
+    ck.between(func, "b", b, 0.0, 1.0, lo_in=True)  # F_f = 1 - b mu / (mu + tan beta) > 0
+    x = ck.array(func, "x", x)
+    ck.within(func, "x", x, 0.0, h_h, "h_h")
+    return x
+
+
+def _hopper_filling(func: str, x, h_h, p_vft, gamma, beta_deg, K, mu_h, planar,
+                    b) -> HopperLoad:
+    kind = _hopper_kind(beta_deg, K, mu_h)
     tan_b = math.tan(math.radians(beta_deg))
     if kind == "flat":
-        raise ValueError(f"beta = {beta_deg} deg is a flat bottom (walls within 5 deg of the "
-                         "horizontal): EN 1991-4's hopper rules do not apply")
+        raise ValueError(f"{func}: beta_deg = {ck.show(beta_deg)} is a flat bottom (walls "
+                         "within 5 deg of the horizontal): EN 1991-4's hopper rules do not apply")
     if kind == "shallow" and K >= 1.0:
-        raise ValueError(f"a shallow hopper's mobilised friction (1 - K)/(2 tan beta) needs "
-                         f"K < 1, got K = {K:.3g}")
+        raise ValueError(f"{func}: a shallow hopper's mobilised friction (1 - K)/(2 tan beta) "
+                         f"needs K < 1; got K = {K:.3g}")
     mu = mu_h if kind == "steep" else (1.0 - K) / (2.0 * tan_b)
     F_f = 1.0 - b * mu / (mu + tan_b)  # = 1 - b / (1 + tan(beta) / mu), also at mu = 0
     return _hopper_load(x, h_h, p_vft, gamma, beta_deg, kind, mu, F_f, planar)
@@ -210,16 +284,26 @@ def en1991_4_hopper_discharge(x: npt.ArrayLike, h_h: float, p_vft: float, gamma:
     F_e being Walker's passive distribution factor (:func:`walker_distribution_factor` with
     delta = phi_i, eps = 2 omega), and p_v the slice balance's (EN's p_v expression) with
     F = F_e in n = S (F mu_h cot(beta) + F) - S.  phi_i: angle of internal friction [deg],
-    at least phi_wh; the other arguments as for the filling loads."""
-    if en1991_4_hopper_kind(beta_deg, K, mu_h) != "steep":
-        return en1991_4_hopper_filling(x, h_h, p_vft, gamma, beta_deg, K, mu_h, planar, b)
-    F_e = walker_distribution_factor(phi_i_deg, math.degrees(math.atan(mu_h)), beta_deg)
+    at least phi_wh; the other arguments as for the filling loads.  ValueError unless
+    0 < phi_i < 90 deg, in a steep hopper phi_i >= phi_wh, and as for the filling loads."""
+    func = "en1991_4_hopper_discharge"
+    x = _check_hopper_loads(func, x, h_h, p_vft, gamma, beta_deg, K, mu_h, planar, b)
+    ck.between(func, "phi_i_deg", phi_i_deg, 0.0, 90.0)
+    if _hopper_kind(beta_deg, K, mu_h) != "steep":
+        return _hopper_filling(func, x, h_h, p_vft, gamma, beta_deg, K, mu_h, planar, b)
+    phi_wh = math.degrees(math.atan(mu_h))
+    if phi_i_deg < phi_wh:  # no passive stress state at a wall rougher than the solid
+        raise ValueError(f"{func}: phi_i_deg must be >= arctan(mu_h) = {phi_wh:.3g} deg in a "
+                         f"steep hopper; got {ck.show(phi_i_deg)}")
+    F_e = walker_distribution_factor(phi_i_deg, phi_wh, beta_deg)
     return _hopper_load(x, h_h, p_vft, gamma, beta_deg, "steep", mu_h, F_e, planar)
 
 
 def en1991_4_phi_i_from_K(K: float) -> float:
     """Angle of internal friction [deg] that EN 1991-4:2006's estimate of the lateral pressure
     ratio from it, K = 1.1 (1 - sin(phi_i)) (its section 4, on the properties of particulate
-    solids), gives for a measured K; NaN where none does (K <= 0 or K >= 1.1)."""
+    solids), gives for a measured K; NaN where none does (K <= 0 or K >= 1.1).  ValueError
+    for a K that is not a finite number."""
+    ck.number("en1991_4_phi_i_from_K", "K", K)
     s = 1.0 - K / 1.1
     return math.degrees(math.asin(s)) if 0.0 < s < 1.0 else float("nan")

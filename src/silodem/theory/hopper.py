@@ -26,17 +26,45 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from silodem.theory import _checks as ck
+
 
 def alpha_from_theta(theta_from_horizontal_deg: float) -> float:
-    """Hopper half-angle from the vertical alpha [deg] = 90 - theta (theta from the horizontal)."""
+    """Hopper half-angle from the vertical alpha [deg] = 90 - theta (theta from the horizontal,
+    in [0, 90])."""
+    ck.between("alpha_from_theta", "theta_from_horizontal_deg", theta_from_horizontal_deg,
+               0.0, 90.0, lo_in=True, hi_in=True)
     return 90.0 - float(theta_from_horizontal_deg)
+
+
+def _alpha(func: str, alpha_deg) -> None:
+    """A hopper's half-angle from the vertical: 0 < alpha < 90 deg."""
+    ck.between(func, "alpha_deg", alpha_deg, 0.0, 90.0)
 
 
 def apex_below_outlet(outlet_width: float, alpha_deg: float) -> float:
     """Depth of the virtual apex of a hopper under its outlet [m]: (D/2) / tan(alpha).
 
-    Slice theory measures heights h from the apex, where the hopper walls would meet."""
+    Slice theory measures heights h from the apex, where the hopper walls would meet.
+    outlet_width >= 0 [m], 0 < alpha < 90 deg."""
+    ck.non_negative("apex_below_outlet", "outlet_width", outlet_width)
+    _alpha("apex_below_outlet", alpha_deg)
     return 0.5 * outlet_width / math.tan(math.radians(alpha_deg))
+
+
+def _exponent(alpha_deg, mu_w, D, planar):
+    """:func:`walker_exponent` unchecked."""
+    m = 0 if planar else 1
+    return (m + 1) * (D * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 1.0)
+
+
+def _check_slice(func: str, alpha_deg, mu_w, D, planar) -> None:
+    """The hopper and material of the slice solution: 0 < alpha < 90 deg, mu_w >= 0, D > 0,
+    planar a bool."""
+    _alpha(func, alpha_deg)
+    ck.non_negative(func, "mu_w", mu_w)
+    ck.positive(func, "D", D)
+    ck.flag(func, "planar", planar)
 
 
 def walker_exponent(alpha_deg: float, mu_w: float, D: float = 1.0, planar: bool = True) -> float:
@@ -48,10 +76,37 @@ def walker_exponent(alpha_deg: float, mu_w: float, D: float = 1.0, planar: bool 
     sigma_v, Walker's distribution factor (wall normal stress over mean vertical stress) [-].
     With D = 1 and m = 1, n = 2 (1 + mu_w/tan(alpha)) - 2 = n_i + 1 with the paper's
     n_i = 2 (1 + tan(phi_P)/tan(alpha)) - 3.  Source: Walker (1966), Chem. Eng. Sci. 21, 975;
-    Nedderman (1992), the method of differential slices.
+    Nedderman (1992), the method of differential slices.  ValueError unless 0 < alpha < 90 deg,
+    mu_w >= 0, D > 0 and planar is a bool.
     """
-    m = 0 if planar else 1
-    return (m + 1) * (D * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 1.0)
+    _check_slice("walker_exponent", alpha_deg, mu_w, D, planar)
+    return _exponent(alpha_deg, mu_w, D, planar)
+
+
+def _sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar):
+    """:func:`hopper_sigma_v` unchecked."""
+    h = np.asarray(h, dtype=float)
+    n = _exponent(alpha_deg, mu_w, D, planar)
+    x = np.clip(h / H, 1e-300, None)
+    a = n - 1.0
+    log_x = np.log(x)
+    # (1 - x^a)/a, continuous through a = 0, where it is -ln x
+    if abs(a) < 1e-12:
+        growth = -log_x
+    else:
+        growth = -np.expm1(a * log_x) / a
+    return gamma * h * growth + q * np.exp(n * log_x)
+
+
+def _check_heights(func: str, h, H, q, gamma, alpha_deg, mu_w, D, planar) -> np.ndarray:
+    """The arguments of the slice solution, ``h`` as an array in [0, H]."""
+    ck.positive(func, "H", H)
+    ck.number(func, "q", q)
+    ck.non_negative(func, "gamma", gamma)
+    _check_slice(func, alpha_deg, mu_w, D, planar)
+    h = ck.array(func, "h", h)
+    ck.within(func, "h", h, 0.0, H, "H")
+    return h
 
 
 def hopper_sigma_v(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha_deg: float,
@@ -66,25 +121,19 @@ def hopper_sigma_v(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha_deg
     tan(alpha) (cone).  H: height of the transition above the apex [m]; q: mean vertical stress
     on the transition from the cell above [Pa]; gamma = rho_b g [N/m^3]; n = 1 is the limit
     gamma h ln(H/h) + q h/H.  Source: Walker (1966); Nedderman (1992), the method of
-    differential slices.
+    differential slices.  ValueError unless 0 <= h <= H (the hopper, apex to transition),
+    H > 0, q finite (a measured q may be of either sign; the solution is linear in it),
+    gamma >= 0, and the conditions of :func:`walker_exponent`.
     """
-    h = np.asarray(h, dtype=float)
-    n = walker_exponent(alpha_deg, mu_w, D, planar)
-    x = np.clip(h / H, 1e-300, None)
-    a = n - 1.0
-    log_x = np.log(x)
-    # (1 - x^a)/a, continuous through a = 0, where it is -ln x
-    if abs(a) < 1e-12:
-        growth = -log_x
-    else:
-        growth = -np.expm1(a * log_x) / a
-    return gamma * h * growth + q * np.exp(n * log_x)
+    h = _check_heights("hopper_sigma_v", h, H, q, gamma, alpha_deg, mu_w, D, planar)
+    return _sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar)
 
 
 def hopper_wall_normal(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha_deg: float,
                        mu_w: float, D: float = 1.0, planar: bool = True) -> np.ndarray | float:
     """Hopper wall normal stress [Pa]: sigma_n = D sigma_v (:func:`hopper_sigma_v`)."""
-    return D * hopper_sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar)
+    h = _check_heights("hopper_wall_normal", h, H, q, gamma, alpha_deg, mu_w, D, planar)
+    return D * _sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar)
 
 
 def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamma: float,
@@ -100,8 +149,17 @@ def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamm
     It equals :func:`hopper_sigma_v` with planar=False, D = 1, h = h' - z, H = h'.  With x =
     1 - z/h' it reads gamma h' x (1 - x^n_i) / n_i + q x^(n_i + 1), whose limit at n_i = 0
     (mu_w = tan(alpha) / 2, e.g. alpha = 45 deg, mu_w = 0.5) is -gamma h' x ln x + q x.
+    ValueError unless 0 <= z <= h', h' > 0, q finite, gamma > 0 (the form as printed divides
+    by it), 0 < alpha < 90 deg and mu_w >= 0.
     """
-    z = np.asarray(z_below_transition, dtype=float)
+    func = "paper_eq12"
+    ck.positive(func, "h_prime", h_prime)
+    ck.number(func, "q", q)
+    ck.positive(func, "gamma", gamma)
+    _alpha(func, alpha_deg)
+    ck.non_negative(func, "mu_w", mu_w)
+    z = ck.array(func, "z_below_transition", z_below_transition)
+    ck.within(func, "z_below_transition", z, 0.0, h_prime, "h_prime")
     n_i = 2.0 * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 3.0
     if abs(n_i) > 1e-12:
         return gamma * ((h_prime - z) / n_i + (q / gamma - h_prime / n_i)
@@ -122,13 +180,20 @@ def walker_distribution_factor(delta_deg: float, phi_w_deg: float, alpha_deg: fl
     the vertical [deg].  For alpha = 0 it is the vertical-wall K of Walker/Nedderman; for a
     vertical smooth wall (alpha = 0 and phi_w = 0) Rankine's passive K =
     (1 + sin delta)/(1 - sin delta).  The passive state only: it is the stress distribution
-    of a flowing hopper, not of one being filled.
+    of a flowing hopper, not of one being filled.  ValueError unless 0 < delta < 90 deg,
+    0 <= phi_w <= delta and 0 <= alpha < 90 deg.
     Source: Walker (1966); Nedderman (1992), the method of differential slices.
     """
+    func = "walker_distribution_factor"
+    ck.between(func, "delta_deg", delta_deg, 0.0, 90.0)
+    ck.number(func, "phi_w_deg", phi_w_deg)
+    if not 0.0 <= phi_w_deg <= delta_deg:
+        raise ValueError(f"{func}: phi_w_deg must lie in [0, delta_deg = {ck.show(delta_deg)}] "
+                         f"(phi_w must not exceed delta); got {ck.show(phi_w_deg)}")
+    ck.between(func, "alpha_deg", alpha_deg, 0.0, 90.0, lo_in=True)
     s = math.sin(math.radians(delta_deg))
     pw = math.radians(phi_w_deg)
-    if math.sin(pw) > s:
-        raise ValueError("walker_distribution_factor: phi_w must not exceed delta")
-    two_omega = pw + math.asin(math.sin(pw) / s)
+    # min: sin(phi_w) / sin(delta) is 1 at phi_w = delta, and never above it but by round-off
+    two_omega = pw + math.asin(min(math.sin(pw) / s, 1.0))
     a2 = 2.0 * math.radians(alpha_deg)
     return (1.0 + s * math.cos(two_omega)) / (1.0 - s * math.cos(a2 + two_omega))

@@ -8,7 +8,31 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from silodem.theory import _checks as ck
 from silodem.theory._fit import curve_fit_quiet
+
+
+def _check(func: str, rho_b, g, B, K, mu_w) -> None:
+    """The material and geometry parameters of Janssen's solution: zero weight (rho_b or g
+    0) gives zero stress; mu_w = 0 (smooth walls) is the hydrostatic limit."""
+    ck.non_negative(func, "rho_b", rho_b)
+    ck.non_negative(func, "g", g)
+    ck.positive(func, "B", B)
+    ck.positive(func, "K", K)
+    ck.non_negative(func, "mu_w", mu_w)
+
+
+def _sigma_v(depth, rho_b, g, B, K, mu_w):
+    """:func:`janssen_sigma_v` unchecked (the fits evaluate it within their bounds)."""
+    depth = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    c = 2.0 * K * mu_w / B
+    if c == 0.0:
+        return rho_b * g * depth
+    return rho_b * g / c * -np.expm1(-c * depth)
+
+
+def _sigma_h(depth, rho_b, g, B, K, mu_w):
+    return K * _sigma_v(depth, rho_b, g, B, K, mu_w)
 
 
 def janssen_sigma_v(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: float,
@@ -21,24 +45,25 @@ def janssen_sigma_v(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: f
     radius A/U = B/2 per unit thickness): d(sigma_v)/dz = rho_b g - 2 K mu_w sigma_v / B.
     rho_b bulk density [kg/m^3], K = sigma_h/sigma_v [-], mu_w wall friction [-].
     Source: Janssen (1895), Z. Ver. Dtsch. Ing. 39; Nedderman (1992) ch. 3 (there in 3D form).
+    Depths above the surface (< 0) have no stress; mu_w = 0 gives the hydrostatic
+    rho_b g depth.  ValueError unless rho_b, g, mu_w >= 0 and B, K > 0 (finite scalars).
     """
-    depth = np.maximum(np.asarray(depth, dtype=float), 0.0)
-    c = 2.0 * K * mu_w / B
-    if c == 0.0:
-        return rho_b * g * depth
-    return rho_b * g / c * -np.expm1(-c * depth)
+    _check("janssen_sigma_v", rho_b, g, B, K, mu_w)
+    return _sigma_v(ck.array("janssen_sigma_v", "depth", depth), rho_b, g, B, K, mu_w)
 
 
 def janssen_sigma_h(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: float,
                     mu_w: float) -> np.ndarray | float:
     """Horizontal (wall normal) stress [Pa] of Janssen's solution: sigma_h = K sigma_v."""
-    return K * janssen_sigma_v(depth, rho_b, g, B, K, mu_w)
+    _check("janssen_sigma_h", rho_b, g, B, K, mu_w)
+    return _sigma_h(ck.array("janssen_sigma_h", "depth", depth), rho_b, g, B, K, mu_w)
 
 
 def janssen_wall_shear(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K: float,
                        mu_w: float) -> np.ndarray | float:
     """Wall shear stress [Pa] of Janssen's solution (friction fully mobilised): mu_w K sigma_v."""
-    return mu_w * janssen_sigma_h(depth, rho_b, g, B, K, mu_w)
+    _check("janssen_wall_shear", rho_b, g, B, K, mu_w)
+    return mu_w * _sigma_h(ck.array("janssen_wall_shear", "depth", depth), rho_b, g, B, K, mu_w)
 
 
 @dataclass(frozen=True)
@@ -73,11 +98,16 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
     sum(tau)/sum(sigma_n)) only K is fitted.  NaN points and points at depth <= 0 (above the
     free surface) are left out.  Units as in
     :func:`janssen_sigma_v`.  Uses scipy.optimize.curve_fit (trust-region reflective, bounds
-    K, mu_w > 0).
+    K, mu_w > 0).  ValueError for depth and sigma_h of different shapes, or unless rho_b, g,
+    B > 0 and mu_w (when given) >= 0 (finite scalars).
     """
-
-    z = np.asarray(depth, dtype=float)
-    s = np.asarray(sigma_h, dtype=float)
+    func = "fit_janssen"
+    z, s = ck.array(func, "depth", depth), ck.array(func, "sigma_h", sigma_h)
+    ck.same_length(func, ("depth", "sigma_h"), z, s)
+    for name, value in (("rho_b", rho_b), ("g", g), ("B", B)):
+        ck.positive(func, name, value)
+    if mu_w is not None:
+        ck.non_negative(func, "mu_w", mu_w)
     ok = np.isfinite(z) & np.isfinite(s) & (z > 0)
     z, s = z[ok], s[ok]
     if z.size < (1 if mu_w is not None else 2):
@@ -88,7 +118,7 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
                        0.05, 5.0))
     if mu_w is not None:
         def model_k(zz, K):
-            return janssen_sigma_h(zz, rho_b, g, B, K, mu_w)
+            return _sigma_h(zz, rho_b, g, B, K, mu_w)
 
         popt, pcov = curve_fit_quiet(model_k, z, s, p0=[k0], bounds=([FIT_LOWER], [50.0]))
         K, mu = float(popt[0]), float(mu_w)
@@ -99,7 +129,7 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
         mu0 = float(np.clip(rho_b * g * B / (2.0 * max(s.max(), 1e-12)), 0.05, 2.0))
 
         def model(zz, K, mu):
-            return janssen_sigma_h(zz, rho_b, g, B, K, mu)
+            return _sigma_h(zz, rho_b, g, B, K, mu)
 
         popt, pcov = curve_fit_quiet(model, z, s, p0=[k0, mu0],
                                bounds=([FIT_LOWER, FIT_LOWER], [50.0, 50.0]), maxfev=20000)
@@ -108,6 +138,6 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
             K_err, mu_err = (float(v) for v in np.sqrt(np.clip(np.diag(pcov), 0.0, np.inf)))
         else:
             K_err = mu_err = float("nan")
-    resid = s - janssen_sigma_h(z, rho_b, g, B, K, mu)
+    resid = s - _sigma_h(z, rho_b, g, B, K, mu)
     return JanssenFit(K, mu, K_err, mu_err, float(np.sqrt(np.mean(resid**2))), int(z.size),
                       mu_w is None)
