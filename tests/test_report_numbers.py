@@ -358,6 +358,24 @@ def test_per_circle_columns_and_the_report_change(synth):
     assert s["circle_switch_centre_sigma_v_change_pct"] == pytest.approx(50.0, rel=REL)
 
 
+def test_switch_zone_stays_in_the_upper_half_of_a_short_hopper():
+    """Junction +- two mean diameters, at most half the hopper's height z_j = (B - D)/2
+    tan(theta): paper case 2 keeps 1.2 +- 0.4 m; its --quick variant (B = 2.04 m, z_j =
+    0.52 m) gets +- 0.26 m, not a zone down to 0.12 m, where the outlet's own stress
+    concentration was reported as the switch's peak."""
+    from silodem.measure.regions import switch_zone
+    from silodem.report.analysis import silo_shape
+    from silodem.scenario_files import load_config, quick_variant
+
+    for cfg in (load_config("paper-case2"), quick_variant(load_config("paper-case2"))):
+        s, m = cfg.silo, cfg.material
+        z_j = 0.5 * (s.cell_width - s.outlet_width) * math.tan(
+            math.radians(s.hopper_angle_from_horizontal_deg))
+        half = min(2 * (m.radius_min + m.radius_max), 0.5 * z_j)
+        assert switch_zone(cfg, silo_shape(cfg)) == pytest.approx((z_j - half, z_j + half))
+    assert half == pytest.approx(0.26)  # the quick variant's: half its hopper
+
+
 def test_wall_profile_and_switch_zone_peak(synth):
     """Time-averaged edge profile (both sides averaged, sorted by z) and the switch-zone peak.
     Expected: the constructed profile (left = 1.25 P, right = 0.75 P, sample factors of mean 1,
@@ -515,6 +533,16 @@ def test_key_numbers_of_the_report(synth):
         "6,500 at z = 0.375 m")
     ratio = 4500.0 / float(_janssen_sigma_h(SURF_FILL - 0.5, K_TRUE))
     assert float(_number(a, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
+    # a peak below the junction, on the hopper walls: the cell's Janssen where the cell ends
+    import copy
+
+    from silodem.report.analysis import _numbers
+
+    below = copy.copy(a)
+    below.peaks, below.numbers = {**a.peaks, "fill": (4500.0, 0.3)}, []
+    _numbers(below)
+    ratio = 4500.0 / float(_janssen_sigma_h(SURF_FILL - Z_J, K_TRUE))
+    assert float(_number(below, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
     assert _first_float(_number(a, "Janssen K fitted to the cell wall profile, after")) == (
         pytest.approx(K_TRUE, rel=5e-3))
     assert _number(a, "measured mean vertical stress q") == "5,000"
@@ -1068,3 +1096,13 @@ def test_numbers_are_written_with_their_significant_digits():
     for value, text in cases:
         assert significant(value) == text, value
     assert significant(64.0, 4) == "64" and significant(12345.6, 4) == "12346"
+
+
+def test_fits_whose_error_is_over_half_their_value_are_called_poorly_determined():
+    """The quick hopper's Janssen K came out 1.29 +- 0.69 from six noisy wall bins, printed as
+    a measurement; a fit error over half the value is now said to be one."""
+    from silodem.report.analysis import _fitted
+
+    assert _fitted(1.286, 0.69).endswith("(poorly determined: the error is over half the value)")
+    assert _fitted(0.55, 0.012) == "0.55 +- 0.012"
+    assert "poorly" in _fitted(0.4, NAN)  # no error estimate is no determination

@@ -294,7 +294,8 @@ class Measure(_Strict):
     )
     switch_zone_half_height: float | None = Field(
         None, gt=0, description="the switch zone is the junction height +- this [m]; its peak "
-        "wall stress is reported; unset: two mean grain diameters"
+        "wall stress is reported; unset: two mean grain diameters, at most half the hopper's "
+        "height"
     )
     circle_names: list[str] | None = Field(
         None, description="names of the measurement circles [-]; unset (with circle_x, "

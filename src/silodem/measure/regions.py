@@ -100,8 +100,14 @@ def circles_for(cfg: Config, shape: SiloShape) -> list[CircleRegion]:
 
 def switch_zone(cfg: Config, shape: SiloShape) -> tuple[float, float]:
     """(z_lo, z_hi) of the switch zone [m]: the junction height +- measure.switch_zone_half_height
-    (default two mean diameters); for a flat silo from the floor up to 2 x that."""
-    half = cfg.measure.switch_zone_half_height or 2.0 * mean_diameter(cfg)
+    (default two mean diameters, but at most half the hopper's height: in a short hopper the
+    zone would otherwise reach the outlet, whose own stress concentration it would then report
+    as the switch's peak); for a flat silo from the floor up to 2 x that."""
+    half = cfg.measure.switch_zone_half_height
+    if half is None:
+        half = 2.0 * mean_diameter(cfg)
+        if shape.kind == "hopper":
+            half = min(half, 0.5 * shape.junction)
     zc = reference_height(shape, half)
     return max(zc - half, 0.0), zc + half
 

@@ -328,6 +328,14 @@ def _bulk_density_text(rho_b: float, rho_grain: float) -> str:
     return _fmt(rho_b)
 
 
+def _fitted(value: float, error: float) -> str:
+    """'value +- error', saying so when the error is more than half the value (a fit to few
+    or noisy wall bins: a K of 1.29 +- 0.69 is no measurement of K)."""
+    text = f"{_fmt(value, 3)} +- {_fmt(error, 2)}"
+    return text + (" (poorly determined: the error is over half the value)"
+                   if not abs(error) <= 0.5 * abs(value) else "")
+
+
 def _numbers(a: Analysis) -> None:
     n = a.numbers
     g = a.geom
@@ -353,21 +361,24 @@ def _numbers(a: Analysis) -> None:
         what = f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)"
         if key in a.janssen:
             j = a.janssen[key]
-            n.append((what, f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}", "-"))
+            n.append((what, _fitted(j.K, j.K_err), "-"))
         elif key in a.janssen_missing:  # said, not left out without a word
             n.append((what, f"n/a ({a.janssen_missing[key]})", "-"))
     if a.janssen_free is not None:
         j = a.janssen_free
         mu = ("~0 (at the fit's lower bound: the profile shows no wall support)"
-              if j.mu_w_at_bound else f"{_fmt(j.mu_w, 3)} +- {_fmt(j.mu_w_err, 2)}")
-        value = f"{_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}, {mu}"
+              if j.mu_w_at_bound else _fitted(j.mu_w, j.mu_w_err))
+        value = f"{_fitted(j.K, j.K_err)}, {mu}"
         n.append(("Janssen free fit after filling: K, mu_w", value, "-"))
     if "fill" in a.janssen and "fill" in a.peaks:
         v, z = a.peaks["fill"]
-        jan = th.janssen_sigma_h(a.surface["fill"] - z, a.rho_b, g["g"], g["B"],
-                                 a.janssen["fill"].K, g["mu_wall"])
-        n.append(("switch-zone peak / Janssen sigma_h at its height, after filling",
-                  _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
+        # Janssen is the cell's theory: a peak on the hopper walls is set against the cell's
+        # sigma_h where the cell ends, at the junction
+        jan = th.janssen_sigma_h(a.surface["fill"] - max(z, g["z_j"]), a.rho_b, g["g"],
+                                 g["B"], a.janssen["fill"].K, g["mu_wall"])
+        label = ("switch-zone peak / Janssen sigma_h at its height (at the junction for a "
+                 "peak below it), after filling")
+        n.append((label, _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
     n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
     if "q" in a.hopper:
         n.append(("measured mean vertical stress q on the junction (hopper theory input)",

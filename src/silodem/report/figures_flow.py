@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Polygon
 
 from silodem.report.analysis import Analysis
 from silodem.report.draw import (
@@ -15,6 +16,7 @@ from silodem.report.draw import (
     silo_axes,
     tight_layout,
 )
+from silodem.silo.geometry import silo_shape
 
 
 def _snaps(a: Analysis) -> list[tuple[str, dict]]:
@@ -40,7 +42,7 @@ def fig_network(a: Analysis) -> Figure | None:
         return None
     walls = a.res.group("walls")
     fmax = _common_scale(snaps)
-    fig = Figure(figsize=(5.2 * len(snaps), 8.2), dpi=110)
+    fig = Figure(figsize=(4.4 * len(snaps) + 1.2, 7.6), dpi=110, layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(snaps)))
     lc = None
     for ax, (title, snap) in zip(axes, snaps):
@@ -63,8 +65,9 @@ def fig_switch_network(a: Analysis) -> Figure | None:
     zc = 0.5 * (a.switch[0] + a.switch[1])
     half = max(1.2, 0.5 * (a.switch[1] - a.switch[0]) + 0.6)
     xs = [(-0.2, min(g["B"], 2 * half) + 0.1)]
+    walls_seen = "both walls" if g["B"] <= 2 * half else "left wall"  # a narrow silo: whole
     fmax = _common_scale(snaps)
-    fig = Figure(figsize=(5.5 * len(snaps), 5.6), dpi=110)
+    fig = Figure(figsize=(4.6 * len(snaps) + 1.2, 4.6), dpi=110, layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(snaps)))
     lc = None
     for ax, (title, snap) in zip(axes, snaps):
@@ -75,7 +78,7 @@ def fig_switch_network(a: Analysis) -> Figure | None:
         ax.axhspan(*a.switch, color="#f6e7b5", alpha=0.35, zorder=0)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("z [m]")
-        ax.set_title(f"switch zone (left wall), {title}", fontsize=9)
+        ax.set_title(f"switch zone ({walls_seen}), {title}", fontsize=9)
     if lc is not None:
         fig.colorbar(lc, ax=list(axes), shrink=0.8, label="normal contact force [N]")
     return fig
@@ -121,7 +124,10 @@ def fig_velocity(a: Analysis) -> Figure | None:
     speed = np.where(occ > 0.05, np.hypot(vx, vz), np.nan)
     fig = Figure(figsize=(6.2, 8.2), dpi=100)
     ax = fig.subplots()
-    pm = ax.pcolormesh(xe, ze, speed.T, cmap="viridis", shading="flat")
+    # the scale from 0: a slow (near dead) region reads as dark, whatever the fastest speed
+    pm = ax.pcolormesh(xe, ze, speed.T, cmap="viridis", shading="flat", vmin=0.0)
+    # the cells cut by a hopper wall drawn only inside the silo, as the fields' figure does
+    pm.set_clip_path(Polygon(silo_shape(a.res.cfg).outline(), transform=ax.transData))
     xc, zc = 0.5 * (xe[:-1] + xe[1:]), 0.5 * (ze[:-1] + ze[1:])
     X, Z = np.meshgrid(xc, zc, indexing="ij")
     ok = np.isfinite(speed)

@@ -90,17 +90,20 @@ def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
                 label="hydrostatic rho_b g depth")
 
 
-def _hopper_curves(ax, a: Analysis, which: str) -> None:
+def _hopper_curves(ax, a: Analysis, which: str, key: str = "fill") -> None:
+    """Walker's slice solutions, from the filled silo's q (and D fitted to its hopper walls):
+    on the discharge figure the legend says so."""
     h = a.hopper
     if not h:
         return
+    of = ", q and D of the filled silo" if key == "discharge" else ""
     ax.plot(h["planar"], h["z"], color="#d62728", lw=2,
-            label="Walker slice, PLANAR wedge (2D), D = 1")
+            label=f"Walker slice, PLANAR wedge (2D), D = 1{of}")
     ax.plot(h["conical"], h["z"], color="#d62728", lw=1.2, ls="--",
-            label="Walker slice, conical (form of paper eq. 12, virtual apex), D = 1")
+            label=f"Walker slice, conical (form of paper eq. 12, virtual apex), D = 1{of}")
     if which == "h" and "planar_D" in h:
         ax.plot(h["planar_D"], h["z"], color="#ff9896", lw=1.5, ls="-.",
-                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)")
+                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v){of}")
 
 
 def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
@@ -149,7 +152,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
                 label="sigma_xx near the walls (Love-Weber strips)")
     _janssen_curves(ax, a, key, "h")
     _en1991_4_curve(ax, a, key)
-    _hopper_curves(ax, a, "h")
+    _hopper_curves(ax, a, "h", key)
     if key in a.peaks and np.isfinite(a.peaks[key][0]):
         v, z = a.peaks[key]
         ax.plot([v], [z], marker="*", ms=16, color="#e6550d", ls="none",
@@ -294,7 +297,9 @@ def fig_fields(a: Analysis) -> Figure | None:
         return None
     xe, ze = f["x_edges"], f["z_edges"]
     inside = silo_shape(a.res.cfg).outline()
-    fig = Figure(figsize=(12, 5.6 * len(rows)), dpi=90)
+    # constrained: the colour bars' labels keep clear of the next panel's axis label
+    fig = Figure(figsize=(12, 5.2 * len(rows)), dpi=90, layout="constrained")
+    fig.get_layout_engine().set(wspace=0.08)
     axes = np.atleast_2d(fig.subplots(len(rows), 3))
     # one colour scale per quantity, shared by the two rows
     quantities = [("bulk density [kg/m^3]", lambda g: g["density"], "cividis"),
@@ -313,5 +318,4 @@ def fig_fields(a: Analysis) -> Figure | None:
             silo_axes(ax, a.geom)
             ax.set_title(f"{label.split(' [')[0]}, {window}", fontsize=9)
             fig.colorbar(pm, ax=ax, shrink=0.7, label=label)
-    tight_layout(fig)
     return fig

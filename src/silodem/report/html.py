@@ -39,9 +39,10 @@ FIGURES = [
                "window of settling): wall normal stress per bin, near-wall Love-Weber sigma_xx, "
                "Janssen's 2D slot solution (K fitted with mu_w = tan phi_P, and the paper's "
                "K = 0.4) in the cell, EN 1991-4's filling load for a squat or intermediate "
-               "silo (§5.3) and its hopper filling load (§6), and Walker's slice solution in "
-               "the hopper: the planar (wedge) form that a 2D hopper needs and the paper's "
-               "conical eq. 12.",
+               "silo (§5.3) and its hopper filling load (§6) where they apply (the key "
+               "numbers say why one is left out), and, in a hopper silo, Walker's slice "
+               "solution in the hopper: the planar (wedge) form that a 2D hopper needs and "
+               "the paper's conical eq. 12. The legend lists the curves drawn.",
                lambda a: fs.fig_horizontal(a, "fill")),
     FigureSpec("fig3b_vertical_filling", "Fig. 3b",
                "Vertical stress along the silo wall after filling: Love-Weber sigma_zz near the "
@@ -58,8 +59,9 @@ FIGURES = [
     FigureSpec("fig6_horizontal_discharge", "Fig. 6",
                "Horizontal stress along the silo wall during discharge (time average over the "
                "discharge window), with the filling profile, Janssen's solution (K refitted), "
-               "EN 1991-4's discharge loads on the vertical and hopper walls and the "
-               "switch-zone peak.",
+               "EN 1991-4's discharge loads on the vertical and hopper walls where they apply, "
+               "Walker's hopper solutions of the filled silo (its q and D) in a hopper silo, "
+               "and the switch-zone peak. The legend lists the curves drawn.",
                lambda a: fs.fig_horizontal(a, "discharge")),
     FigureSpec("fig7_switch_zone_evolution", "Fig. 7",
                "Horizontal and vertical stress at the switch zone (measurement circles) and "
