@@ -1106,3 +1106,13 @@ def test_fits_whose_error_is_over_half_their_value_are_called_poorly_determined(
     assert _fitted(1.286, 0.69).endswith("(poorly determined: the error is over half the value)")
     assert _fitted(0.55, 0.012) == "0.55 +- 0.012"
     assert "poorly" in _fitted(0.4, NAN)  # no error estimate is no determination
+
+
+def test_the_ratio_figure_leaves_out_the_samples_the_cv_leaves_out():
+    """sigma_v of 2e-16 Pa made a ratio of 6e15 on the study's Fig. 7 while the CV left that
+    sample out (sigma_v under UNLOADED = 0.1 x its median): the figure now leaves it out too."""
+    from silodem.study.report import _loaded_ratio
+
+    sv = np.array([2e-16, 1.0, 2.0, 3.0, 0.0, NAN])  # median of the positive ones: 1.5
+    sh = np.array([1.0, 0.5, 1.0, 1.5, 1.0, 1.0])
+    np.testing.assert_array_equal(_loaded_ratio(sh, sv), [NAN, 0.5, 0.5, 0.5, NAN, NAN])

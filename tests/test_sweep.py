@@ -8,6 +8,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import signal
 import socket
 import threading
@@ -98,7 +99,7 @@ def client():
 
 
 def test_local_cluster_equals_serial_and_second_invocation_recomputes_nothing(
-        serial, client, tmp_path):
+        serial, client, tmp_path, capsys):
     plan_ref, ref_dir = serial
     plan = _plan(tmp_path)
     assert [r.id for r in plan.runs] == [r.id for r in plan_ref.runs]
@@ -122,6 +123,9 @@ def test_local_cluster_equals_serial_and_second_invocation_recomputes_nothing(
     with pytest.raises(SystemExit) as exc:
         main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)])
     assert exc.value.code == 0
+    # it says so first (it said the runs not finished yet would run on a cluster)
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.endswith(f"2 runs -> {study_dir}; all finished already: nothing to run")
     after = {p: p.stat().st_mtime_ns for p in (study_dir / "runs").rglob("*")}
     after[study_dir / "runs"] = (study_dir / "runs").stat().st_mtime_ns
     assert after == stamps
@@ -620,7 +624,6 @@ def test_runs_finished_by_another_attempt_meanwhile_are_counted(serial, tmp_path
     attempt of a sweep stopped with Ctrl-C that its worker still finished) returns 'existing':
     it was counted nowhere, and a re-run after Ctrl-C said '0 computed, 0 already finished,
     0 failed' for a complete study of two runs."""
-    import shutil
 
     from silodem.study import execute
 
@@ -717,7 +720,6 @@ def test_a_run_whose_result_is_lost_with_the_scheduler_is_read_from_its_folder(
     cancels the futures of runs that their worker then finishes.  Either way a run whose
     folder is finished is now counted from it, with the summary its task wrote; one that
     is not is a failure naming the cause, run again by the next invocation."""
-    import shutil
     from concurrent.futures import CancelledError
 
     import distributed
@@ -744,7 +746,29 @@ def test_a_run_whose_result_is_lost_with_the_scheduler_is_read_from_its_folder(
     outcome = execute.StudyOutcome(plan, study_dir)
     execute._gather(futures, {f.key: r for f, r in zip(futures, plan.runs)}, outcome, None)
     summary = json.loads((ref_dir / "runs" / done.id / "summary.json").read_text())
+    del summary[execute.VERSION_KEY]  # (which analysis made it: not a result)
     assert outcome.results[done.id]["status"] == "computed" and outcome.computed == 1
     assert outcome.results[done.id]["summary"] == summary
     assert outcome.results[done.id]["wall_s"] >= 0.0
     assert outcome.failed == {lost.id: error}
+
+
+def test_a_summary_made_by_another_analysis_version_is_made_again(serial, tmp_path):
+    """A finished run's summary.json from an older analysis (say, before the switch zone was
+    kept in the hopper's upper half) is not taken as it is: the run is summarised again from
+    its results.h5, to the numbers a fresh run gets, and the new summary saved."""
+    from silodem.study.execute import VERSION_KEY, read_summary
+
+    plan, study_dir = serial
+    run_dir = tmp_path / "run"
+    shutil.copytree(study_dir / "runs" / plan.runs[0].id, run_dir)
+    fresh = json.loads((run_dir / "summary.json").read_text())
+    stale = {**fresh, VERSION_KEY: fresh[VERSION_KEY] - 1, "wall_peak_fill": -1.0}
+    (run_dir / "summary.json").write_text(json.dumps(stale))
+    again = read_summary(run_dir)
+    same = lambda a, b: json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)  # NaN
+    assert same(again, {k: v for k, v in fresh.items() if k != VERSION_KEY})
+    assert same(json.loads((run_dir / "summary.json").read_text()), fresh)  # saved in place
+    # the same version: read as it is, even a number no analysis would give
+    (run_dir / "summary.json").write_text(json.dumps({**fresh, "wall_peak_fill": -1.0}))
+    assert read_summary(run_dir)["wall_peak_fill"] == -1.0

@@ -71,7 +71,7 @@ def sweep(
     Exit codes: 0 every run finished, 1 some runs failed (listed), 2 bad input.
     """
     from silodem.study import expand, load_study, run_study
-    from silodem.study.execute import check_workers, default_workers
+    from silodem.study.execute import check_workers, default_workers, is_finished
 
     check_workers(workers, "--workers", local=scheduler is None)
     if scheduler is not None and not scheduler.strip():
@@ -95,8 +95,10 @@ def sweep(
     def say(text: str) -> None:
         console.print(text, markup=False, highlight=False, soft_wrap=True)
 
+    todo = sum(not is_finished(out_dir / "runs" / r.id) for r in plan.runs)
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
-        f"-> {out_dir}; those not finished yet run on {where}")
+        f"-> {out_dir}; " + (f"the {todo} not finished yet run on {where}" if todo else
+                             "all finished already: nothing to run"))
     _quiet_dask_client()
     outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
     say(f"{outcome.computed} computed, {outcome.skipped} already finished, "

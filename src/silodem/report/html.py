@@ -181,8 +181,8 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              else " The silo has a flat bottom (no hopper).")
     intro = (f"<p>silodem {html.escape(str(res.attrs.get('silodem_version', '?')))}, seed "
              f"{cfg.seed}, time step {res.attrs.get('dt', float('nan')):.3g} s. Stresses are "
-             "compressive positive [Pa], per unit out-of-plane thickness "
-             f"t = {cfg.material.thickness:g} m.{angle}</p>")
+             "compressive positive [Pa]: a 2D force per unit length divided by the grains' "
+             f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle}</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>",
              f"<p>{html.escape(cfg.description)}</p>", intro]
     if res.warnings:

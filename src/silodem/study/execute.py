@@ -57,8 +57,40 @@ def is_finished(run_dir: Path) -> bool:
     return (run_dir / RESULTS_NAME).is_file() and (run_dir / SUMMARY_NAME).is_file()
 
 
+VERSION_KEY = "analysis_version"  # summary.json: study.table.ANALYSIS_VERSION it was made by
+
+
 def read_summary(run_dir: Path) -> dict[str, Any]:
-    return json.loads((run_dir / SUMMARY_NAME).read_text(encoding="utf-8"))
+    """The per-run quantities of the finished run ``run_dir``: its summary.json, or, when that
+    was written by another version of the analysis (``study.table.ANALYSIS_VERSION``), a new
+    summary from its results.h5, saved in its place."""
+    from silodem.study.table import ANALYSIS_VERSION
+
+    summary = json.loads((run_dir / SUMMARY_NAME).read_text(encoding="utf-8"))
+    if summary.pop(VERSION_KEY, None) == ANALYSIS_VERSION:
+        return summary
+    summary = summarise(run_dir)
+    write_summary(run_dir, summary)
+    return summary
+
+
+def summarise(run_dir: Path) -> dict[str, Any]:
+    """``study.table.summarise_run`` of a complete run, or, if it fails, the reason (the run
+    is kept: its results.h5 is whole)."""
+    from silodem.study.table import summarise_run
+
+    try:
+        return summarise_run(run_dir)
+    except Exception as exc:  # noqa: BLE001 - the run is complete: keep it, say why not
+        return {"summary_error": f"{type(exc).__name__}: {one_line(exc)}"}
+
+
+def write_summary(run_dir: Path, summary: dict[str, Any]) -> None:
+    """summary.json (atomic), marked with the analysis version that made it."""
+    from silodem.study.table import ANALYSIS_VERSION
+
+    write_text(run_dir / SUMMARY_NAME,
+               json.dumps({VERSION_KEY: ANALYSIS_VERSION, **summary}, indent=1) + "\n")
 
 
 def _fsync_dir(path: Path) -> None:
@@ -103,13 +135,8 @@ def run_task(cfg_data: dict[str, Any], study_dir: str, run_id: str) -> dict[str,
         write_text(tmp / ATTEMPT_NAME, json.dumps({**info, "started": time.time()}) + "\n")
         cfg = Config.model_validate(cfg_data)
         _run_simulation(cfg, tmp)
-        from silodem.study.table import summarise_run
-
-        try:
-            summary = summarise_run(tmp)
-        except Exception as exc:  # noqa: BLE001 - the run is complete: keep it, say why not
-            summary = {"summary_error": f"{type(exc).__name__}: {one_line(exc)}"}
-        write_text(tmp / SUMMARY_NAME, json.dumps(summary, indent=1) + "\n")
+        summary = summarise(tmp)
+        write_summary(tmp, summary)
         _fsync_dir(tmp)
     except (UnstableRunError, InputError) as exc:
         failed = root / "failed" / run_id

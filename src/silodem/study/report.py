@@ -36,7 +36,14 @@ from silodem.report.html import PAGE_CSS, html_table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
-from silodem.study.table import CIRCLE_QUANTITIES, COLUMNS, as_float, switch_series, table_csv
+from silodem.study.table import (
+    CIRCLE_QUANTITIES,
+    COLUMNS,
+    UNLOADED,
+    as_float,
+    switch_series,
+    table_csv,
+)
 
 BEVERLOO_CSV = "beverloo.csv"  # the Beverloo fits, when the grid varies the outlet width
 CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
@@ -92,6 +99,17 @@ def _mean_std(v: np.ndarray) -> tuple[float, float]:
 # --- figures ---------------------------------------------------------------------------------
 
 
+def _loaded_ratio(sh: np.ndarray, sv: np.ndarray) -> np.ndarray:
+    """sigma_h / sigma_v per sample, NaN where the circle is almost unloaded (sigma_v under
+    ``UNLOADED`` x the median of its positive values), as the CV of the table leaves out: a
+    ratio of two near-zero numbers (a sigma_v of 2e-16 Pa gave 6e15) is noise."""
+    loaded = np.isfinite(sv) & (sv > 0)
+    if loaded.any():
+        loaded &= sv >= UNLOADED * float(np.median(sv[loaded]))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(loaded, sh / sv, np.nan)
+
+
 def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> Figure | None:
     """Fig. 7 for every case: switch-zone sigma_h and sigma_v (or their ratio) against time."""
     nr, nc = len(lay.rows), len(lay.cols)
@@ -120,8 +138,7 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
             n = max(1, round(0.2 / max(float(np.median(np.diff(s.time))), 1e-9))) \
                 if s.time.size > 1 else 1
             if ratio:
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    r = np.where(s.sigma_v > 0, s.sigma_h / s.sigma_v, np.nan)
+                r = _loaded_ratio(s.sigma_h, s.sigma_v)
                 ax.plot(s.time, r, color="#7f7f7f", lw=0.5)
                 ax.plot(s.time, rolling_mean(r, n), color="k", lw=1.2)
                 ratio_axis(ax, r)
@@ -142,7 +159,8 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    what = ("ratio sigma_h / sigma_v (grey: samples, black: 0.2 s running mean)" if ratio
+    what = (f"ratio sigma_h / sigma_v (grey: samples, black: 0.2 s running mean; samples with "
+            f"sigma_v under {UNLOADED:g} x its median left out, as in the CV)" if ratio
             else "horizontal and vertical stress, 0.2 s running mean")
     fig.suptitle(f"Switch zone: {what}", fontsize=9, x=0.02, y=0.995, ha="left", va="top")
     top = 1.0 - 0.55 / fig.get_figheight()  # room for the title line and the legend line
@@ -363,7 +381,8 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             ("written", time.strftime("%Y-%m-%d %H:%M:%S"), "")]
     parts += ["<h2>Study</h2>", html_table([(a, b) for a, b, _ in meta], ("item", "value"))]
     parts.append(
-        "<p>Stresses are compressive positive [Pa] per unit out-of-plane thickness. The switch "
+        "<p>Stresses are compressive positive [Pa]: 2D forces per unit length divided by the "
+        "grains' out-of-plane thickness (material.thickness). The switch "
         "zone is the cell-hopper junction; its stresses are the mean Love-Weber stress of the "
         "two measurement circles against the walls at the junction (docs/measurements.md). "
         "'After filling' is the last measure.window of settling, 'discharge' the window that "

@@ -60,7 +60,7 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("discharge_rate_err", "kg/s", "its standard error (5 block slopes)"),
     ("mass_flow_index", "-", "v_wall / v_axis above the junction"),
     ("dead_fraction", "-", "fraction of the grains in a dead zone"),
-    ("flow_pattern", "", "mass flow, funnel flow, or unknown (MFI not measured)"),
+    ("flow_pattern", "", "mass flow, funnel flow, clogged, or unknown (MFI not measured)"),
     ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
     ("fill_level", "m", "fill level after settling: mean of the 5 highest grain tops (events)"),
     ("bulk_density", "kg/m^3", "bulk density rho_b of the settled packing under the free surface"),
@@ -151,6 +151,12 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
         sh = np.nanmean(stress[:, idx, 0], axis=1) if stress.size else np.zeros(0)
         sv = np.nanmean(stress[:, idx, 1], axis=1) if stress.size else np.zeros(0)
     return SwitchSeries(t, phase, sh, sv, t_open)
+
+
+# Raise when summarise_run gives other numbers for the same results.h5, so that a study's
+# finished runs are summarised again (execute.read_summary) instead of keeping stale numbers:
+# 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved).
+ANALYSIS_VERSION = 2
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
