@@ -471,6 +471,12 @@ def test_discharge_rate_is_the_slope_of_a_linear_mass_record(synth):
     assert abs(r.err) <= 1e-9 * W_RATE
     assert s["discharge_rate"] == pytest.approx(W_RATE, rel=REL)
     assert abs(s["discharge_rate_err"]) <= 1e-9 * W_RATE
+    # the window's ends, 0.25 and 0.75 s after the gate opened, of M_TOTAL / 0.75 in all: the
+    # mass record sampled every 1/64 s, 1/128 s off the window's start (linear interpolation
+    # of the clipped ramp there: 0.25 kg)
+    m0 = M_TOTAL / 0.75
+    assert s["window_emptied_start_pct"] == pytest.approx(100 * 0.25 / m0, rel=REL)
+    assert s["window_emptied_end_pct"] == pytest.approx(100 * W_RATE * 0.5 / m0, rel=REL)
     t, rate = a.flow["series"]
     inner = (t >= 0.25 + 0.125) & (t <= 1.5 - 0.125)
     assert inner.sum() > 40
@@ -548,6 +554,9 @@ def test_key_numbers_of_the_report(synth):
     assert _number(a, "measured mean vertical stress q") == "5,000"
     assert _first_float(_number(a, "steady discharge rate W")) == pytest.approx(W_RATE,
                                                                                  rel=5e-4)
+    # the discharge window, 0.25-0.75 s after the gate opened: m = W (t - 0.25) of the
+    # initial M_TOTAL / 0.75, so 0 and 64 x 0.5 / 106.7 = 30 % discharged
+    assert _number(a, "share of the fill's mass discharged at the discharge window") == "0 / 30"
     assert _number(a, "flow pattern") == "funnel flow"
     assert float(_number(a, "dead-zone fraction")) == pytest.approx(0.15, rel=5e-3)
     assert float(_number(a, "mass flow index")) == pytest.approx(1 / 3, rel=5e-3)
@@ -764,7 +773,8 @@ TABLE_NAN_WITHOUT_DISCHARGE = [
     "switch_sigma_h_discharge", "switch_sigma_v_discharge", "switch_sigma_h_change_pct",
     "switch_sigma_v_change_pct", "switch_ratio_discharge", "switch_ratio_cv_discharge",
     "wall_peak_discharge", "wall_peak_z_discharge", "wall_peak_change_pct", "discharge_rate",
-    "discharge_rate_err", "mass_flow_index", "dead_fraction"]
+    "discharge_rate_err", "mass_flow_index", "dead_fraction", "window_emptied_start_pct",
+    "window_emptied_end_pct"]
 
 
 def test_a_run_without_discharge_gives_nan_discharge_columns(tmp_path):
@@ -1019,9 +1029,10 @@ DOC_COLUMNS = [
     "switch_sigma_v_fill", "switch_sigma_v_discharge", "switch_sigma_v_change_pct",
     "switch_ratio_fill", "switch_ratio_discharge", "switch_ratio_cv_fill",
     "switch_ratio_cv_discharge", "wall_peak_fill", "wall_peak_z_fill", "wall_peak_discharge",
-    "wall_peak_z_discharge", "wall_peak_change_pct", "janssen_K_fill", "en1991_4_class",
-    "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill", "en1991_4_hopper_p_n_discharge",
-    "discharge_rate", "discharge_rate_err",
+    "wall_peak_z_discharge", "wall_peak_change_pct", "janssen_K_fill", "janssen_K_fill_err",
+    "en1991_4_class", "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill",
+    "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",
+    "window_emptied_start_pct", "window_emptied_end_pct",
     "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level",
     "bulk_density", "n_poured",
     "discharged_fraction", "discharge_end_reason", "steps", "dt"]
@@ -1116,3 +1127,25 @@ def test_the_ratio_figure_leaves_out_the_samples_the_cv_leaves_out():
     sv = np.array([2e-16, 1.0, 2.0, 3.0, 0.0, NAN])  # median of the positive ones: 1.5
     sh = np.array([1.0, 0.5, 1.0, 1.5, 1.0, 1.0])
     np.testing.assert_array_equal(_loaded_ratio(sh, sv), [NAN, 0.5, 0.5, 0.5, NAN, NAN])
+
+
+def test_en1991_4_loads_are_not_drawn_from_a_poorly_determined_k(synth):
+    """The EN 1991-4 loads take K from the Janssen fit after filling; a K whose error is over
+    half of it (the quick study's 3.1 +- 5.2) gave a hopper class and loads from noise: now
+    the class alone, and the reason."""
+    import copy
+    import dataclasses
+
+    from silodem.report import eurocode
+
+    a, _ = synth
+    assert "p_hf" in a.en1991_4  # the synthetic run's K_TRUE, fitted exactly: loads
+    noisy = copy.copy(a)
+    noisy.en1991_4 = {}
+    noisy.janssen = {**a.janssen, "fill": dataclasses.replace(a.janssen["fill"], K=3.1,
+                                                               K_err=5.2)}
+    eurocode.add_loads(noisy, eurocode.highest_wall_contact(
+        a.res.snapshot("settled"), a.geom["B"], a.geom["d"]))
+    assert noisy.en1991_4["kind"] == a.en1991_4["kind"] and "p_hf" not in noisy.en1991_4
+    assert noisy.en1991_4["missing"] == ("K = 3.1 +- 5.2 of the Janssen fit after filling is "
+                                         "poorly determined")

@@ -294,6 +294,10 @@ def _flow(a: Analysis, shape) -> None:
     t, mass = ts["time"][sel] - t0, ts["discharged_mass"][sel]
     rate = dis.steady_rate(t, mass)
     a.flow.update(t=t, mass=mass, rate=rate, series=dis.flow_rate_series(t, mass))
+    mass0 = float(res.events.get("initial_mass", np.nan))
+    if "discharge" in a.windows and t.size and mass0 > 0:  # how far the silo had emptied
+        a.flow["window_emptied"] = tuple(float(np.interp(w - t0, t, mass)) / mass0
+                                         for w in a.windows["discharge"])
     f = res.group("measure", "flow")
     if f is None or f["uid"].size == 0:
         return
@@ -386,6 +390,11 @@ def _numbers(a: Analysis) -> None:
     if "D_fit" in a.hopper:
         n.append(("Walker distribution factor D fitted on the hopper walls (planar)",
                   _fmt(a.hopper["D_fit"], 3), "-"))
+    if "window_emptied" in a.flow:  # the discharge stresses depend on it (a quick silo
+        # empties by half in the same 1 s window a full one loses a tenth in)
+        start, end = a.flow["window_emptied"]
+        n.append(("share of the fill's mass discharged at the discharge window's start / end",
+                  f"{100 * start:.0f} / {100 * end:.0f}", "%"))
     if a.change_missing:  # one row that says why, not "h n/a %, v n/a %" for each circle
         n.append(("change fill -> discharge", f"n/a ({a.change_missing})", "%"))
     else:

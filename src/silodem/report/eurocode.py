@@ -36,7 +36,8 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus
     ``wall_top`` [m], the highest wall contact, at least 0); in a hopper silo also §6 on the
     hopper walls (:func:`hopper_loads`).  Sets ``a.en1991_4``.  Nothing for a retaining silo
-    (§5.4, not built), nor without K (no Janssen fit after filling) or where §5.3's form
+    (§5.4, not built), nor without K (no Janssen fit after filling, or one whose error is
+    over half of K: few or noisy wall bins) or where §5.3's form
     does not apply (h_o >= z_o): the class alone, with ``"missing"`` saying why.  Nothing
     at all for frictionless walls (mu = 0: z_o = A/(K mu U) is infinite)."""
     g = a.geom
@@ -52,6 +53,10 @@ def add_loads(a: Analysis, wall_top: float) -> None:
         return
     if j is None:
         a.en1991_4["missing"] = "no K: no Janssen fit after filling"
+        return
+    if not abs(j.K_err) <= 0.5 * j.K:  # (as the key numbers say: no measurement of K)
+        a.en1991_4["missing"] = (f"K = {j.K:.3g} +- {j.K_err:.2g} of the Janssen fit after "
+                                 "filling is poorly determined")
         return
     C_h, C_w = th.en1991_4_discharge_factors(h_c, g["B"], flat_bottom=flat)
     m = a.res.cfg.measure

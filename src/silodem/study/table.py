@@ -50,6 +50,8 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("wall_peak_z_discharge", "m", "height of that peak"),
     ("wall_peak_change_pct", "%", "change of the wall peak, filling -> discharge"),
     ("janssen_K_fill", "-", "Janssen K fitted to the cell walls after filling, mu_w = tan phi_P"),
+    ("janssen_K_fill_err", "-", ("its standard error (over half of K: K is poorly determined, "
+     "as the run report says)")),
     ("en1991_4_class", "", "EN 1991-4 slenderness class: slender, intermediate, squat, retaining"),
     ("en1991_4_hopper_class", "", "EN 1991-4 hopper class: steep, shallow or flat"),
     ("en1991_4_hopper_p_n_fill", "Pa", ("EN 1991-4 hopper normal pressure at the transition, "
@@ -58,6 +60,9 @@ COLUMNS: list[tuple[str, str, str]] = [
      "transition, discharge (F_e p_vft)")),
     ("discharge_rate", "kg/s", "steady discharge rate W (per unit thickness t)"),
     ("discharge_rate_err", "kg/s", "its standard error (5 block slopes)"),
+    ("window_emptied_start_pct", "%", ("share of the fill's mass discharged when the "
+     "discharge window starts")),
+    ("window_emptied_end_pct", "%", "the same when the discharge window ends"),
     ("mass_flow_index", "-", "v_wall / v_axis above the junction"),
     ("dead_fraction", "-", "fraction of the grains in a dead zone"),
     ("flow_pattern", "", "mass flow, funnel flow, clogged, or unknown (MFI not measured)"),
@@ -155,7 +160,8 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 
 # Raise when summarise_run gives other numbers for the same results.h5, so that a study's
 # finished runs are summarised again (execute.read_summary) instead of keeping stale numbers:
-# 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved).
+# 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved);
+# the columns janssen_K_fill_err and window_emptied_start_pct / _end_pct.
 ANALYSIS_VERSION = 2
 
 
@@ -177,6 +183,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
                flow_pattern="", en1991_4_class="", en1991_4_hopper_class="")
     if "fill" in a.janssen:
         out["janssen_K_fill"] = as_float(a.janssen["fill"].K)
+        out["janssen_K_fill_err"] = as_float(a.janssen["fill"].K_err)
     en = a.en1991_4
     out["en1991_4_class"] = str(en.get("kind", ""))
     hopper = en.get("hopper", {})
@@ -224,6 +231,9 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
     if "rate" in flow:
         out["discharge_rate"], out["discharge_rate_err"] = as_float(flow["rate"].rate), \
             as_float(flow["rate"].err)
+    if "window_emptied" in flow:
+        out["window_emptied_start_pct"], out["window_emptied_end_pct"] = (
+            100.0 * as_float(v) for v in flow["window_emptied"])
     if "pattern" in flow:
         out["mass_flow_index"] = as_float(flow["mfi"])
         out["dead_fraction"] = as_float(flow["dead_fraction"])
