@@ -348,7 +348,9 @@ def _numbers(a: Analysis) -> None:
     if a.res.cfg.silo.kind == "hopper":
         n.append(("hopper half-angle from the vertical alpha (= 90 - theta)",
                   f"{g['alpha']:.3g}", "deg"))
-    n.append(("free surface after filling", _fmt(a.surface["fill"]), "m"))
+    surface = ("free surface after filling (mean top of the grain columns, one diameter "
+               "wide; the run's fill level is the mean top of its 5 highest grains)")
+    n.append((surface, _fmt(a.surface["fill"]), "m"))
     n.append(("bulk density rho_b (cell)",
               _bulk_density_text(a.rho_b, a.res.cfg.material.density), "kg/m^3"))
     n.append(("switch zone", f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))

@@ -16,6 +16,7 @@ from silodem.report.draw import (
     silo_axes,
     tight_layout,
 )
+from silodem.report.numbers import significant
 from silodem.silo.geometry import silo_shape
 
 
@@ -97,7 +98,8 @@ def fig_discharge_rate(a: Analysis) -> Figure | None:
         tt = np.array([r.t0, r.t1])
         mid = np.interp(0.5 * (r.t0 + r.t1), t, m)
         ax1.plot(tt, mid + r.rate * (tt - 0.5 * (r.t0 + r.t1)), color="#d62728", lw=2.5,
-                 alpha=0.8, label=f"steady rate W = {r.rate:.4g} +- {r.err:.2g} kg/s")
+                 alpha=0.8, label=f"steady rate W = {significant(r.rate, 4)} +- "
+                 f"{significant(r.err, 2)} kg/s")  # (as the key numbers write it)
     ax1.set_ylabel("mass [kg]")
     ax1.legend(fontsize=8)
     ts, rs = f["series"]
