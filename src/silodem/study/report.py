@@ -110,6 +110,19 @@ def _loaded_ratio(sh: np.ndarray, sv: np.ndarray) -> np.ndarray:
         return np.where(loaded, sh / sv, np.nan)
 
 
+def _quick_silo(plan: StudyPlan) -> str:
+    """What --quick ran: the shrunk cell width, wall height and grain count (each value the
+    runs have), which the set and grid values above do not show."""
+    def values(get) -> str:
+        return " or ".join(format_value(v) for v in sorted({get(r.cfg) for r in plan.runs}))
+
+    return (f"yes: cell width B = {values(lambda c: c.silo.cell_width)} m, wall height "
+            f"{values(lambda c: c.silo.wall_height)} m, outlet D = "
+            f"{values(lambda c: c.silo.outlet_width)} m, "
+            f"{values(lambda c: c.fill.n_particles)} grains (the set and grid values above "
+            "are those before --quick shrinks them)")
+
+
 def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> Figure | None:
     """Fig. 7 for every case: switch-zone sigma_h and sigma_v (or their ratio) against time."""
     nr, nc = len(lay.rows), len(lay.cols)
@@ -374,7 +387,8 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             *((f"set {k}", format_value(v), "") for k, v in spec.set.items()),
             *((f"grid {k} ({nicknames(list(spec.grid))[k]})",
                ", ".join(format_value(v) for v in vals), "") for k, vals in spec.grid.items()),
-            ("--quick (small silo of each case)", "yes" if plan.quick else "no", ""),
+            ("--quick (small silo of each case)", _quick_silo(plan) if plan.quick else "no",
+             ""),
             ("runs finished / planned", f"{n_done} / {len(plan.runs)}", ""),
             ("failed", str(len(failed)), ""),
             ("computed on", where or "n/a", ""),
