@@ -373,6 +373,9 @@ def test_fig7_panels_show_each_cases_switch_zone_series(study):
                 sh, sv = (np.asarray(ln.get_ydata(), dtype=float) for ln in lines)
                 np.testing.assert_allclose(sh[inner], h / 1e3, rtol=REL, atol=0)
                 np.testing.assert_allclose(sv, v / 1e3, rtol=REL, atol=0)
+        if not ratio:  # one stress scale for every case, from 0 to over the largest trace
+            tops = [max(np.nanmax(ln.get_ydata()) for ln in ax.get_lines()) for ax in panels.flat]
+            assert {ax.get_ylim() for ax in panels.flat} == {(0.0, 1.05 * max(tops))}
 
 
 # =============================================================================================

@@ -128,8 +128,9 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
     nr, nc = len(lay.rows), len(lay.cols)
     # wide enough for the title and the one-line legend above the panels, even for one column
     fig = Figure(figsize=(max(2.9 * nc + 1.0, 7.5), 2.3 * nr + 1.2), dpi=90)
-    axes = np.atleast_2d(fig.subplots(nr, nc, squeeze=False, sharex=True))
-    drawn = 0
+    # the stresses on one scale across the cases, so that a taller trace is a larger stress
+    axes = np.atleast_2d(fig.subplots(nr, nc, squeeze=False, sharex=True, sharey=not ratio))
+    drawn, top = 0, 0.0
     for i, row in enumerate(lay.rows):
         for j, col in enumerate(lay.cols):
             ax = axes[i, j]
@@ -156,14 +157,16 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
                 ax.plot(s.time, rolling_mean(r, n), color="k", lw=1.2)
                 ratio_axis(ax, r)
             else:
-                ax.plot(s.time, rolling_mean(s.sigma_h, n) / 1e3, color="#1f77b4", lw=1.2,
-                        label="sigma_h")
-                ax.plot(s.time, rolling_mean(s.sigma_v, n) / 1e3, color="#ff7f0e", lw=1.2,
-                        ls="--", label="sigma_v")
-                ax.set_ylim(bottom=0)
+                for values, color, ls, label in ((s.sigma_h, "#1f77b4", "-", "sigma_h"),
+                                                 (s.sigma_v, "#ff7f0e", "--", "sigma_v")):
+                    kpa = rolling_mean(values, n) / 1e3
+                    ax.plot(s.time, kpa, color=color, lw=1.2, ls=ls, label=label)
+                    top = np.nanmax(kpa, initial=top)
             drawn += 1
     if not drawn:
         return None
+    if not ratio and top > 0:  # the shared scale, from 0 to the largest trace of all
+        axes[0, 0].set_ylim(0.0, 1.05 * top)
     for ax in axes[-1, :]:
         ax.set_xlabel("time [s]", fontsize=8)
     handles, labels = [], []
