@@ -85,6 +85,7 @@ LINEAR = {
     "wall_peak_discharge": (1000.0, 1000.0, 100.0, 50.0),
     "discharge_rate": (12.5, 2.0, 0.5, 0.25),
     "mass_flow_index": (0.25, 0.25, 0.125, 0.0625),
+    "coordination_discharge": (2.5, 0.25, 0.125, 0.0625),
     "wall_peak_change_pct": (-30.0, 5.0, 1.0, 0.5),
 }
 FAILED_AT = (1, 2, 1)  # this run failed: no row
@@ -94,7 +95,7 @@ FAILURE = "unstable: grain 17 left through a wall"
 # the heat maps of docs/sweeps.md, in its order
 HEATMAP_COLUMNS = ["switch_sigma_h_change_pct", "switch_sigma_v_change_pct",
                    "switch_ratio_discharge", CV, "wall_peak_discharge", "discharge_rate",
-                   "mass_flow_index"]
+                   "mass_flow_index", "coordination_discharge"]
 
 
 def _value(column: str, r: int, c: int, s: int) -> float:

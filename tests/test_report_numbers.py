@@ -868,6 +868,7 @@ def _read(folder: Path) -> dict:
                "flow_attrs": dict(h5["measure/flow"].attrs)}
         for p in ("measure/time", "measure/phase", "measure/circles/stress",
                   "measure/wall_bins/wall", "measure/wall_bins/z", "measure/wall_bins/normal",
+                  "measure/band/coordination",
                   "timeseries/time", "timeseries/phase", "timeseries/discharged_mass",
                   "measure/flow/exit_time", "measure/flow/max_displacement",
                   "measure/flow/mass_flow_index/v_wall", "measure/flow/mass_flow_index/v_axis",
@@ -933,9 +934,20 @@ def _recompute(raw: dict) -> dict:
         k = np.flatnonzero(zone)[np.argmax(sn[zone])]
         out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = sn[k], z[k]
     out["wall_peak_change_pct"] = _pct(out["wall_peak_fill"], out["wall_peak_discharge"])
+    # coordination number in the junction band: window means (eq. 10 per sample)
+    band = raw["measure/band/coordination"]
+    for key, m in win.items():
+        assert np.isfinite(band[m]).all()
+        out[f"coordination_{key}"] = band[m].mean()
+    out["coordination_change_pct"] = _pct(out["coordination_fill"],
+                                          out["coordination_discharge"])
     # steady rate: least squares between 15 % and 75 % of the final mass, 5 block slopes
     sel = raw["timeseries/phase"] == 2
     tt, mm = raw["timeseries/time"][sel] - t_open, raw["timeseries/discharged_mass"][sel]
+    # how far the silo had emptied at the discharge window's ends: of the initial mass
+    m0 = float(raw["events"]["initial_mass"])
+    for name, edge in (("start", edges[1]), ("end", edges[2])):
+        out[f"window_emptied_{name}_pct"] = 100.0 * np.interp(edge - t_open, tt, mm) / m0
     keep = (mm >= 0.15 * mm.max()) & (mm <= 0.75 * mm.max())
     ts, ms = tt[keep], mm[keep]
 
@@ -1029,7 +1041,8 @@ DOC_COLUMNS = [
     "switch_sigma_v_fill", "switch_sigma_v_discharge", "switch_sigma_v_change_pct",
     "switch_ratio_fill", "switch_ratio_discharge", "switch_ratio_cv_fill",
     "switch_ratio_cv_discharge", "wall_peak_fill", "wall_peak_z_fill", "wall_peak_discharge",
-    "wall_peak_z_discharge", "wall_peak_change_pct", "janssen_K_fill", "janssen_K_fill_err",
+    "wall_peak_z_discharge", "wall_peak_change_pct", "coordination_fill",
+    "coordination_discharge", "coordination_change_pct", "janssen_K_fill", "janssen_K_fill_err",
     "en1991_4_class", "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill",
     "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",
     "window_emptied_start_pct", "window_emptied_end_pct",

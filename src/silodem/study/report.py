@@ -229,6 +229,8 @@ HEATMAPS = [
     ("wall_peak_discharge", "wall peak in the switch zone, discharge [Pa]", "viridis", False),
     ("discharge_rate", "discharge rate [kg/s]", "viridis", False),
     ("mass_flow_index", "mass flow index v_wall / v_axis [-]", "viridis", False),
+    ("coordination_discharge", "coordination number at the junction, discharge [-]",
+     "viridis", False),
 ]
 
 

@@ -49,6 +49,10 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("wall_peak_discharge", "Pa", "switch-zone peak of the wall normal stress during discharge"),
     ("wall_peak_z_discharge", "m", "height of that peak"),
     ("wall_peak_change_pct", "%", "change of the wall peak, filling -> discharge"),
+    ("coordination_fill", "-", ("coordination number C_n (eq. 10) in the band across the silo "
+     "at the junction, filling window mean")),
+    ("coordination_discharge", "-", "the same, discharge window mean"),
+    ("coordination_change_pct", "%", "its change, filling -> discharge"),
     ("janssen_K_fill", "-", "Janssen K fitted to the cell walls after filling, mu_w = tan phi_P"),
     ("janssen_K_fill_err", "-", ("its standard error (over half of K: K is poorly determined, "
      "as the run report says)")),
@@ -161,8 +165,8 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # Raise when summarise_run gives other numbers for the same results.h5, so that a study's
 # finished runs are summarised again (execute.read_summary) instead of keeping stale numbers:
 # 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved);
-# the columns janssen_K_fill_err and window_emptied_start_pct / _end_pct.
-ANALYSIS_VERSION = 2
+# the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*.
+ANALYSIS_VERSION = 3
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
@@ -197,6 +201,12 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
         (f0, f1), (d0, d1) = a.windows["fill"], a.windows["discharge"]
         masks = {"fill": (t >= f0) & (t <= f1) & (phase == SETTLE),
                  "discharge": (t >= d0) & (t <= d1) & (phase == DISCHARGE)}
+        band = m.get("band", {}).get("coordination")
+        if band is not None:
+            for key, mask in masks.items():
+                out[f"coordination_{key}"] = window_mean(band[mask])
+            out["coordination_change_pct"] = _change(out["coordination_fill"],
+                                                     out["coordination_discharge"])
         c = m["circles"]
         names = [str(n) for n in c["name"]]
         stress = c["stress"]
