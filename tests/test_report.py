@@ -49,6 +49,27 @@ def test_run_writes_a_self_contained_report(run_dir):
         assert f"id='network_{view}'" in html
 
 
+def test_a_quick_run_report_says_what_a_quick_silo_is_for(run_dir, tmp_path):
+    """A --quick run (its config named '<scenario>-quick') gets the caveat that its small silo
+    checks a setup and its numbers are not the full-size silo's; a run of its own size not."""
+    from silodem.report.html import QUICK_CAVEAT
+
+    copy = tmp_path / "q"
+    shutil.copytree(run_dir, copy)
+    with h5py.File(copy / "results.h5", "r+") as h5:
+        text = h5.attrs["config_toml"]
+        assert 'name = "tiny-hopper"' in text
+        h5.attrs["config_toml"] = text.replace('name = "tiny-hopper"', 'name = "tiny-hopper-quick"')
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(copy)])
+    assert exc.value.code == 0
+    import html as html_module
+
+    caveat = html_module.escape(QUICK_CAVEAT)
+    assert caveat in (copy / "report.html").read_text(encoding="utf-8")
+    assert caveat not in (run_dir / "report.html").read_text(encoding="utf-8")
+
+
 def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):
     """A flat-bottomed silo: the report has no hopper angle and no wedge-hopper paragraph, and
     Fig. 2's axis reaches the largest coordination number measured (it was cut at 6.5)."""

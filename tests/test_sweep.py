@@ -774,7 +774,7 @@ def test_a_summary_made_by_another_analysis_version_is_made_again(serial, tmp_pa
     assert read_summary(run_dir)["wall_peak_fill"] == -1.0
 
 
-def test_a_quick_study_report_says_which_silo_ran():
+def test_a_quick_study_report_says_which_silo_ran(serial):
     """The study table listed 'set silo.wall_height 8.5' and 'set fill.n_particles 480' while
     --quick ran walls of 0.6 x 8.5 = 5.1 m, round(0.36 x 480) = 173 grains and a cell 0.6 x
     3.4 = 2.04 m wide (docs/scenarios.md, --quick): the report now names what ran."""
@@ -783,3 +783,11 @@ def test_a_quick_study_report_says_which_silo_ran():
     text = _quick_silo(expand(load_study("paper-study"), quick=True))
     assert text.startswith("yes: cell width B = 2.04 m, wall height 5.1 m, outlet D = 1 m, "
                            "173 grains")
+    # and what such a silo is for (the tiny study here is a --quick one)
+    import html
+
+    from silodem.report.html import QUICK_CAVEAT
+
+    assert serial[0].quick
+    report = (serial[1] / "report.html").read_text(encoding="utf-8")
+    assert html.escape(QUICK_CAVEAT) in report

@@ -245,7 +245,7 @@ def _fit_theory(a: Analysis, shape) -> None:
             return float(np.sum((pred - sh) ** 2))
 
         D = float(minimize_scalar(err, bounds=(0.2, 5.0), method="bounded").x)
-        hop["D_fit"] = D
+        hop["D_fit"], hop["D_bins"] = D, int(on_hopper.sum())
         hop["planar_D"] = th.hopper_wall_normal(h, H, q, gamma, g["alpha"], mu_h, D, True)
     a.hopper = hop
 
@@ -389,9 +389,10 @@ def _numbers(a: Analysis) -> None:
     if "q" in a.hopper:
         n.append(("measured mean vertical stress q on the junction (hopper theory input)",
                   pascals(a.hopper["q"]), "Pa"))
-    if "D_fit" in a.hopper:
-        n.append(("Walker distribution factor D fitted on the hopper walls (planar)",
-                  _fmt(a.hopper["D_fit"], 3), "-"))
+    if "D_fit" in a.hopper:  # (no error: a bounded 1-parameter fit, often to a few bins)
+        label = (f"Walker distribution factor D fitted on the hopper walls (planar), to "
+                 f"{a.hopper['D_bins']} wall bins")
+        n.append((label, _fmt(a.hopper["D_fit"], 3), "-"))
     if "window_emptied" in a.flow:  # the discharge stresses depend on it (a quick silo
         # empties by half in the same 1 s window a full one loses a tenth in)
         start, end = a.flow["window_emptied"]

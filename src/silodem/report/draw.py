@@ -182,7 +182,9 @@ def ratio_axis(ax: Axes, *curves: npt.ArrayLike) -> None:
     top = np.max(values[np.isfinite(values)], initial=-np.inf)
     if top > RATIO_TOP:
         ax.text(0.99, 0.97, f"axis cut at {RATIO_TOP:g}: values up to {top:.3g}",
-                transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.35")
+                transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.35",
+                zorder=5, bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none",
+                                "pad": 1.0})  # above the traces, readable
 
 
 def rolling_mean(y: npt.ArrayLike, n: int) -> np.ndarray:

@@ -109,6 +109,13 @@ def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]
     return out
 
 
+QUICK_CAVEAT = ("A --quick silo is small: 0.6 of the cell width with the same outlet, a few "
+                "hundred grains, a hopper a few grains tall. It checks a setup in seconds; its "
+                "stresses, flow pattern, dead zones and fill -> discharge changes (its discharge "
+                "window falls while the silo is emptying fast) are not those of the full-size "
+                "silo.")
+
+
 # the style and the table of a run's report.html and a study's (study/report.py)
 PAGE_CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;
@@ -185,6 +192,8 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle}</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>",
              f"<p>{html.escape(cfg.description)}</p>", intro]
+    if cfg.name.endswith("-quick"):  # (scenario_files.quick_variant names it so)
+        parts.append(f"<p class='warn'>{html.escape(QUICK_CAVEAT)}</p>")
     if res.warnings:
         parts.append("<h2>Warnings</h2><ul>" + "".join(
             f"<li class='warn'>{html.escape(w)}</li>" for w in res.warnings) + "</ul>")

@@ -32,7 +32,7 @@ from silodem.report.draw import (
     shade_phases,
     tight_layout,
 )
-from silodem.report.html import PAGE_CSS, html_table
+from silodem.report.html import PAGE_CSS, QUICK_CAVEAT, html_table
 from silodem.report.numbers import significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
@@ -399,6 +399,8 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             ("computed on", where or "n/a", ""),
             ("written", time.strftime("%Y-%m-%d %H:%M:%S"), "")]
     parts += ["<h2>Study</h2>", html_table([(a, b) for a, b, _ in meta], ("item", "value"))]
+    if plan.quick:
+        parts.append(f"<p class='warn'>{html.escape(QUICK_CAVEAT)}</p>")
     parts.append(
         "<p>Stresses are compressive positive [Pa]: 2D forces per unit length divided by the "
         "grains' out-of-plane thickness (material.thickness). The switch "
