@@ -30,7 +30,7 @@ from silodem.errors import (
 
 DEFAULT_SCENARIO = "paper-case2"
 
-_QUICK_SUFFIX = "-quick"
+QUICK_SUFFIX = "-quick"
 
 
 # --- embedded scenarios --------------------------------------------------------------------
@@ -302,7 +302,7 @@ def quick_variant(cfg: Config) -> Config:
     data["fill"]["max_time"] = min(cfg.fill.max_time, 15.0)
     data["settle"]["max_time"] = min(cfg.settle.max_time, 3.0)
     data["discharge"]["max_time"] = min(cfg.discharge.max_time, 10.0)
-    data["name"] = cfg.name + _QUICK_SUFFIX
+    data["name"] = cfg.name + QUICK_SUFFIX
     try:
         return Config.model_validate(data)
     except ValidationError as exc:

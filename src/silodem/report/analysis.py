@@ -17,7 +17,7 @@ from silodem.measure import regions
 from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report import eurocode
 from silodem.report.load import Results
-from silodem.report.numbers import pascals, significant
+from silodem.report.numbers import pascals, poorly_determined, significant
 from silodem.silo.geometry import silo_shape
 
 if TYPE_CHECKING:
@@ -337,7 +337,7 @@ def _fitted(value: float, error: float) -> str:
     or noisy wall bins: a K of 1.29 +- 0.69 is no measurement of K)."""
     text = f"{_fmt(value, 3)} +- {_fmt(error, 2)}"
     return text + (" (poorly determined: the error is over half the value)"
-                   if not abs(error) <= 0.5 * abs(value) else "")
+                   if poorly_determined(value, error) else "")
 
 
 def _numbers(a: Analysis) -> None:

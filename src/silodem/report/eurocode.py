@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem import theory as th
-from silodem.report.numbers import pascals, significant
+from silodem.report.numbers import pascals, poorly_determined, significant
 
 if TYPE_CHECKING:
     from silodem.config import Measure
@@ -54,7 +54,7 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     if j is None:
         a.en1991_4["missing"] = "no K: no Janssen fit after filling"
         return
-    if not abs(j.K_err) <= 0.5 * j.K:  # (as the key numbers say: no measurement of K)
+    if poorly_determined(j.K, j.K_err):  # (as the key numbers say: no measurement of K)
         a.en1991_4["missing"] = (f"K = {j.K:.3g} +- {j.K_err:.2g} of the Janssen fit after "
                                  "filling is poorly determined")
         return

@@ -17,6 +17,7 @@ from silodem.report import figures_stress as fs
 from silodem.report.analysis import Analysis, analyse
 from silodem.report.draw import png_bytes
 from silodem.report.load import load_results
+from silodem.scenario_files import QUICK_SUFFIX
 
 
 @dataclass(frozen=True)
@@ -192,7 +193,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle}</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>",
              f"<p>{html.escape(cfg.description)}</p>", intro]
-    if cfg.name.endswith("-quick"):  # (scenario_files.quick_variant names it so)
+    if cfg.name.endswith(QUICK_SUFFIX):  # (scenario_files.quick_variant names it so)
         parts.append(f"<p class='warn'>{html.escape(QUICK_CAVEAT)}</p>")
     if res.warnings:
         parts.append("<h2>Warnings</h2><ul>" + "".join(

@@ -78,7 +78,7 @@ SAMPLED = ("step", "phase", "circles/stress", "circles/porosity", "circles/coord
 WALL_KEYS = ("name", "ax", "ay", "bx", "by")  # /walls: every run writes these
 
 
-def _check_samples(res: Results, only: tuple[str, ...] | None) -> None:
+def _check_parts(res: Results, only: tuple[str, ...] | None) -> None:
     """InputError when a part every run writes is missing (the time step, the walls of the
     loaded groups) or when the columns of /timeseries, or the per-sample datasets of /measure
     and /measure/time, have different numbers of rows (a damaged or hand-edited file), before
@@ -151,5 +151,5 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     events = dict(data.get("events", {}).get("@attrs", {}))
     warnings = [str(w) for w in np.atleast_1d(data.get("warnings", np.zeros(0)))]
     res = Results(folder, cfg, toml_text, attrs, events, warnings, data)
-    _check_samples(res, only)
+    _check_parts(res, only)
     return res

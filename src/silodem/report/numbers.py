@@ -21,6 +21,12 @@ def significant(value: float | None, digits: int = 3) -> str:
     return text
 
 
+def poorly_determined(value: float, error: float) -> bool:
+    """A fitted value whose standard error is over half of it, or not finite: a fit to few or
+    noisy points (a Janssen K of 1.29 +- 0.69 from six wall bins) that measures nothing."""
+    return not abs(error) <= 0.5 * abs(value)
+
+
 def pascals(value: float | None) -> str:
     """A stress in whole pascals with thousands separators (20,929), 'n/a' for None or NaN."""
     return f"{value:,.0f}" if value is not None and math.isfinite(value) else "n/a"

@@ -24,7 +24,7 @@ from pydantic import ValidationError
 
 from silodem.config import Config
 from silodem.errors import InputError, check_flag, format_validation_error
-from silodem.scenario_files import load_config, quick_variant
+from silodem.scenario_files import QUICK_SUFFIX, load_config, quick_variant
 from silodem.study.spec import GRID_BASE, LoadedStudy
 
 HASH_DIGITS = 10
@@ -204,7 +204,7 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
                                  f"{label_of(point, seed)} have the same config{how}; remove "
                                  "the repeated grid value")
             seen[digest] = label_of(point, seed)
-            name = f"{spec.name}-{slug}" + ("-quick" if quick else "")
+            name = f"{spec.name}-{slug}" + (QUICK_SUFFIX if quick else "")
             cfg = cfg.model_copy(update={"name": name,
                                          "description": f"{spec.name}: {label_of(point, seed)}"})
             runs.append(PlannedRun(run_id, slug, seed, point, cfg))

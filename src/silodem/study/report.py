@@ -41,6 +41,7 @@ from silodem.study.table import (
     COLUMNS,
     UNLOADED,
     as_float,
+    loaded,
     switch_series,
     table_csv,
 )
@@ -103,11 +104,9 @@ def _loaded_ratio(sh: np.ndarray, sv: np.ndarray) -> np.ndarray:
     """sigma_h / sigma_v per sample, NaN where the circle is almost unloaded (sigma_v under
     ``UNLOADED`` x the median of its positive values), as the CV of the table leaves out: a
     ratio of two near-zero numbers (a sigma_v of 2e-16 Pa gave 6e15) is noise."""
-    loaded = np.isfinite(sv) & (sv > 0)
-    if loaded.any():
-        loaded &= sv >= UNLOADED * float(np.median(sv[loaded]))
+    ok = loaded(sv, np.isfinite(sv) & (sv > 0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(loaded, sh / sv, np.nan)
+        return np.where(ok, sh / sv, np.nan)
 
 
 def _quick_silo(plan: StudyPlan) -> str:

@@ -106,6 +106,13 @@ def _change(before: float, after: float) -> float:
 UNLOADED = 0.1  # samples with sigma_v under this fraction of its window median are left out
 
 
+def loaded(sv: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """The ``usable`` samples whose sigma_v is at least ``UNLOADED`` times the median of the
+    usable ones: a ratio sigma_h / sigma_v of two near-zero numbers is noise, not anisotropy
+    (the CV below and the study's ratio figure leave the others out)."""
+    return usable & (sv >= UNLOADED * float(np.median(sv[usable]))) if usable.any() else usable
+
+
 def _ratio_stats(sh: np.ndarray, sv: np.ndarray) -> tuple[float, float]:
     """(ratio of the window means, coefficient of variation std/mean of the sampled ratio).
 
@@ -116,7 +123,7 @@ def _ratio_stats(sh: np.ndarray, sv: np.ndarray) -> tuple[float, float]:
     if not ok.any():
         return NAN, NAN
     ratio_of_means = float(np.mean(sh[ok]) / np.mean(sv[ok]))
-    ok &= sv >= UNLOADED * float(np.median(sv[ok]))
+    ok = loaded(sv, ok)
     r = sh[ok] / sv[ok]
     mean = float(np.mean(r))
     cv = float(np.std(r) / abs(mean)) if r.size >= 2 and mean != 0 else NAN
