@@ -213,6 +213,7 @@ def write_synthetic(folder: Path, *, discharge: bool = True, settle: bool = True
     slices = np.full((S, 5, 3), 3.0e6)
     if settle:
         slices[FILL_K, 2, 1] = [5200.0, 4800.0, NAN, 5100.0, 4900.0, 5000.0]
+    slices[DIS_K, 2, 1] = [6400.0, 5600.0, NAN, 6200.0, 5800.0, 6000.0, 6100.0, 5900.0]
     measure = {
         "time": t, "step": np.arange(S) * 100, "phase": phase,
         "circles": {"name": ["switch_left", "switch_centre", "switch_right"],
@@ -448,15 +449,54 @@ def test_mobilised_wall_friction_and_janssen_fits(synth):
 
 
 def test_hopper_theory_input_q(synth):
-    """q, the hopper theory's input: the window mean of the full-width slice sigma_zz in the
-    first profile bin above the junction; one NaN sample (empty bin) is skipped:
-    (5200 + 4800 + 5100 + 4900 + 5000) / 5 = 5000 Pa.  Slice heights are measured from the
-    hopper's virtual apex, D/2 / tan(alpha) under the outlet (docs/theory.md), so H = z_j + that
-    depth."""
+    """q, the hopper theory's input, per window: the window mean of the full-width slice
+    sigma_zz in the first profile bin above the junction; one NaN sample (empty bin) is
+    skipped: (5200 + 4800 + 5100 + 4900 + 5000) / 5 = 5000 Pa after filling, 42000 / 7 =
+    6000 Pa during discharge.  Slice heights are measured from the hopper's virtual apex,
+    D/2 / tan(alpha) under the outlet (docs/theory.md), so H = z_j + that depth."""
     a, _ = synth
-    assert a.hopper["q"] == pytest.approx(5000.0, rel=REL)
-    assert a.hopper["H"] == pytest.approx(
-        Z_J + 0.5 * D_OUT / math.tan(math.radians(90.0 - THETA)), rel=REL)
+    assert a.hopper["fill"]["q"] == pytest.approx(5000.0, rel=REL)
+    assert a.hopper["discharge"]["q"] == pytest.approx(6000.0, rel=REL)
+    for key in ("fill", "discharge"):
+        assert a.hopper[key]["H"] == pytest.approx(
+            Z_J + 0.5 * D_OUT / math.tan(math.radians(90.0 - THETA)), rel=REL)
+
+
+def test_walker_d_fit_recovers_the_d_of_an_exact_planar_profile(synth):
+    """Hopper-wall bins set to D sigma_v with D = 1.7 (fill) and 2.4 (discharge), sigma_v from
+    the wedge's slice balance integrated here numerically down from the junction (sigma_v = q
+    there): the window's bounded fit gives each D back and uses the window's own q.  The slice
+    balance (docs/theory.md, Walker 1966), h up from the virtual apex, wedge A = 2 h tan(alpha),
+    wall length P = 2 per unit thickness, sigma_n = D sigma_v:
+    d(A sigma_v)/dh = -gamma A + P D sigma_v (tan(alpha) + mu_w)."""
+    import copy
+
+    from scipy.integrate import solve_ivp
+
+    from silodem.report.analysis import EdgeProfile, _walker
+
+    a, _ = synth
+    g = a.geom
+    gamma, tan_a, mu = a.rho_b * g["g"], math.tan(math.radians(g["alpha"])), g["mu_wall"]
+    H = g["z_j"] + g["apex"]
+    z_bins = np.array([0.1, 0.2, 0.3])
+    for key, D_true in (("fill", 1.7), ("discharge", 2.4)):
+        q = a.hopper[key]["q"]
+        def slice_balance(h, s, D=D_true):  # A s' = -A' s - gamma A + P D s (tan_a + mu)
+            A = 2.0 * h * tan_a
+            return [(-2.0 * tan_a * s[0] - gamma * A + 2.0 * D * s[0] * (tan_a + mu)) / A]
+
+        sol = solve_ivp(slice_balance, (H, g["apex"] + 0.05), [q],
+                        dense_output=True, rtol=1e-10, atol=1e-6)
+        sigma_v = sol.sol(z_bins + g["apex"])[0]
+        b = copy.copy(a)
+        b.edge = {key: EdgeProfile(z=z_bins, sigma_n=D_true * sigma_v,
+                                   tau_down=np.zeros(3), on_vertical=np.zeros(3, bool),
+                                   sides={})}
+        hop = _walker(b, key)
+        assert hop["q"] == a.hopper[key]["q"]
+        assert hop["D_bins"] == 3
+        assert hop["D_fit"] == pytest.approx(D_true, rel=1e-4)
 
 
 def test_discharge_rate_is_the_slope_of_a_linear_mass_record(synth):
@@ -551,7 +591,8 @@ def test_key_numbers_of_the_report(synth):
     assert float(_number(below, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
     assert _first_float(_number(a, "Janssen K fitted to the cell wall profile, after")) == (
         pytest.approx(K_TRUE, rel=5e-3))
-    assert _number(a, "measured mean vertical stress q") == "5,000"
+    assert _number(a, "measured mean vertical stress q on the junction, after") == "5,000"
+    assert _number(a, "measured mean vertical stress q on the junction, during") == "6,000"
     assert _first_float(_number(a, "steady discharge rate W")) == pytest.approx(W_RATE,
                                                                                  rel=5e-4)
     # the discharge window, 0.25-0.75 s after the gate opened: m = W (t - 0.25) of the

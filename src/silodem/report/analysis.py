@@ -52,7 +52,7 @@ class Analysis:
     janssen_free: th.JanssenFit | None = None  # K and mu_w fitted after filling
     janssen_missing: dict[str, str] = field(default_factory=dict)  # window -> why no fit
     mu_mobilised: dict[str, float] = field(default_factory=dict)
-    hopper: dict[str, Any] = field(default_factory=dict)
+    hopper: dict[str, dict[str, Any]] = field(default_factory=dict)  # window -> Walker
     peaks: dict[str, tuple[float, float]] = field(default_factory=dict)
     switch: tuple[float, float] = (0.0, 0.0)
     change: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -192,8 +192,8 @@ def analyse(res: Results) -> Analysis:
 
 def _fit_theory(a: Analysis, shape) -> None:
     """Janssen K per window (mu_w = tan(phi_P), the paper's assumption of fully mobilised wall
-    friction), a free (K, mu_w) fit after filling, the mobilised wall friction, and the hopper
-    slice solutions with q = the measured mean vertical stress just above the junction."""
+    friction), a free (K, mu_w) fit after filling, the mobilised wall friction, and, per window,
+    the hopper slice solutions with that window's q and D (``_walker``)."""
     g = a.geom
     for key, e in a.edge.items():
         surface = a.surface[key]
@@ -218,12 +218,22 @@ def _fit_theory(a: Analysis, shape) -> None:
                 a.janssen_free = th.fit_janssen(depth[cell], sn, a.rho_b, g["g"], g["B"])
         except (ValueError, RuntimeError) as exc:
             a.janssen_missing[key] = f"the fit failed: {exc}"
-    strips = a.strips.get("fill")
-    if shape.kind != "hopper" or strips is None or not np.isfinite(a.rho_b):
-        return
+    if shape.kind == "hopper":
+        for key in a.strips:
+            hop = _walker(a, key)
+            if hop:
+                a.hopper[key] = hop
+
+
+def _walker(a: Analysis, key: str) -> dict[str, Any]:
+    """Walker's slice solutions in the hopper for one window: q = the window's measured mean
+    vertical stress just above the junction, D = 1 and D fitted (bounded, least squares) to
+    the window's hopper-wall bins.  Empty when the window has no finite q."""
+    g, strips = a.geom, a.strips[key]
     above = np.flatnonzero(strips["z"] > g["z_j"])
-    if above.size == 0 or not np.isfinite(strips["slice_zz"][above[0]]):
-        return
+    if above.size == 0 or not np.isfinite(strips["slice_zz"][above[0]]) or \
+            not np.isfinite(a.rho_b):
+        return {}
     gamma = a.rho_b * g["g"]
     q = float(strips["slice_zz"][above[0]])
     H = g["z_j"] + g["apex"]
@@ -233,7 +243,7 @@ def _fit_theory(a: Analysis, shape) -> None:
     hop = {"z": z, "q": q, "H": H, "mu": mu_h,
            "planar": th.hopper_sigma_v(h, H, q, gamma, g["alpha"], mu_h, 1.0, True),
            "conical": th.hopper_sigma_v(h, H, q, gamma, g["alpha"], mu_h, 1.0, False)}
-    e = a.edge.get("fill")
+    e = a.edge.get(key)
     on_hopper = (~e.on_vertical & (e.z < g["z_j"]) & np.isfinite(e.sigma_n)) if e else None
     if on_hopper is not None and on_hopper.sum() >= 2:
         from scipy.optimize import minimize_scalar
@@ -247,7 +257,7 @@ def _fit_theory(a: Analysis, shape) -> None:
         D = float(minimize_scalar(err, bounds=(0.2, 5.0), method="bounded").x)
         hop["D_fit"], hop["D_bins"] = D, int(on_hopper.sum())
         hop["planar_D"] = th.hopper_wall_normal(h, H, q, gamma, g["alpha"], mu_h, D, True)
-    a.hopper = hop
+    return hop
 
 
 def window_mean(values: np.ndarray) -> float:
@@ -386,13 +396,14 @@ def _numbers(a: Analysis) -> None:
                  "peak below it), after filling")
         n.append((label, _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
     n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
-    if "q" in a.hopper:
-        n.append(("measured mean vertical stress q on the junction (hopper theory input)",
-                  pascals(a.hopper["q"]), "Pa"))
-    if "D_fit" in a.hopper:  # (no error: a bounded 1-parameter fit, often to a few bins)
-        label = (f"Walker distribution factor D fitted on the hopper walls (planar), to "
-                 f"{a.hopper['D_bins']} wall bins")
-        n.append((label, _fmt(a.hopper["D_fit"], 3), "-"))
+    for key, hop in a.hopper.items():
+        when = "after filling" if key == "fill" else "during discharge"
+        label = f"measured mean vertical stress q on the junction, {when} (hopper theory input)"
+        n.append((label, pascals(hop["q"]), "Pa"))
+        if "D_fit" in hop:  # (no error: a bounded 1-parameter fit, often to a few bins)
+            label = (f"Walker distribution factor D fitted on the hopper walls (planar), {when}, "
+                     f"to {hop['D_bins']} wall bins")
+            n.append((label, _fmt(hop["D_fit"], 3), "-"))
     if "window_emptied" in a.flow:  # the discharge stresses depend on it (a quick silo
         # empties by half in the same 1 s window a full one loses a tenth in)
         start, end = a.flow["window_emptied"]

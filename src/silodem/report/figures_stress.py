@@ -91,19 +91,17 @@ def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
 
 
 def _hopper_curves(ax, a: Analysis, which: str, key: str = "fill") -> None:
-    """Walker's slice solutions, from the filled silo's q (and D fitted to its hopper walls):
-    on the discharge figure the legend says so."""
-    h = a.hopper
+    """Walker's slice solutions with the window's own q (and D fitted to its hopper walls)."""
+    h = a.hopper.get(key)
     if not h:
         return
-    of = ", q and D of the filled silo" if key == "discharge" else ""
     ax.plot(h["planar"], h["z"], color="#d62728", lw=2,
-            label=f"Walker slice, PLANAR wedge (2D), D = 1{of}")
+            label="Walker slice, PLANAR wedge (2D), D = 1")
     ax.plot(h["conical"], h["z"], color="#d62728", lw=1.2, ls="--",
-            label=f"Walker slice, conical (form of paper eq. 12, virtual apex), D = 1{of}")
+            label="Walker slice, conical (form of paper eq. 12, virtual apex), D = 1")
     if which == "h" and "planar_D" in h:
         ax.plot(h["planar_D"], h["z"], color="#ff9896", lw=1.5, ls="-.",
-                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v){of}")
+                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)")
 
 
 def _en1991_4_curve(ax, a: Analysis, key: str) -> None:

@@ -61,7 +61,7 @@ FIGURES = [
                "Horizontal stress along the silo wall during discharge (time average over the "
                "discharge window), with the filling profile, Janssen's solution (K refitted), "
                "EN 1991-4's discharge loads on the vertical and hopper walls where they apply, "
-               "Walker's hopper solutions of the filled silo (its q and D) in a hopper silo, "
+               "Walker's hopper solutions with the discharge window's q and D in a hopper silo, "
                "and the switch-zone peak. The legend lists the curves drawn.",
                lambda a: fs.fig_horizontal(a, "discharge")),
     FigureSpec("fig7_switch_zone_evolution", "Fig. 7",
