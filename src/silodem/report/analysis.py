@@ -371,8 +371,8 @@ def _numbers(a: Analysis) -> None:
                       f"{pascals(v)} at z = {_fmt(z, 3)} m", "Pa"))
     for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
         if key in a.mu_mobilised:
-            what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell walls, {label} "
-                    f"(tan phi_P = {_fmt(g['mu_wall'], 3)})")
+            what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
+                    f"the Janssen fit, {label} (tan phi_P = {_fmt(g['mu_wall'], 3)})")
             n.append((what, _fmt(a.mu_mobilised[key], 3), "-"))
         what = f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)"
         if key in a.janssen:
