@@ -220,3 +220,69 @@ def test_branch_free_law_equals_the_reference_law_exactly(tension):
         fs_old = rng.normal(0.0, 50.0)
         got = linear_law(overlap, vn, vt, fs_old, kn, ks, cn, mu, tension, dt)
         assert got == _law(kn * overlap, vn, vt, fs_old, ks, cn, mu, tension, dt)
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.05, 0.2155, 0.5, 1.0, 3.0])
+def test_damped_step_factor_is_the_leapfrog_stability_edge_of_a_4x_stiffer_mode(zeta):
+    """Brute force: the leap-frog of one damped mode x'' = -w^2 x - 2 z w x', dashpot on the
+    half-step velocity as in the engine, steps (x, v) by a 2x2 matrix built here from its two
+    update lines; it is stable while the matrix's spectral radius is <= 1.  For the mode that
+    dt_crit leaves room for, w = 2 sqrt(k/m) with the dashpot's c/k kept (z = 2 zeta),
+    bisection on dt sqrt(k/m) finds the edge, which must be sqrt(1 + 4 zeta^2) - 2 zeta
+    (undamped: 1, dt_crit itself)."""
+    from silodem.engine.contact import damped_step_factor
+
+    def radius(y_c: float) -> float:
+        y, z = 2.0 * y_c, 2.0 * zeta  # the 4x stiffer mode: w dt and its damping ratio
+        # v' = v - dt (w^2 x + 2 z w v);  x' = x + dt v'   (units: w dt = y, v in w x)
+        step = np.array([[1.0, 0.0], [-y, 1.0 - 2.0 * z * y]])  # (x, v) -> (x, v')
+        move = np.array([[1.0, y], [0.0, 1.0]])  # (x, v') -> (x + dt v', v')
+        return float(np.max(np.abs(np.linalg.eigvals(move @ step))))
+
+    lo, hi = 1e-6, 4.0
+    assert radius(lo) <= 1.0 + 1e-12 < radius(hi)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if radius(mid) <= 1.0 + 1e-12 else (lo, mid)
+    assert damped_step_factor(zeta) == pytest.approx(lo, rel=1e-6)
+
+
+def test_a_damped_triangular_packing_is_stable_at_dt_crit_and_not_at_the_undamped_limit():
+    """64 disks in a triangular packing, 0.2 % compressed in a box, shear springs at k_n / 5
+    (the normal spring sets dt_crit) and e = 0.5: stepped at dt_crit, the dashpots take the
+    kinetic energy of the release down by more than a thousand; at the undamped limit
+    sqrt(m_eff / k) (the normal dashpot's factor left out, 1 / 0.658 x longer) the packing's
+    fastest modes grow instead, as the leap-frog's stability condition (docs/physics.md) says:
+    the energy ends above where it started."""
+    from silodem.engine.contact import critical_time_step, damped_step_factor
+
+    kn, eps, n = 1e6, 2e-3, 8
+    zeta = damping_ratio_from_restitution(0.5)
+    a = 2 * R * (1 - eps)
+    xs = np.array([i * a + (j % 2) * a / 2 for j in range(n) for i in range(n)])
+    ys = np.array([j * a * math.sqrt(3) / 2 for j in range(n) for i in range(n)])
+    lo, top = -R * (1 - eps), R * (1 - eps)
+    corners = [(lo, lo), (xs.max() + top, lo), (xs.max() + top, ys.max() + top),
+               (lo, ys.max() + top)]
+
+    def energies(dt_of) -> list[float]:
+        grain = law(kn, mu=0.5, zeta=zeta, ks=0.2 * kn)
+        walls = Walls()
+        for q in range(4):
+            walls.add(f"w{q}", corners[q], corners[(q + 1) % 4], kn, 0.2 * kn, 0.5,
+                      one_sided=True)
+        dt_crit = critical_time_step(MASS, grain, walls.kn, walls.ks)
+        rng = np.random.default_rng(0)
+        p = Particles()
+        p.add(xs, ys, R, RHO, vx=rng.normal(0, 1e-6, xs.size), vy=rng.normal(0, 1e-6, xs.size))
+        sim = Simulation(p, walls, grain, dt=dt_of(dt_crit), gravity=0.0, skin=0.02)
+        out = []
+        for _ in range(12):
+            sim.run(50)
+            out.append(p.kinetic_energy())
+        return out
+
+    stable = energies(lambda dt_crit: dt_crit)
+    assert stable[-1] < 1e-3 * stable[0]
+    undamped_limit = energies(lambda dt_crit: dt_crit / damped_step_factor(zeta))
+    assert undamped_limit[-1] > undamped_limit[0]

@@ -453,13 +453,17 @@ def test_extreme_numbers_build_a_run_or_are_refused_in_one_line(scenario, sets):
 
 def test_a_wall_too_soft_to_limit_the_time_step_gives_the_grains_limit_without_a_warning():
     """A wall ratio m / k_wall beyond the largest float is inf, which the minimum passes over:
-    dt_crit is then the grains' own limit, sqrt(min(m / k_n, m / (3 k_s))) with the series
-    stiffnesses k/2 of two equal grains (Cundall & Strack 1979), and numpy says nothing."""
+    dt_crit is then the grains' own limit, sqrt(min(f^2 m / k_n, m / (3 k_s))) with the series
+    stiffnesses k/2 of two equal grains (Cundall & Strack 1979) and the dashpot's factor
+    f = sqrt(1 + 4 zeta^2) - 2 zeta, zeta = -ln e / sqrt(pi^2 + ln^2 e) (docs/physics.md), and
+    numpy says nothing."""
     cfg = load_config("paper-case1", ["material.density=1e250", "walls.kn=1e-90",
                                       "walls.ks=1e-90"])
     m = cfg.material
     m_min = m.density * math.pi * m.radius_min**2 * m.thickness
-    expected = math.sqrt(min(m_min / m.kn, m_min / (3.0 * m.ks)))
+    zeta = -math.log(m.restitution) / math.sqrt(math.pi**2 + math.log(m.restitution) ** 2)
+    f = math.sqrt(1.0 + 4.0 * zeta**2) - 2.0 * zeta
+    expected = math.sqrt(min(f * f * m_min / m.kn, m_min / (3.0 * m.ks)))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         dt, dt_crit = check_numbers(cfg)

@@ -170,22 +170,32 @@ def test_results_folder_layout(tmp_path):
     assert any("results" in line for line in summary.lines())
 
 
-def test_time_step_above_the_stability_limit_is_refused():
+@pytest.mark.parametrize("ks", [5e6, 5e5])
+def test_time_step_above_the_stability_limit_is_refused(ks):
     """docs/physics.md, "Time step": dt_crit = min sqrt(m_eff / k) over the contact kinds,
     m_eff = m_min/2 and m_min/6 between grains (normal, shear), m_min and m_min/3 at a wall,
-    k the series stiffnesses; computed here for paper-case2's lightest grain. A dt just above
-    it is refused, one just below runs, and unset dt is time.safety x dt_crit."""
-    m, w = small().material, small().walls
-    assert (m.kn, m.ks, w.kn, w.ks) == (5e6, 5e6, 5e6, 5e6)
+    k the series stiffnesses, the normal kinds' times f = sqrt(1 + 4 zeta^2) - 2 zeta for the
+    dashpot's damping ratio zeta = -ln e / sqrt(pi^2 + ln^2 e); computed here for paper-case2's
+    lightest grain, whose k_s = k_n leaves the limit to the shear spring, and with a softer
+    k_s = k_n / 10, which leaves it to the damped normal one.  A dt just above it is refused,
+    one just below runs, and unset dt is time.safety x dt_crit."""
+    cfg = small(material__ks=ks, walls__ks=ks)
+    m, w = cfg.material, cfg.walls
+    assert (m.kn, m.ks, w.kn, w.ks, m.restitution) == (5e6, ks, 5e6, ks, 0.5)
     m_min = m.density * math.pi * m.radius_min**2 * m.thickness
-    kn, ks = 5e6 / 2, 5e6 / 2  # grains and walls alike: 5e6 N/m, in series
-    dt_crit = math.sqrt(min(m_min / 2 / kn, m_min / 6 / ks, m_min / kn, m_min / 3 / ks))
+    kn, ks_s = 5e6 / 2, ks / 2  # grains and walls alike, in series
+    zeta = -math.log(0.5) / math.sqrt(math.pi**2 + math.log(0.5) ** 2)
+    f2 = (math.sqrt(1 + 4 * zeta**2) - 2 * zeta) ** 2
+    ratios = [m_min / 2 / kn * f2, m_min / 6 / ks_s, m_min / kn * f2, m_min / 3 / ks_s]
+    assert min(ratios) == (ratios[1] if ks == 5e6 else ratios[0])
+    dt_crit = math.sqrt(min(ratios))
     with pytest.raises(InputError, match="exceeds the stability limit"):
-        SiloRun(small(time__dt=dt_crit * (1 + 1e-9)))
-    assert SiloRun(small(time__dt=dt_crit * (1 - 1e-9))).dt == dt_crit * (1 - 1e-9)
-    default = SiloRun(small())
+        SiloRun(small(material__ks=ks, walls__ks=ks, time__dt=dt_crit * (1 + 1e-9)))
+    run = SiloRun(small(material__ks=ks, walls__ks=ks, time__dt=dt_crit * (1 - 1e-9)))
+    assert run.dt == dt_crit * (1 - 1e-9)
+    default = SiloRun(cfg)
     assert default.dt_crit == pytest.approx(dt_crit, rel=1e-12)
-    assert default.dt == pytest.approx(small().time.safety * dt_crit, rel=1e-12)
+    assert default.dt == pytest.approx(cfg.time.safety * dt_crit, rel=1e-12)
 
 
 def test_paper_case1_stiffness_warns_with_the_numbers():

@@ -1,6 +1,6 @@
 """Physical sanity of a configuration, checked before a run starts.
 
-* Time step: dt_crit from the stiffest contact and the lightest grain
+* Time step: dt_crit from the stiffest contact, the lightest grain and the normal dashpot
   (``silodem.engine.contact.critical_time_step``); a user dt above it is refused.
 * Overlap under the silo's own weight.  The vertical stress at the bottom of the cell is
   estimated with the 2D Janssen solution for a slot of width B with two walls,
