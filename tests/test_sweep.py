@@ -791,3 +791,59 @@ def test_a_quick_study_report_says_which_silo_ran(serial):
     assert serial[0].quick
     report = (serial[1] / "report.html").read_text(encoding="utf-8")
     assert html.escape(QUICK_CAVEAT) in report
+
+
+def test_signals_while_the_local_cluster_starts_are_held_not_lost():
+    """While the LocalCluster starts, SIGINT was ignored (SIG_IGN): a Ctrl-C in that second
+    was lost and the whole study ran on; a SIGTERM there ended in distributed's tracebacks.
+    ``_signals_held`` notes both and raises them again after the block, under the handlers
+    they had before: nothing is raised inside, KeyboardInterrupt after, and SIGTERM reaches
+    its previous handler once."""
+    from silodem.study.execute import _signals_held
+
+    reached: list[int] = []
+    before = signal.signal(signal.SIGTERM, lambda signum, frame: reached.append(signum))
+    try:
+        inside = False
+        with pytest.raises(KeyboardInterrupt), _signals_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)  # the handlers run between bytecodes: let them
+            inside = True
+        assert inside and reached == [signal.SIGTERM]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+def test_a_damaged_summary_is_made_again_and_a_damaged_run_is_named(serial, tmp_path, capsys):
+    """summary.json is derived from results.h5 alone: a damaged one (not JSON, or JSON but not
+    an object) ended the sweep in a traceback; it is now summarised again from results.h5, to
+    the same bytes.  A damaged results.h5 ended the report in a one-line h5py error that named
+    no file; the run now keeps its row with the documented summary_error, the report is
+    written, and the command warns with the run and its file, exit 0."""
+    plan, ref_dir = serial
+    study_dir = tmp_path / "study"
+    shutil.copytree(ref_dir, study_dir)
+    first, second = (study_dir / "runs" / r.id for r in plan.runs)
+    good = (first / "summary.json").read_bytes()
+    (tmp_path / "tiny.toml").write_text(TINY, encoding="utf-8")
+    sweep = ["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)]
+    for damage in ("{bad", "[1, 2]", ""):
+        (first / "summary.json").write_text(damage, encoding="utf-8")
+        with pytest.raises(SystemExit) as exc:
+            main(sweep)
+        assert exc.value.code == 0
+        assert (first / "summary.json").read_bytes() == good
+    capsys.readouterr()
+    (second / "results.h5").write_bytes(b"junk")
+    (second / "summary.json").write_text("{bad", encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(sweep)
+    assert exc.value.code == 0
+    warning = capsys.readouterr().out.splitlines()[-1]
+    assert warning.startswith("warning: 1 finished run(s) could not be summarised")
+    assert second.name in warning and str(second / "results.h5") in warning
+    rows = list(csv.DictReader((study_dir / "results.csv").open(encoding="utf-8")))
+    assert [bool(r["summary_error"]) for r in rows] == [False, True]
+    assert (study_dir / "report.html").is_file()

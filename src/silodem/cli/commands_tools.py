@@ -105,6 +105,11 @@ def sweep(
         f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")
     say(f"table: {outcome.table_path}")
     say(f"report: {outcome.report_path}")
+    if outcome.unsummarised:
+        first_id, first_error = next(iter(outcome.unsummarised.items()))
+        say(f"warning: {len(outcome.unsummarised)} finished run(s) could not be summarised, "
+            f"their cells are empty (first: {first_id}: {first_error}); delete the run's "
+            "folder and run the command again to redo it")
     if outcome.failed:
         first_id, first_error = next(iter(outcome.failed.items()))
         fail(f"error: {len(outcome.failed)} of {len(plan.runs)} runs failed (first: "

@@ -65,6 +65,7 @@ def finish_study(plan: StudyPlan, out_dir: Path, outcome: StudyOutcome | None = 
     if outcome is None:
         outcome = StudyOutcome(plan, out_dir)
     rows = collect_rows(plan, out_dir)
+    outcome.unsummarised = {r["id"]: r["summary_error"] for r in rows if "summary_error" in r}
     columns = table_columns(plan.grid_keys, rows)
     outcome.table_path = out_dir / TABLE_NAME
     write_text(outcome.table_path, table_csv(columns, rows))

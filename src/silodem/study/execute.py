@@ -62,12 +62,16 @@ VERSION_KEY = "analysis_version"  # summary.json: study.table.ANALYSIS_VERSION i
 
 def read_summary(run_dir: Path) -> dict[str, Any]:
     """The per-run quantities of the finished run ``run_dir``: its summary.json, or, when that
-    was written by another version of the analysis (``study.table.ANALYSIS_VERSION``), a new
-    summary from its results.h5, saved in its place."""
+    was written by another version of the analysis (``study.table.ANALYSIS_VERSION``) or
+    cannot be read as one (damaged, not a JSON object), a new summary from its results.h5,
+    saved in its place: the summary is derived from results.h5 alone."""
     from silodem.study.table import ANALYSIS_VERSION
 
-    summary = json.loads((run_dir / SUMMARY_NAME).read_text(encoding="utf-8"))
-    if summary.pop(VERSION_KEY, None) == ANALYSIS_VERSION:
+    try:
+        summary = json.loads((run_dir / SUMMARY_NAME).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):  # (JSONDecodeError is a ValueError)
+        summary = None
+    if isinstance(summary, dict) and summary.pop(VERSION_KEY, None) == ANALYSIS_VERSION:
         return summary
     summary = summarise(run_dir)
     write_summary(run_dir, summary)
@@ -194,6 +198,8 @@ class StudyOutcome:
     computed: int = 0  # runs computed by this invocation
     skipped: int = 0  # runs found finished (before it started, or by another attempt)
     failed: dict[str, str] = field(default_factory=dict)  # run id -> error
+    # finished runs whose results.h5 could not be summarised: run id -> summary_error
+    unsummarised: dict[str, str] = field(default_factory=dict)
     results: dict[str, dict[str, Any]] = field(default_factory=dict)  # run id -> task result
     wall_s: float = 0.0
     table_path: Path | None = None
@@ -426,23 +432,43 @@ def local_cluster(workers: int) -> LocalCluster:
     that loses the scheduler while a sweep is stopped logs a traceback at ERROR, and every
     failure of a run reaches the sweep through its future (and is reported there).
 
-    The worker processes are started with SIGINT ignored (they inherit it): Ctrl-C in a
-    terminal goes to the whole process group, and workers that took it each printed
-    tracebacks while the sweep itself stopped cleanly and closed them anyway."""
+    Ctrl-C in a terminal goes to the whole process group; the workers ignore SIGINT
+    (``study.worker_setup``, preloaded), and the sweep's own SIGINT and SIGTERM are held
+    while the cluster starts and act once it has (``_signals_held``)."""
     import logging
-    import signal
-    import threading
 
     from distributed import LocalCluster
 
-    main = threading.current_thread() is threading.main_thread()
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-    try:
+    with _signals_held():
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", silence_logs=logging.CRITICAL)
+                            dashboard_address=":0", silence_logs=logging.CRITICAL,
+                            preload=["silodem.study.worker_setup"])
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Note SIGINT and SIGTERM in the main thread during the block, and raise them again
+    after it under the handlers they had before, SIGTERM first: either, raised in the middle of
+    distributed's start-up, ended in its tracebacks (an assertion on the cluster's status in
+    an atexit hook, a nanny that failed to start), and a SIGINT ignored there (SIG_IGN, as
+    the workers were once given it) was lost, and the whole study ran on.  Outside the main
+    thread (a notebook's worker thread) the block runs as it is."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    before = {s: signal.signal(s, lambda signum, frame: noted.append(signum)) for s in held}
+    try:
+        yield
     finally:
-        if main:
-            signal.signal(signal.SIGINT, before)
+        for s in held:
+            signal.signal(s, signal.SIG_DFL if before[s] is None else before[s])
+        for s in sorted(set(noted), reverse=True):  # SIGTERM (15) first: the stronger
+            signal.raise_signal(s)
 
 
 def _probe(address: str) -> None:

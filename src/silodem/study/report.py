@@ -40,6 +40,7 @@ from silodem.study.table import (
     CIRCLE_QUANTITIES,
     COLUMNS,
     UNLOADED,
+    SwitchSeries,
     as_float,
     loaded,
     switch_series,
@@ -122,6 +123,17 @@ def _quick_silo(plan: StudyPlan) -> str:
             "are those before --quick shrinks them)")
 
 
+def _switch_series(folder: Path | None) -> SwitchSeries | None:
+    """The run's switch-zone series, None without a run or a readable results.h5 (a damaged
+    one is named in the run's summary_error; the other panels are still drawn)."""
+    if folder is None or not (folder / "results.h5").is_file():
+        return None
+    try:
+        return switch_series(folder)
+    except (OSError, KeyError, ValueError):  # h5py: not an HDF5 file, a dataset missing
+        return None
+
+
 def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> Figure | None:
     """Fig. 7 for every case: switch-zone sigma_h and sigma_v (or their ratio) against time."""
     nr, nc = len(lay.rows), len(lay.cols)
@@ -135,8 +147,7 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
             ax = axes[i, j]
             runs = _runs_at(plan, lay, row, col)
             folder = out_dir / "runs" / runs[0].id if runs else None
-            s = switch_series(folder) if folder is not None and (folder / "results.h5").is_file() \
-                else None
+            s = _switch_series(folder)
             if i == 0:
                 ax.set_title(lay.col_label(col), fontsize=8)
             if j == 0:
