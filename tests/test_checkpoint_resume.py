@@ -195,13 +195,25 @@ def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_sav
                             capture_output=True, text=True, env=env(), timeout=180)
     assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
     assert "Traceback" not in result.stderr and "Fatal Python error" not in result.stderr
-    last = result.stderr.strip().splitlines()[-1]
+    lines = result.stderr.strip().splitlines()
+    last = lines[-1]
     assert last.startswith("error: File too large") and f"--resume {out}" in last, last
     assert_partial_results_are_a_prefix(out, ref)
-    assert read_checkpoint(out).step > 0  # the saves went on while they fitted
+    kept = read_checkpoint(out)
+    assert kept.step > 0  # the saves went on while they fitted
+    # the line says where the checkpoint is, and the first failed save was said as it came
+    # (it was only in the summary, which a failed final write never prints)
+    assert f"the last checkpoint, at t = {kept.time:.4g} s (step {kept.step})" in last, last
+    assert any(line.startswith("warning: saving results.h5/checkpoint.h5 failed at t =")
+               for line in lines[:-1]), lines[-5:]
     result = cli("run", "--resume", str(out))
     assert result.returncode == 0, result.stderr[-2000:]
     assert_same_as_reference(out, ref)
+    # stderr is not a terminal here: no bar until the end, so a line at each phase
+    phases = [line.split()[0] for line in result.stderr.splitlines()
+              if line.split()[:3][1:] == ["t", "="]]
+    changes = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
+    assert changes[-3:] == ["settle", "discharge", "done"], result.stderr
 
 
 def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):

@@ -130,17 +130,25 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                  TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
                  transient=False) as bar:
             task = bar.add_task("compiling kernels...", total=3, phase="start")
+            live: dict = {"run": None, "warned": 0, "phase": "", "logged": 0.0}
 
             def show(pr: Progress) -> None:
-                bar.update(task, completed=PHASES.index(pr.phase),
-                           phase=pr.phase,
-                           description=f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
-                           f"{pr.steps_per_s:8.0f} steps/s  {pr.detail}")
+                text = (f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
+                        f"{pr.steps_per_s:8.0f} steps/s  {pr.detail}")
+                bar.update(task, completed=PHASES.index(pr.phase), phase=pr.phase,
+                           description=text)
+                now = time.perf_counter()
+                if not console.is_terminal and (pr.phase != live["phase"]
+                                                or now - live["logged"] >= LOG_EVERY_S):
+                    # a log file gets no bar until the end: a line now and then instead
+                    console.print(f"{pr.phase:<9} {text}".rstrip(), markup=False, highlight=False)
+                    live["phase"], live["logged"] = pr.phase, now
+                _warn_new(console, live)
 
             try:
                 run = SiloRun(cfg, on_progress=show, recorders=recorders)
-                for w in run.warnings:
-                    console.print(f"[yellow]warning:[/] {w}")
+                live["run"] = run
+                _warn_new(console, live)
                 guard.drive(run)
             except BaseException:  # the error's one line is the last word, not a stale bar
                 if not console.is_terminal:  # (a terminal shows the bar as it was drawn)
@@ -150,17 +158,21 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     else:
         run = SiloRun(cfg, recorders=recorders)
         guard.drive(run)
-    kept = (f"the last checkpoint is kept: 'silodem run --resume {out}' finishes the run"
-            if guard.checkpoint_path.exists() else
-            f"{out / 'results.h5'} holds the run up to its last save")
+    if guard.checkpoint_path.exists() and guard.last_checkpoint is not None:
+        step, at = guard.last_checkpoint
+        kept = (f"the last checkpoint, at t = {at:.4g} s (step {step}), is kept: once the cause "
+                f"is mended, 'silodem run --resume {out}' goes on from there")
+    else:
+        kept = f"{out / 'results.h5'} holds the run up to its last save"
     try:
         write_results(run, out / "results.h5", toml_text)
     except KeyboardInterrupt as exc:  # results.h5 is the last save's (atomic write)
         raise RunInterrupted(f"while the run's final results were written; {kept}",
                              _signal_of(exc)) from None
     except OSError as exc:  # a full disk: say what is kept and how to go on
-        raise OSError(exc.errno, f"{exc.strerror or exc} while the run's final results were "
-                      f"written to {out / 'results.h5'}; {kept}") from None
+        where = f" ({exc.filename})" if exc.filename else ""
+        raise OSError(exc.errno, f"{exc.strerror or exc}{where} while the run's final results "
+                      f"were written to {out / 'results.h5'}; {kept}") from None
     guard.completed(run)
     if guard.stop_signal is not None:  # it came in the last chunk: the run is complete
         raise RunInterrupted(f"as the run ended; its complete results are in {out / 'results.h5'}"
@@ -176,6 +188,20 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                              _signal_of(exc)) from None
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                       dict(run.events), list(run.warnings))
+
+
+LOG_EVERY_S = 30.0  # wall seconds between progress lines when stderr is not a terminal
+
+
+def _warn_new(console, live: dict) -> None:
+    """Print the run's warnings not printed yet, as they come (a periodic save that failed
+    on a full disk was said only in the summary, which a failed final write never printed)."""
+    run = live["run"]
+    if run is None:
+        return
+    for w in run.warnings[live["warned"]:]:
+        console.print(f"[yellow]warning:[/] {w}", soft_wrap=True)
+    live["warned"] = len(run.warnings)
 
 
 def _signal_of(exc: KeyboardInterrupt) -> int:
