@@ -51,6 +51,17 @@ def test_bench_json_reports_the_deck_lattice_and_its_throughput():
     assert isinstance(out["machine"]["cpu"], str) and out["machine"]["cpu"]
 
 
+def test_bench_text_keeps_one_record_per_line_when_piped():
+    """Piped (not a terminal), rich wrapped its lines at 80 columns: the result row was split
+    after its throughput's number.  Each figure's row is one line, with its unit."""
+    proc = subprocess.run([sys.executable, "-m", "silodem", "bench", "--n", "400", "--steps",
+                           "40", "--settle", "60"], check=False, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    rows = [line for line in proc.stdout.splitlines() if line.startswith("silodem  n =")]
+    assert len(rows) == 1 and "M particle-steps/s" in rows[0] and rows[0].endswith("builds")
+
+
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
 def test_bench_runs_lammps_on_the_same_silo():
     out = _bench("--n", "400", "--steps", "40", "--settle", "60", "--json", "--lammps")

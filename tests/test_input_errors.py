@@ -525,6 +525,13 @@ def test_animate_out_that_is_not_a_video_name_is_refused(capsys, tmp_path, name)
     assert (tmp_path / name).read_bytes() == b"a run's file"
 
 
+def test_a_scenario_name_with_spaces_around_it_says_so(capsys):
+    """' paper-case2' said "unknown scenario 'paper-case2' (did you mean 'paper-case2'?)": the
+    message hid the spaces that made the name unknown."""
+    line = refused(capsys, "show", " paper-case2")
+    assert_names(line, "' paper-case2'", "spaces", "did you mean 'paper-case2'?")
+
+
 def test_a_study_named_by_a_file_name_that_names_no_folder_is_refused(capsys, tmp_path):
     """A study without `name` is named by its file's stem: `..toml` gave the name '.', which
     the `name` key refuses, and the study went into studies/ itself, not studies/<name>."""

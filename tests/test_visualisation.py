@@ -472,6 +472,14 @@ def _check_frames_differ_and_not_blank(images: list[np.ndarray]) -> None:
     assert float(changed.mean()) > 0.005  # the grains moved between first and last
 
 
+def test_animate_out_under_a_file_says_it_is_not_a_folder(run_dir, tmp_path):
+    """`--out afile/x.gif` with afile a regular file said "folder 'afile' does not exist"."""
+    (tmp_path / "afile").write_bytes(b"")
+    res = cli("animate", str(run_dir), "--out", str(tmp_path / "afile" / "x.gif"))
+    assert res.returncode == 2 and res.stderr.strip().splitlines() == [
+        f"error: --out {tmp_path / 'afile' / 'x.gif'}: '{tmp_path / 'afile'}' is not a folder"]
+
+
 def test_animate_mp4_has_one_video_frame_per_saved_frame(run_dir, h5):
     out = run_dir / "anim.mp4"
     res = cli("animate", str(run_dir), "--color", "force", "--out", str(out))

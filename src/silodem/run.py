@@ -125,7 +125,7 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
         from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
         from rich.progress import Progress as Bar
 
-        console = Console(stderr=True)
+        console = Console(stderr=True, soft_wrap=True)
         with Bar(TextColumn("[bold]{task.fields[phase]:<9}"), BarColumn(),
                  TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
                  transient=False) as bar:

@@ -105,6 +105,9 @@ def _read_source(source: str) -> dict[str, Any]:
             f"file not found: {source} (give an existing .toml file, or an embedded scenario: "
             f"{names})"
         )
+    if source.strip() in files:  # ' paper-case2': the message showed the name without them
+        raise InputError(f"unknown scenario {source!r}: it has spaces around the name; did you "
+                         f"mean '{source.strip()}'?")
     hint = did_you_mean(source, files)
     hint_text = f" (did you mean '{hint}'?)" if hint else ""
     raise InputError(

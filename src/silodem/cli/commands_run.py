@@ -36,7 +36,7 @@ def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
     from silodem.run import read_checkpoint, resume_simulation  # imports numba: only when running
 
     checkpoint = read_checkpoint(folder)  # a one-line error before anything is announced
-    console = Console()
+    console = Console(soft_wrap=True)
     console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False,
                   soft_wrap=True)
     summary = resume_simulation(folder, threads=threads, progress=True, checkpoint=checkpoint)
@@ -115,7 +115,7 @@ def run(
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     check_out(out_dir)
 
-    console = Console()
+    console = Console(soft_wrap=True)
     console.print(
         f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False, soft_wrap=True
     )
@@ -239,9 +239,9 @@ def animate(
 
     plan = plan_animation(run_dir, out, color=color, fmt=fmt, fps=fps)
     with Bar(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-             console=Console(stderr=True), transient=False) as bar:
+             console=Console(stderr=True, soft_wrap=True), transient=False) as bar:
         task = bar.add_task("frames", total=len(plan.frames))
         result = render_animation(plan, lambda done, _: bar.update(task, completed=done))
-    Console().print(f"animation: {result.frames} frames ({result.width}x{result.height} px, "
-                    f"{fps} fps) in {result.seconds:.1f} s -> {result.path}", markup=False,
-                    highlight=False, soft_wrap=True)
+    Console(soft_wrap=True).print(
+        f"animation: {result.frames} frames ({result.width}x{result.height} px, {fps} fps) in "
+        f"{result.seconds:.1f} s -> {result.path}", markup=False, highlight=False)

@@ -80,9 +80,9 @@ def sweep(
     loaded = load_study(study)
     planned = len(loaded.spec.seeds) * math.prod(len(v) for v in loaded.spec.grid.values())
     if planned >= PLAN_NOTICE_RUNS:  # each run's config is built and checked: ~3 ms a run
-        Console(stderr=True).print(f"silodem: checking the {planned} runs of the study "
-                                   f"(about {planned * 3e-3:.0f} s)...", markup=False,
-                                   highlight=False, soft_wrap=True)
+        err = Console(stderr=True, soft_wrap=True)
+        err.print(f"silodem: checking the {planned} runs of the study "
+                  f"(about {planned * 3e-3:.0f} s)...", markup=False, highlight=False)
     plan = expand(loaded, quick=quick)
     out_dir = out if out is not None else Path("studies") / (plan.name + ("-quick" if quick
                                                                            else ""))
@@ -90,7 +90,7 @@ def sweep(
         raise InputError(f"--out {out_dir} is a file, not a folder")
     where = (f"the Dask scheduler at {scheduler}" if scheduler is not None else
              f"a local cluster of {workers or default_workers()} single-threaded workers")
-    console = Console()
+    console = Console(soft_wrap=True)
 
     def say(text: str) -> None:
         console.print(text, markup=False, highlight=False, soft_wrap=True)
@@ -165,7 +165,7 @@ def bench(
     if as_json:
         print(benchmark.as_json(results))
         return
-    console = Console()
+    console = Console(soft_wrap=True)
     for r in results:
         console.print(r.line(), markup=False, highlight=False)
     console.print(f"peak memory {results[0].peak_memory_bytes / 1e6:.0f} MB "
@@ -236,7 +236,7 @@ def validate(
     except ValueError as err:
         raise InputError(f"--case: {err}") from None
     check_out(out)  # after the checks: a refused command makes no folder
-    err = Console(stderr=True)
+    err = Console(stderr=True, soft_wrap=True)
     result = run_validation(quick=quick, out=out, only=cases or None,  # imports numba
                             progress=lambda msg: err.print(msg, markup=False, highlight=False))
     if as_json:

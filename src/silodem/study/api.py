@@ -86,7 +86,7 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
     from rich.progress import Progress as Bar
 
-    console = Console(stderr=True)
+    console = Console(stderr=True, soft_wrap=True)
     with Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
              TextColumn("{task.description}"), console=console, transient=False) as bar:
         task = bar.add_task("", total=total)

@@ -123,7 +123,8 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
             raise InputError(f"--out {out_path} is a folder; give the video's file name "
                              f"(e.g. {out_path / f'animation.{fmt}'})")
         if not out_path.parent.is_dir():
-            raise InputError(f"--out {out_path}: folder '{out_path.parent}' does not exist")
+            what = "is not a folder" if out_path.parent.exists() else "does not exist"
+            raise InputError(f"--out {out_path}: '{out_path.parent}' {what}")
         probe = out_path.with_name(f".{out_path.stem}.tmp.{fmt}")  # render's temporary file
         probe.touch()
         probe.unlink()
