@@ -847,3 +847,17 @@ def test_a_damaged_summary_is_made_again_and_a_damaged_run_is_named(serial, tmp_
     rows = list(csv.DictReader((study_dir / "results.csv").open(encoding="utf-8")))
     assert [bool(r["summary_error"]) for r in rows] == [False, True]
     assert (study_dir / "report.html").is_file()
+
+
+def test_a_scheduler_that_cannot_be_reached_makes_no_study_folder(tmp_path, capsys):
+    """The study folder (study.toml, runs/) was made before the scheduler was tried: a refused
+    command left it behind.  Now the connection comes first."""
+    (tmp_path / "tiny.toml").write_text(TINY, encoding="utf-8")
+    out = tmp_path / "study"
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--scheduler", "garbage",
+              "--out", str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: cannot reach the Dask scheduler")
+    assert not out.exists()

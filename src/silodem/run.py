@@ -6,9 +6,12 @@ Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> di
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
+import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -178,16 +181,46 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
         raise RunInterrupted(f"as the run ended; its complete results are in {out / 'results.h5'}"
                              f" ('silodem plot {out}' draws its pictures and report.html)",
                              guard.stop_signal)
+    after = (f"after the run's results were written to {out / 'results.h5'}; "
+             f"'silodem plot {out}' draws its pictures and report.html")
+    noted: list[int] = []
     try:
-        write_views(out)
-        if cfg.measure.report:
-            _write_report(out, run.warnings)
+        with _signals_noted(noted):
+            write_views(out)
+            if cfg.measure.report:
+                _write_report(out, run.warnings)
     except KeyboardInterrupt as exc:
-        raise RunInterrupted(f"after the run's results were written to {out / 'results.h5'}; "
-                             f"'silodem plot {out}' draws its pictures and report.html",
-                             _signal_of(exc)) from None
+        raise RunInterrupted(after, _signal_of(exc)) from None
+    if noted:  # its KeyboardInterrupt was raised in a callback that dropped it (a weakref's)
+        raise RunInterrupted(after, noted[0])
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                       dict(run.events), list(run.warnings))
+
+
+@contextlib.contextmanager
+def _signals_noted(noted: list[int]) -> Iterator[None]:
+    """Note each SIGINT and SIGTERM that has a Python handler in ``noted``, then let that
+    handler act (raise KeyboardInterrupt / ``Terminated``).  Drawing with matplotlib, a
+    signal sometimes raised its KeyboardInterrupt inside a weakref callback, where Python
+    drops it: the command went on and ended with 0; the note still says it came.  Main
+    thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    # only signals with a Python handler: SIG_DFL and SIG_IGN keep what they do
+    before = {s: h for s in (signal.SIGINT, signal.SIGTERM) if callable(h := signal.getsignal(s))}
+
+    def note(signum, frame):
+        noted.append(signum)
+        before[signum](signum, frame)
+
+    for s in before:
+        signal.signal(s, note)
+    try:
+        yield
+    finally:
+        for s, previous in before.items():
+            signal.signal(s, previous)
 
 
 LOG_EVERY_S = 30.0  # wall seconds between progress lines when stderr is not a terminal

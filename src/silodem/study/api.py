@@ -132,29 +132,34 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     say = _stderr_line if progress else None
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()
-    todo = prepare(plan, out_dir)
-    if not todo:
-        outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs),
-                               where=_earlier_hosts(plan, out_dir))
-    elif serial:
-        with _progress_bar(len(todo), progress) as on_done:
-            outcome = run_serial(plan, out_dir, on_done)
-    elif client is not None:
-        with _progress_bar(len(todo), progress) as on_done:
-            outcome = run_on_client(plan, out_dir, client, on_done, say)
-        outcome.where = f"Dask client of {client.scheduler.address}"
-    else:
-        client, cluster, where = connect(scheduler, workers, say)
-        try:
+    own = None  # (client, cluster, where) connected here, closed here
+    if not serial and client is None and not all(is_finished(out_dir / "runs" / r.id)
+                                                  for r in plan.runs):
+        own = connect(scheduler, workers, say)  # first: a refused scheduler makes no folder
+    try:
+        todo = prepare(plan, out_dir)
+        if not todo:
+            outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs),
+                                   where=_earlier_hosts(plan, out_dir))
+        elif serial:
+            with _progress_bar(len(todo), progress) as on_done:
+                outcome = run_serial(plan, out_dir, on_done)
+        elif own is None:
+            with _progress_bar(len(todo), progress) as on_done:
+                outcome = run_on_client(plan, out_dir, client, on_done, say)
+            outcome.where = f"Dask client of {client.scheduler.address}"
+        else:
+            own_client, cluster, where = own
             with _progress_bar(len(todo), progress) as on_done:  # (a local cluster's nannies
                 # restart its workers: only an external scheduler's are watched)
-                outcome = run_on_client(plan, out_dir, client, on_done,
+                outcome = run_on_client(plan, out_dir, own_client, on_done,
                                         say if cluster is None else None)
             outcome.where = where
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+    finally:
+        if own is not None:
+            own[0].close()
+            if own[1] is not None:
+                own[1].close()
     outcome = finish_study(plan, out_dir, outcome, report=report)
     outcome.wall_s = time.perf_counter() - t0
     return outcome
