@@ -321,12 +321,14 @@ def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, mon
 def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     """An old run's settled.png, report.html and figures stayed beside a new run that drew
     none, and a new run stopped before its first save left its config beside the old run's
-    complete results.h5.  The old run's frame segments go too.  Files silodem does not
-    write are left alone."""
+    complete results.h5.  The old run's frame segments go too, and the animations
+    `silodem animate` wrote under its default names (they stayed beside the new run's
+    results).  Files silodem does not write are left alone."""
     out = tmp_path / "run"
     for folder in ("figures", "vtk", "frames"):
         (out / folder).mkdir(parents=True)
     for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png",
+                 "animation.mp4", "animation.gif",
                  "vtk/particles_000000.vtu", "vtk/contacts.pvd", "vtk/fields_settled.vtu",
                  "frames/frames-000000-000999.h5", "frames/.frames-001000-001001.h5.tmp"):
         (out / name).write_bytes(b"old run")

@@ -62,7 +62,7 @@ _STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
 
 # what a run and its pictures write into the folder (the VTK writer clears its own files)
 _RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTIC_NAME,
-              FAILURE_NAME)
+              FAILURE_NAME, "animation.mp4", "animation.gif")  # (silodem animate's defaults)
 
 
 def clear_previous_run(out: Path) -> None:
