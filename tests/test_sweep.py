@@ -796,16 +796,16 @@ def test_a_quick_study_report_says_which_silo_ran(serial):
 def test_signals_while_the_local_cluster_starts_are_held_not_lost():
     """While the LocalCluster starts, SIGINT was ignored (SIG_IGN): a Ctrl-C in that second
     was lost and the whole study ran on; a SIGTERM there ended in distributed's tracebacks.
-    ``_signals_held`` notes both and raises them again after the block, under the handlers
-    they had before: nothing is raised inside, KeyboardInterrupt after, and SIGTERM reaches
+    ``noted_signals(hold=True)`` notes both and raises them again after the block, under the
+    handlers they had before: nothing is raised inside, KeyboardInterrupt after, and SIGTERM reaches
     its previous handler once."""
-    from silodem.study.execute import _signals_held
+    from silodem.signals import noted_signals
 
     reached: list[int] = []
     before = signal.signal(signal.SIGTERM, lambda signum, frame: reached.append(signum))
     try:
         inside = False
-        with pytest.raises(KeyboardInterrupt), _signals_held():
+        with pytest.raises(KeyboardInterrupt), noted_signals(hold=True):
             os.kill(os.getpid(), signal.SIGINT)
             os.kill(os.getpid(), signal.SIGTERM)
             time.sleep(0.05)  # the handlers run between bytecodes: let them

@@ -6,12 +6,9 @@ Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> di
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
-import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +18,7 @@ from silodem.errors import InputError, RunInterrupted, Terminated
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
 from silodem.safety import RunGuard, clear_previous_run
+from silodem.signals import noted_signals
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
 from silodem.silo.procedure import PHASES, Progress, SiloRun
@@ -183,9 +181,8 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                              guard.stop_signal)
     after = (f"after the run's results were written to {out / 'results.h5'}; "
              f"'silodem plot {out}' draws its pictures and report.html")
-    noted: list[int] = []
     try:
-        with _signals_noted(noted):
+        with noted_signals(hold=False) as noted:
             write_views(out)
             if cfg.measure.report:
                 _write_report(out, run.warnings)
@@ -195,32 +192,6 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
         raise RunInterrupted(after, noted[0])
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                       dict(run.events), list(run.warnings))
-
-
-@contextlib.contextmanager
-def _signals_noted(noted: list[int]) -> Iterator[None]:
-    """Note each SIGINT and SIGTERM that has a Python handler in ``noted``, then let that
-    handler act (raise KeyboardInterrupt / ``Terminated``).  Drawing with matplotlib, a
-    signal sometimes raised its KeyboardInterrupt inside a weakref callback, where Python
-    drops it: the command went on and ended with 0; the note still says it came.  Main
-    thread only."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    # only signals with a Python handler: SIG_DFL and SIG_IGN keep what they do
-    before = {s: h for s in (signal.SIGINT, signal.SIGTERM) if callable(h := signal.getsignal(s))}
-
-    def note(signum, frame):
-        noted.append(signum)
-        before[signum](signum, frame)
-
-    for s in before:
-        signal.signal(s, note)
-    try:
-        yield
-    finally:
-        for s, previous in before.items():
-            signal.signal(s, previous)
 
 
 LOG_EVERY_S = 30.0  # wall seconds between progress lines when stderr is not a terminal
@@ -233,7 +204,7 @@ def _warn_new(console, live: dict) -> None:
     if run is None:
         return
     for w in run.warnings[live["warned"]:]:
-        console.print(f"[yellow]warning:[/] {w}", soft_wrap=True)
+        console.print(f"[yellow]warning:[/] {w}")
     live["warned"] = len(run.warnings)
 
 

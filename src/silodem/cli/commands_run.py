@@ -37,11 +37,10 @@ def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
 
     checkpoint = read_checkpoint(folder)  # a one-line error before anything is announced
     console = Console(soft_wrap=True)
-    console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False,
-                  soft_wrap=True)
+    console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False)
     summary = resume_simulation(folder, threads=threads, progress=True, checkpoint=checkpoint)
     for line in summary.lines():
-        console.print(line, markup=False, highlight=False, soft_wrap=True)
+        console.print(line, markup=False, highlight=False)
 
 
 @app.command()
@@ -116,12 +115,10 @@ def run(
     check_out(out_dir)
 
     console = Console(soft_wrap=True)
-    console.print(
-        f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False, soft_wrap=True
-    )
+    console.print(f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False)
     summary = run_simulation(cfg, out_dir, threads=threads, progress=True)
     for line in summary.lines():
-        console.print(line, markup=False, highlight=False, soft_wrap=True)
+        console.print(line, markup=False, highlight=False)
 
 
 @app.command()

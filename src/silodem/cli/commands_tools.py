@@ -93,7 +93,7 @@ def sweep(
     console = Console(soft_wrap=True)
 
     def say(text: str) -> None:
-        console.print(text, markup=False, highlight=False, soft_wrap=True)
+        console.print(text, markup=False, highlight=False)
 
     todo = sum(not is_finished(out_dir / "runs" / r.id) for r in plan.runs)
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "

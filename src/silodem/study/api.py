@@ -98,7 +98,7 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
                 text = f"[red]failed[/] {run.id}: {result.get('error', '')}"
             else:
                 text = f"{status} {run.id} ({result.get('wall_s', 0.0):.1f} s on {where})"
-            bar.console.print(text, highlight=False, soft_wrap=True)
+            bar.console.print(text, highlight=False)
             bar.update(task, advance=1, description=run.slug)
 
         yield done
@@ -132,10 +132,11 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     say = _stderr_line if progress else None
     t0 = time.perf_counter()
     out_dir = Path(out_dir).resolve()
-    own = None  # (client, cluster, where) connected here, closed here
+    own = cluster = None  # a client (and local cluster) connected here, closed here
     if not serial and client is None and not all(is_finished(out_dir / "runs" / r.id)
                                                   for r in plan.runs):
-        own = connect(scheduler, workers, say)  # first: a refused scheduler makes no folder
+        # before the folder is made: a scheduler that cannot be reached leaves none
+        own, cluster, where = connect(scheduler, workers, say)
     try:
         todo = prepare(plan, out_dir)
         if not todo:
@@ -149,17 +150,16 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
                 outcome = run_on_client(plan, out_dir, client, on_done, say)
             outcome.where = f"Dask client of {client.scheduler.address}"
         else:
-            own_client, cluster, where = own
             with _progress_bar(len(todo), progress) as on_done:  # (a local cluster's nannies
                 # restart its workers: only an external scheduler's are watched)
-                outcome = run_on_client(plan, out_dir, own_client, on_done,
+                outcome = run_on_client(plan, out_dir, own, on_done,
                                         say if cluster is None else None)
             outcome.where = where
     finally:
         if own is not None:
-            own[0].close()
-            if own[1] is not None:
-                own[1].close()
+            own.close()
+        if cluster is not None:
+            cluster.close()
     outcome = finish_study(plan, out_dir, outcome, report=report)
     outcome.wall_s = time.perf_counter() - t0
     return outcome

@@ -434,41 +434,17 @@ def local_cluster(workers: int) -> LocalCluster:
 
     Ctrl-C in a terminal goes to the whole process group; the workers ignore SIGINT
     (``study.worker_setup``, preloaded), and the sweep's own SIGINT and SIGTERM are held
-    while the cluster starts and act once it has (``_signals_held``)."""
+    while the cluster starts and act once it has (``signals.noted_signals``)."""
     import logging
 
     from distributed import LocalCluster
 
-    with _signals_held():
+    from silodem.signals import noted_signals
+
+    with noted_signals(hold=True):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                             dashboard_address=":0", silence_logs=logging.CRITICAL,
                             preload=["silodem.study.worker_setup"])
-
-
-@contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """Note SIGINT and SIGTERM in the main thread during the block, and raise them again
-    after it under the handlers they had before, SIGTERM first: either, raised in the middle of
-    distributed's start-up, ended in its tracebacks (an assertion on the cluster's status in
-    an atexit hook, a nanny that failed to start), and a SIGINT ignored there (SIG_IGN, as
-    the workers were once given it) was lost, and the whole study ran on.  Outside the main
-    thread (a notebook's worker thread) the block runs as it is."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    noted: list[int] = []
-    held = (signal.SIGINT, signal.SIGTERM)
-    before = {s: signal.signal(s, lambda signum, frame: noted.append(signum)) for s in held}
-    try:
-        yield
-    finally:
-        for s in held:
-            signal.signal(s, signal.SIG_DFL if before[s] is None else before[s])
-        for s in sorted(set(noted), reverse=True):  # SIGTERM (15) first: the stronger
-            signal.raise_signal(s)
 
 
 def _probe(address: str) -> None:

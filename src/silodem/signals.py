@@ -1,0 +1,55 @@
+"""SIGINT and SIGTERM noted while a block runs (``noted_signals``): the one mechanism behind
+the sweep's cluster start-up, where a signal must wait, and the run's drawing, where a
+signal's KeyboardInterrupt may be dropped by the code it interrupts.  (A run's own stop at
+the end of a chunk is ``safety.RunGuard.signals``.)"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+
+NOTED = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def noted_signals(*, hold: bool) -> Iterator[list[int]]:
+    """Note SIGINT and SIGTERM in the list yielded while the block runs, then restore the
+    handlers they had.
+
+    ``hold=False``: each signal that has a Python handler also goes to that handler at once
+    (raising KeyboardInterrupt or ``errors.Terminated``); SIG_DFL and SIG_IGN keep what they
+    do.  Drawing with matplotlib, such a KeyboardInterrupt was sometimes raised inside a
+    weakref callback, where Python drops it: the note still says the signal came.
+
+    ``hold=True``: nothing acts inside the block; after it, each signal that came is raised
+    again, once, SIGTERM first, under the handler it had.  Raised in the middle of
+    distributed's start-up, either ended in its tracebacks, and a SIGINT ignored there
+    (SIG_IGN) was lost.
+
+    Outside the main thread (a notebook's worker thread) no handler can be set: the block
+    runs as it is and the list stays empty."""
+    noted: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield noted
+        return
+    before = {s: signal.getsignal(s) for s in NOTED}
+    if not hold:
+        before = {s: h for s, h in before.items() if callable(h)}
+
+    def note(signum, frame):
+        noted.append(signum)
+        if not hold:
+            before[signum](signum, frame)
+
+    for s in before:
+        signal.signal(s, note)
+    try:
+        yield noted
+    finally:
+        for s, previous in before.items():
+            signal.signal(s, signal.SIG_DFL if previous is None else previous)
+        if hold:
+            for s in sorted(set(noted), reverse=True):  # SIGTERM (15) first: the stronger
+                signal.raise_signal(s)
