@@ -90,6 +90,17 @@ def signal_when(proc: subprocess.Popen[str], sig: int, ready: Callable[[], objec
     return stderr
 
 
+def signal_dropped_by_a_callback(sig: int) -> None:
+    """Send ``sig`` to this process and drop the KeyboardInterrupt its handler raises (for
+    SIGTERM, ``errors.Terminated``), as Python drops one raised inside a weakref callback
+    while matplotlib draws: the code that was interrupted goes on."""
+    try:
+        os.kill(os.getpid(), sig)
+        time.sleep(0.05)  # the handler runs between bytecodes
+    except KeyboardInterrupt:
+        pass  # as a weakref callback does: printed and dropped
+
+
 def assert_one_line_error(result: subprocess.CompletedProcess[str], code: int,
                           *needles: str) -> str:
     assert result.returncode == code, (result.returncode, result.stdout, result.stderr)

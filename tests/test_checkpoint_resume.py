@@ -29,6 +29,7 @@ from reliability_helpers import (
     env,
     quick_config,
     run_args,
+    signal_dropped_by_a_callback,
     signal_when,
     start,
     stop_and_restore,
@@ -275,11 +276,7 @@ def test_ctrl_c_whose_interrupt_a_callback_drops_while_drawing_still_ends_with_1
     write_views = silodem.run.write_views
 
     def drawing_that_drops_the_interrupt(out):
-        try:
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.05)  # the handler runs between bytecodes
-        except KeyboardInterrupt:
-            pass  # as a weakref callback does: printed and dropped
+        signal_dropped_by_a_callback(signal.SIGINT)
         write_views(out)
 
     monkeypatch.setattr(silodem.run, "write_views", drawing_that_drops_the_interrupt)

@@ -21,7 +21,7 @@ import meshio
 import numpy as np
 import pytest
 from PIL import Image
-from reliability_helpers import command, env
+from reliability_helpers import command, env, signal_dropped_by_a_callback
 
 from silodem.silo.frame_store import FramesRecorder
 from silodem.silo.frames import read_frames
@@ -478,6 +478,28 @@ def test_animate_out_under_a_file_says_it_is_not_a_folder(run_dir, tmp_path):
     res = cli("animate", str(run_dir), "--out", str(tmp_path / "afile" / "x.gif"))
     assert res.returncode == 2 and res.stderr.strip().splitlines() == [
         f"error: --out {tmp_path / 'afile' / 'x.gif'}: '{tmp_path / 'afile'}' is not a folder"]
+
+
+def test_animate_ends_with_143_when_a_callback_drops_the_sigterm(run_dir, tmp_path,
+                                                                  monkeypatch, capsys):
+    """A SIGTERM whose exception a callback drops while the frames are rendered (as a weakref
+    callback drops a KeyboardInterrupt) still ends 'silodem animate' with one line and 143."""
+    import signal
+
+    import silodem.viz.animate
+    from silodem.cli import main
+
+    render = silodem.viz.animate.render_animation
+
+    def render_that_drops_the_signal(plan, progress):
+        signal_dropped_by_a_callback(signal.SIGTERM)
+        return render(plan, progress)
+
+    monkeypatch.setattr(silodem.viz.animate, "render_animation", render_that_drops_the_signal)
+    with pytest.raises(SystemExit) as exc:
+        main(["animate", str(run_dir), "--format", "gif", "--out", str(tmp_path / "a.gif")])
+    assert exc.value.code == 143
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "interrupted (SIGTERM)"
 
 
 def test_animate_mp4_has_one_video_frame_per_saved_frame(run_dir, h5):

@@ -1,7 +1,8 @@
 """SIGINT and SIGTERM noted while a block runs (``noted_signals``): the one mechanism behind
-the sweep's cluster start-up, where a signal must wait, and the run's drawing, where a
-signal's KeyboardInterrupt may be dropped by the code it interrupts.  (A run's own stop at
-the end of a chunk is ``safety.RunGuard.signals``.)"""
+the sweep's cluster start-up, where a signal must wait, and the drawing of a run, of
+'silodem plot' and of 'silodem animate', where a signal's KeyboardInterrupt may be dropped by
+the code it interrupts.  (A run's own stop at the end of a chunk is
+``safety.RunGuard.signals``.)"""
 
 from __future__ import annotations
 

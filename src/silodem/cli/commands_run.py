@@ -22,6 +22,15 @@ from silodem.cli.app import (
 )
 from silodem.errors import InputError, one_line
 from silodem.scenario_files import DEFAULT_SCENARIO, config_to_toml, list_scenarios
+from silodem.signals import noted_signals
+
+
+def _stop_if(noted: list[int]) -> None:
+    """End as interrupted when a Ctrl-C or SIGTERM came while drawing, even if its
+    KeyboardInterrupt was dropped by a callback (a weakref's) and the drawing went on: the
+    entry point then prints one line and exits 130 (143 after a SIGTERM)."""
+    if noted:
+        raise KeyboardInterrupt
 
 
 def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
@@ -180,13 +189,15 @@ def plot(
     from silodem.report import write_report
 
     try:
-        path = write_report(run_dir)
-        write_views(run_dir)
+        with noted_signals(hold=False) as noted:
+            path = write_report(run_dir)
+            write_views(run_dir)
     except (ValueError, IndexError, KeyError, TypeError, AttributeError) as exc:
         # what numbers of the wrong shape or kind raise in the figures (LinAlgError is a
         # ValueError); a disk or memory error stays what it is
         raise InputError(f"{run_dir}: its results.h5 could not be drawn "
                          f"({type(exc).__name__}: {one_line(exc)})") from None
+    _stop_if(noted)
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 
@@ -236,9 +247,11 @@ def animate(
 
     plan = plan_animation(run_dir, out, color=color, fmt=fmt, fps=fps)
     with Bar(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-             console=Console(stderr=True, soft_wrap=True), transient=False) as bar:
+             console=Console(stderr=True, soft_wrap=True), transient=False) as bar, \
+            noted_signals(hold=False) as noted:
         task = bar.add_task("frames", total=len(plan.frames))
         result = render_animation(plan, lambda done, _: bar.update(task, completed=done))
+    _stop_if(noted)
     Console(soft_wrap=True).print(
         f"animation: {result.frames} frames ({result.width}x{result.height} px, {fps} fps) in "
         f"{result.seconds:.1f} s -> {result.path}", markup=False, highlight=False)
