@@ -308,3 +308,27 @@ def test_load_config_with_random_overrides_returns_a_config_or_raises_input_erro
         assert message and "\n" not in message
     else:
         assert isinstance(cfg, Config)
+
+
+SOFT = ("run", "paper-case2", "--quick", "--set", "fill.n_particles=80", "--set",
+        "material.kn=2e4", "--set", "material.ks=2e4", "--set", "output.png=false",
+        "--set", "measure.report=false")
+
+
+def test_run_warnings_print_once_when_stdout_and_stderr_are_one_stream(tmp_path):
+    """Warnings go to stderr as they come and into the summary on stdout. With both on one
+    stream (a terminal, or 2>&1) they were printed twice; there the summary now counts them.
+    With stdout apart (a log file of the summary) it lists each one, as before."""
+    apart = subprocess.run(command(*SOFT, "--out", str(tmp_path / "a")), capture_output=True,
+                           text=True, env=env(), timeout=300, check=False)
+    assert apart.returncode == 0, apart.stderr
+    live = [line for line in apart.stderr.splitlines() if line.startswith("warning: ")]
+    summary = [line for line in apart.stdout.splitlines() if line.startswith("warning: ")]
+    assert live and summary == live  # soft contacts (2e4 N/m: overlaps ~70 %), lost grains
+    one = subprocess.run(command(*SOFT, "--out", str(tmp_path / "b")), stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, env=env(), timeout=300,
+                         check=False)
+    assert one.returncode == 0, one.stdout
+    lines = one.stdout.splitlines()
+    assert [line for line in lines if line.startswith("warning: ")] == live
+    assert f"warnings: {len(live)} printed above as they came" in lines

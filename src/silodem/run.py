@@ -33,8 +33,12 @@ class RunSummary:
     dt: float
     events: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    warnings_shown: int = 0  # the first this many were printed on stderr as they came
 
-    def lines(self) -> list[str]:
+    def lines(self, *, shown_above: bool = False) -> list[str]:
+        """The summary's lines.  ``shown_above``: stdout and stderr are one stream (a
+        terminal, or ``2>&1``), where the warnings printed as they came are counted, not
+        printed twice."""
         e = self.events
         out = [
             (f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s in "
@@ -47,7 +51,10 @@ class RunSummary:
                 f"discharge: {100 * e['discharged_fraction']:.1f}% of the mass left in "
                 f"{e['discharge_time']:.2f} s (ended by: {e['discharge_end_reason']})"
             )
-        out += [f"warning: {w}" for w in self.warnings]
+        skip = self.warnings_shown if shown_above else 0
+        if skip:
+            out.append(f"warnings: {skip} printed above as they came")
+        out += [f"warning: {w}" for w in self.warnings[skip:]]
         out.append(f"results: {self.out_dir}")
         return out
 
@@ -156,7 +163,9 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                     console.quiet = True
                 raise
             bar.update(task, completed=3)
+        shown = live["warned"]
     else:
+        shown = 0
         run = SiloRun(cfg, recorders=recorders)
         guard.drive(run)
     if guard.checkpoint_path.exists() and guard.last_checkpoint is not None:
@@ -191,7 +200,7 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     if noted:  # its KeyboardInterrupt was raised in a callback that dropped it (a weakref's)
         raise RunInterrupted(after, noted[0])
     return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
-                      dict(run.events), list(run.warnings))
+                      dict(run.events), list(run.warnings), shown)
 
 
 LOG_EVERY_S = 30.0  # wall seconds between progress lines when stderr is not a terminal

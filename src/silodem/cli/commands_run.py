@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -33,6 +34,17 @@ def _stop_if(noted: list[int]) -> None:
         raise KeyboardInterrupt
 
 
+def _print_summary(console: Console, summary) -> None:
+    """The run's summary on stdout; the warnings it printed on stderr as they came are only
+    counted when stderr is the same stream (a terminal, or ``2>&1``)."""
+    try:
+        same = os.path.samestat(os.fstat(sys.stdout.fileno()), os.fstat(sys.stderr.fileno()))
+    except (OSError, ValueError):  # a stream with no file behind it (captured, closed)
+        same = False
+    for line in summary.lines(shown_above=same):
+        console.print(line, markup=False, highlight=False)
+
+
 def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
     extra = [flag for name, flag in (("source", "SCENARIO|FILE"), ("sets", "--set"),
                                      ("quick", "--quick"), ("out", "--out"))
@@ -48,8 +60,7 @@ def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
     console = Console(soft_wrap=True)
     console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False)
     summary = resume_simulation(folder, threads=threads, progress=True, checkpoint=checkpoint)
-    for line in summary.lines():
-        console.print(line, markup=False, highlight=False)
+    _print_summary(console, summary)
 
 
 @app.command()
@@ -126,8 +137,7 @@ def run(
     console = Console(soft_wrap=True)
     console.print(f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False)
     summary = run_simulation(cfg, out_dir, threads=threads, progress=True)
-    for line in summary.lines():
-        console.print(line, markup=False, highlight=False)
+    _print_summary(console, summary)
 
 
 @app.command()
