@@ -226,6 +226,60 @@ seeds = [1, 2]
 """
 
 
+@pytest.mark.parametrize("k", [0.0, -0.5])
+def test_a_beverloo_fit_with_k_at_or_below_zero_is_drawn(tmp_path, k):
+    """Rates exactly ~ D^(3/2) (k = 0; the fit's k is 0 only to round-off) or with k < 0 (a
+    fit may give one): the study report was not written at all, because the figure's line
+    started at D = 0, which the law's function refuses. The line drawn is the law's W^(2/3)
+    at the widths, and the report is written."""
+    from silodem import theory as th
+    from silodem.study.beverloo import fig_beverloo, outlet_fits
+    from silodem.study.report import write_study_report
+
+    path = tmp_path / "outlets.toml"
+    path.write_text(OUTLET_STUDY, encoding="utf-8")
+    plan = expand(load_study(str(path)), quick=True)
+    rho_b, d = 700.0, 0.2
+    rows = [{"id": run.id, "discharge_rate": th.beverloo_2d(
+                run.cfg.silo.outlet_width, d, rho_b, 9.81, 0.5, k, 1.0),
+             "discharge_rate_err": 0.0, "bulk_density": rho_b} for run in plan.runs]
+    fits, _ = outlet_fits(plan, {r["id"]: r for r in rows})
+    assert [f.fixed.k for f in fits] == pytest.approx([k, k], abs=1e-9)
+    line = fig_beverloo(fits).axes[0].get_lines()[-1]
+    x, y = line.get_data()
+    W = th.beverloo_2d(x[-1], d, rho_b, 9.81, 0.5, k, 1.0)
+    assert y[-1] == pytest.approx(W ** (2 / 3), rel=1e-9)
+    write_study_report(plan, tmp_path / "study", rows)
+    assert "id='beverloo'" in (tmp_path / "study" / "report.html").read_text(encoding="utf-8")
+
+
+def test_a_figure_that_cannot_be_drawn_leaves_the_rest_of_the_study_report(tmp_path,
+                                                                          monkeypatch):
+    """One figure's error (as the Beverloo figure's with k <= 0 was) ended the report: no
+    report.html for the whole study. The figure is now left out, the page says which and
+    why, ``undrawn`` carries it for the command's warning, and the other figures stand."""
+    import silodem.study.report as study_report
+    from silodem import theory as th
+
+    def broken(*args, **kwargs):
+        raise ValueError("no numbers")
+
+    monkeypatch.setattr(study_report, "fig_heatmaps", broken)
+    path = tmp_path / "outlets.toml"
+    path.write_text(OUTLET_STUDY, encoding="utf-8")
+    plan = expand(load_study(str(path)), quick=True)
+    rows = [{"id": run.id, "discharge_rate": th.beverloo_2d(
+                run.cfg.silo.outlet_width, 0.2, 700.0, 9.81, 0.5, 1.4, 1.0),
+             "discharge_rate_err": 0.0, "bulk_density": 700.0} for run in plan.runs]
+    undrawn: dict[str, str] = {}
+    page = study_report.write_study_report(plan, tmp_path / "study", rows, undrawn=undrawn)
+    html = page.read_text(encoding="utf-8")
+    assert undrawn == {"heatmaps": "ValueError: no numbers"}
+    assert "heatmaps could not be drawn (ValueError: no numbers)" in html
+    assert "id='heatmaps'" not in html and "id='beverloo'" in html
+    assert not (tmp_path / "study" / "figures" / "heatmaps.png").exists()
+
+
 def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     """Rates drawn from the 2D Beverloo law (docs/theory.md), one C per friction angle, k = 1.4,
     the two seeds 3 % above and below it: the study's fit gives C and k back (the seed means
@@ -847,6 +901,27 @@ def test_a_damaged_summary_is_made_again_and_a_damaged_run_is_named(serial, tmp_
     rows = list(csv.DictReader((study_dir / "results.csv").open(encoding="utf-8")))
     assert [bool(r["summary_error"]) for r in rows] == [False, True]
     assert (study_dir / "report.html").is_file()
+
+
+def test_the_sweep_warns_of_a_report_figure_left_out(serial, tmp_path, capsys, monkeypatch):
+    """A figure that could not be drawn is left out of report.html; the command says so in
+    a warning line naming it and its error, and ends with 0 (every run finished)."""
+    import silodem.study.report as study_report
+
+    def broken(*args, **kwargs):
+        raise ValueError("no numbers")
+
+    monkeypatch.setattr(study_report, "fig_change", broken)
+    _, ref_dir = serial
+    study_dir = tmp_path / "study"
+    shutil.copytree(ref_dir, study_dir)
+    (tmp_path / "tiny.toml").write_text(TINY, encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        "warning: 1 figure(s) of the report could not be drawn and are left out (first: "
+        "fig8_change: ValueError: no numbers)")
 
 
 def test_a_scheduler_that_cannot_be_reached_makes_no_study_folder(tmp_path, capsys):

@@ -105,6 +105,10 @@ def sweep(
         f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")
     say(f"table: {outcome.table_path}")
     say(f"report: {outcome.report_path}")
+    if outcome.undrawn:
+        name, error = next(iter(outcome.undrawn.items()))
+        say(f"warning: {len(outcome.undrawn)} figure(s) of the report could not be drawn and "
+            f"are left out (first: {name}: {error})")
     if outcome.unsummarised:
         first_id, first_error = next(iter(outcome.unsummarised.items()))
         say(f"warning: {len(outcome.unsummarised)} finished run(s) could not be summarised, "

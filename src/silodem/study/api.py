@@ -73,7 +73,7 @@ def finish_study(plan: StudyPlan, out_dir: Path, outcome: StudyOutcome | None = 
         from silodem.study.report import write_study_report
 
         outcome.report_path = write_study_report(plan, out_dir, rows, outcome.failed,
-                                                 outcome.where)
+                                                 outcome.where, outcome.undrawn)
     return outcome
 
 

@@ -174,10 +174,12 @@ def fig_beverloo(fits: list[OutletFit]) -> Figure | None:
         y_err = (2.0 / 3.0) * y / f.W * f.W_err
         line = ax.errorbar(f.D, y, yerr=y_err, fmt="o", ms=4, capsize=2,
                            label=f"{f.label}: C = {f.fixed.C:.3g}, k = {f.fixed.k:.3g}")
+        # the fitted line itself, (C rho_b sqrt(g) t)^(2/3) (D - k d), from D = max(k d, 0):
+        # a fit may give k <= 0 (rates ~ D^(3/2) give k ~ 0 in round-off), where the law's
+        # own beverloo_2d refuses D = 0
         x = np.linspace(max(f.fixed.k * f.d, 0.0), f.D.max() * 1.05, 50)
-        fit_W = np.array([th.beverloo_2d(v, f.d, f.rho_b, f.g, f.fixed.C, f.fixed.k, f.t)
-                          for v in x])
-        ax.plot(x, fit_W ** (2.0 / 3.0), color=line[0].get_color(), lw=1.0)
+        slope = (f.fixed.C * f.rho_b * math.sqrt(f.g) * f.t) ** (2.0 / 3.0)
+        ax.plot(x, slope * (x - f.fixed.k * f.d), color=line[0].get_color(), lw=1.0)
     ax.set_xlim(left=0.0)
     ax.set_ylim(bottom=0.0)
     ax.set_xlabel("outlet width D [m]")

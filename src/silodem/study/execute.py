@@ -200,6 +200,7 @@ class StudyOutcome:
     failed: dict[str, str] = field(default_factory=dict)  # run id -> error
     # finished runs whose results.h5 could not be summarised: run id -> summary_error
     unsummarised: dict[str, str] = field(default_factory=dict)
+    undrawn: dict[str, str] = field(default_factory=dict)  # report figure -> its error
     results: dict[str, dict[str, Any]] = field(default_factory=dict)  # run id -> task result
     wall_s: float = 0.0
     table_path: Path | None = None

@@ -367,10 +367,16 @@ def _beverloo_section(fits: list, notes: list[str], out_dir: Path) -> list[str]:
 
 
 def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]],
-                       failed: dict[str, str] | None = None, where: str = "") -> Path:
-    """Render the figures into ``out_dir/figures`` and write ``out_dir/report.html``."""
+                       failed: dict[str, str] | None = None, where: str = "",
+                       undrawn: dict[str, str] | None = None) -> Path:
+    """Render the figures into ``out_dir/figures`` and write ``out_dir/report.html``.
+
+    A figure whose drawing fails is left out, and the page says which and why: the report
+    stands on the whole study's runs, and one figure's error lost all of it.  ``undrawn``,
+    when given, receives those figures' names and errors (the sweep warns with them)."""
     out_dir = Path(out_dir)
     failed = failed or {}
+    undrawn = {} if undrawn is None else undrawn
     rows_by_id = {r["id"]: r for r in rows}
     lay = layout_of(plan)
     fits, fit_notes = outlet_fits(plan, rows_by_id)
@@ -385,7 +391,11 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     fig_dir.mkdir(parents=True, exist_ok=True)
     pngs = []
     for name, paper, caption in FIGURES:
-        fig = makers[name]()
+        try:
+            fig = makers[name]()
+        except Exception as exc:  # noqa: BLE001 - the other figures and the tables stand
+            undrawn[name] = f"{type(exc).__name__}: {exc}"
+            fig = None
         if fig is None:
             (fig_dir / f"{name}.png").unlink(missing_ok=True)
             continue
@@ -431,6 +441,8 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
               "A run's name links to its own report when it wrote one.</p>")]
     parts += _beverloo_section(fits, fit_notes, out_dir)
     parts.append("<h2>Figures</h2>")
+    parts += [f"<p class='warn'>{html.escape(name)} could not be drawn ({html.escape(why)})."
+              "</p>" for name, why in undrawn.items()]
     for name, paper, caption, png in pngs:
         b64 = base64.b64encode(png).decode("ascii")
         label = f"{paper} equivalent. " if paper else ""
