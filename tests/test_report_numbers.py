@@ -33,7 +33,7 @@ from silodem.report.analysis import (
     column_tops,
     surface_height,
 )
-from silodem.report.eurocode import add_loads, highest_wall_contact, hopper_loads
+from silodem.report.eurocode import _hopper_numbers, add_loads, highest_wall_contact, hopper_loads
 from silodem.report.load import load_results
 from silodem.report.numbers import significant
 from silodem.run import run_simulation
@@ -709,6 +709,15 @@ def test_en1991_4_steep_hopper_of_the_report_takes_phi_i_from_K(synth):
     assert h["F_e"] == pytest.approx(F_e, rel=1e-12)
     np.testing.assert_allclose(h["p_ne"], F_e * p_v, rtol=1e-9)
     assert h["p_ne"][-1] == pytest.approx(F_e * 20000.0, rel=1e-12)
+    # the key numbers give the exponent used and the one EN 1991-4 §6.3.1 prints,
+    # S (F mu cot(beta) + F) - 2 with S = 1: exactly 1 lower for a wedge
+    printed = F_e * MU_WALL / math.tan(beta) + F_e - 2
+    assert (h["n_e"], h["n_e_printed"]) == (pytest.approx(n, rel=1e-12),
+                                            pytest.approx(printed, rel=1e-12))
+    rows = []
+    _hopper_numbers(rows, h)
+    assert rows[-1][0].startswith("EN 1991-4 hopper discharge exponent n")
+    assert rows[-1][1] == f"{n:.3g} / {printed:.3g}"
 
 
 def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):

@@ -527,3 +527,19 @@ def test_beverloo_fit_refuses_rates_that_do_not_grow_with_the_outlet():
     D = np.array([0.05, 0.08, 0.12])
     with pytest.raises(ValueError, match="do not grow"):
         th.fit_beverloo_three_halves(D, np.array([3.0, 2.0, 1.0]), 0.01, 700.0, 9.81, 0.01)
+
+
+@pytest.mark.parametrize("F, mu, beta", [(1.44, 0.3, 20.0), (1.1, 0.0, 35.0), (2.0, 0.6, 10.0)])
+def test_en1991_4_printed_exponent_is_the_cone_slice_balance_and_one_less_for_a_wedge(F, mu,
+                                                                                      beta):
+    """EN 1991-4:2006 §6.3.1 prints n = S (F mu cot(beta) + F) - 2: for a cone (S = 2) the
+    slice balance's 2 [F (1 + mu cot(beta)) - 1] (Walker's with D = F), for a wedge (S = 1)
+    one less than the slice balance's F (1 + mu cot(beta)) - 1, which the hopper loads use."""
+    cot = 1.0 / math.tan(math.radians(beta))
+    assert th.en1991_4_printed_exponent(F, mu, beta, planar=False) == pytest.approx(
+        2 * (F * (1 + mu * cot) - 1), rel=1e-12)
+    assert th.en1991_4_printed_exponent(F, mu, beta) == pytest.approx(
+        F * (1 + mu * cot) - 2, rel=1e-12)
+    load = th.en1991_4_hopper_discharge(1.0, 2.0, 3e4, 16e3, beta, 0.2, mu, 60.0)
+    assert load.n == pytest.approx(th.en1991_4_printed_exponent(load.F, mu, beta) + 1,
+                                   rel=1e-12)

@@ -235,3 +235,19 @@ def test_shallow_hopper_discharge_needs_no_phi_i_above_phi_wh():
     x = np.linspace(0.3, 2.5, 5)
     dis = th.en1991_4_hopper_discharge(x, 2.5, 9000.0, G, 45.0, 0.45, 0.458, 10.0, False)
     assert dis.kind == "shallow"
+
+
+def test_the_slice_stress_at_the_apex_of_a_hopper_with_n_below_zero_is_infinite(recwarn):
+    """n < 0 (a steep hopper, smooth walls, D < 1: alpha = 60 deg, mu_w = 0.1, D = 0.7 give
+    n = -0.26): sigma_v ~ (gamma H / (1 - n) + q) (h/H)^n grows without bound towards the
+    apex.  h = 0 returned NaN with overflow warnings; it is now +inf (-inf for a q negative
+    enough), without a warning, and the heights above it are unchanged."""
+    n = th.walker_exponent(60.0, 0.1, 0.7)
+    assert n == pytest.approx(0.7 * (1.0 + 0.1 / math.tan(math.radians(60.0))) - 1.0)
+    h = np.array([0.0, 1e-6, 0.5, 1.0])
+    got = th.hopper_sigma_v(h, 1.0, 1000.0, G, 60.0, 0.1, 0.7)
+    assert got[0] == math.inf and got[-1] == pytest.approx(1000.0)
+    c = G * 1.0 / (1.0 - n) + 1000.0  # the leading term's coefficient near the apex
+    assert got[1] == pytest.approx(c * 1e-6**n, rel=1e-3)
+    assert th.hopper_sigma_v(0.0, 1.0, -c - 1.0, G, 60.0, 0.1, 0.7) == -math.inf
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -103,7 +103,8 @@ def hopper_loads(a: Analysis, K: float, p_vft: float) -> dict[str, Any]:
         dis = th.en1991_4_hopper_discharge(*args, out["phi_i"])
     except ValueError:  # phi_i < phi_wh: no passive stress state at this wall
         return out
-    out.update(F_e=dis.F, p_ne=dis.p_n)
+    out.update(F_e=dis.F, p_ne=dis.p_n, n_e=dis.n,
+               n_e_printed=th.en1991_4_printed_exponent(dis.F, mu_h, beta))
     return out
 
 
@@ -151,3 +152,9 @@ def _hopper_numbers(n: list, h: dict[str, Any]) -> None:
     label = ("EN 1991-4 hopper normal pressure at the transition, filling / discharge "
              f"(p_vft = p_vf there = {pascals(h['p_vft'])} Pa)")
     n.append((label, at_top, "Pa"))
+    if "n_e" in h and h["kind"] == "steep":
+        label = ("EN 1991-4 hopper discharge exponent n: the wedge's slice balance (drawn) / "
+                 "as printed in §6.3.1, S (F_e mu cot beta + F_e) - 2, which gives higher "
+                 "pressures (docs/theory.md)")
+        n.append((label, f"{significant(h['n_e'], 3)} / {significant(h['n_e_printed'], 3)}",
+                  "-"))

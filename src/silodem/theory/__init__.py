@@ -32,6 +32,7 @@ from silodem.theory.en1991_4 import (
     en1991_4_hopper_filling,
     en1991_4_hopper_kind,
     en1991_4_phi_i_from_K,
+    en1991_4_printed_exponent,
     en1991_4_slenderness,
 )
 from silodem.theory.hopper import (
@@ -70,6 +71,7 @@ __all__ = [
     "en1991_4_hopper_filling",
     "en1991_4_hopper_kind",
     "en1991_4_phi_i_from_K",
+    "en1991_4_printed_exponent",
     "en1991_4_slenderness",
     "fit_beverloo_free",
     "fit_beverloo_three_halves",

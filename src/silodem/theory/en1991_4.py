@@ -283,7 +283,10 @@ def en1991_4_hopper_discharge(x: npt.ArrayLike, h_h: float, p_vft: float, gamma:
 
     F_e being Walker's passive distribution factor (:func:`walker_distribution_factor` with
     delta = phi_i, eps = 2 omega), and p_v the slice balance's (EN's p_v expression) with
-    F = F_e in n = S (F mu_h cot(beta) + F) - S.  phi_i: angle of internal friction [deg],
+    F = F_e in n = S (F mu_h cot(beta) + F) - S.  For a wedge (S = 1) this departs from the
+    standard as printed (§6.3.1: n = S (F mu cot(beta) + F) - 2, the cone's slice balance),
+    whose n is lower by 1 and whose discharge pressures are higher (docs/theory.md; the
+    printed one is :func:`en1991_4_printed_exponent`).  phi_i: angle of internal friction [deg],
     at least phi_wh; the other arguments as for the filling loads.  ValueError unless
     0 < phi_i < 90 deg, in a steep hopper phi_i >= phi_wh, and as for the filling loads."""
     func = "en1991_4_hopper_discharge"
@@ -297,6 +300,20 @@ def en1991_4_hopper_discharge(x: npt.ArrayLike, h_h: float, p_vft: float, gamma:
                          f"steep hopper; got {ck.show(phi_i_deg)}")
     F_e = walker_distribution_factor(phi_i_deg, phi_wh, beta_deg)
     return _hopper_load(x, h_h, p_vft, gamma, beta_deg, "steep", mu_h, F_e, planar)
+
+
+def en1991_4_printed_exponent(F: float, mu: float, beta_deg: float, planar: bool = True) -> float:
+    """The hopper exponent as EN 1991-4:2006 §6.3.1 prints it, n = S (F mu cot(beta) + F) - 2
+    (S = 1 wedge, 2 cone) [-].  For a cone it is the slice balance's S [F (1 + mu cot(beta))
+    - 1], which the hopper loads above use; for a wedge it is 1 lower (docs/theory.md).
+    ValueError unless F > 0, mu >= 0, 0 < beta < 90 deg and planar is a bool."""
+    func = "en1991_4_printed_exponent"
+    ck.positive(func, "F", F)
+    ck.non_negative(func, "mu", mu)
+    ck.between(func, "beta_deg", beta_deg, 0.0, 90.0)
+    ck.flag(func, "planar", planar)
+    S = 1.0 if planar else 2.0
+    return S * (F * mu / math.tan(math.radians(beta_deg)) + F) - 2.0
 
 
 def en1991_4_phi_i_from_K(K: float) -> float:

@@ -91,11 +91,17 @@ def _sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar):
     a = n - 1.0
     log_x = np.log(x)
     # (1 - x^a)/a, continuous through a = 0, where it is -ln x
-    if abs(a) < 1e-12:
-        growth = -log_x
-    else:
-        growth = -np.expm1(a * log_x) / a
-    return gamma * h * growth + q * np.exp(n * log_x)
+    with np.errstate(over="ignore", invalid="ignore"):  # at the apex for n < 0: see below
+        if abs(a) < 1e-12:
+            growth = -log_x
+        else:
+            growth = -np.expm1(a * log_x) / a
+        sigma = gamma * h * growth + q * np.exp(n * log_x)
+    if n <= 0.0:  # at the apex sigma_v -> (gamma H / (1 - n) + q) (h/H)^n: infinite for n < 0
+        c = gamma * H / (1.0 - n) + q
+        apex = c if n == 0.0 else math.copysign(math.inf, c) if c != 0.0 else 0.0
+        sigma = np.where(h == 0.0, apex, sigma)
+    return sigma
 
 
 def _check_heights(func: str, h, H, q, gamma, alpha_deg, mu_w, D, planar) -> np.ndarray:
