@@ -87,6 +87,8 @@ LINEAR = {
     "mass_flow_index": (0.25, 0.25, 0.125, 0.0625),
     "coordination_discharge": (2.5, 0.25, 0.125, 0.0625),
     "wall_peak_change_pct": (-30.0, 5.0, 1.0, 0.5),
+    "wall_at_fill_peak_change_pct": (-40.0, 4.0, 2.0, 1.0),
+    "window_emptied_end_pct": (30.0, 8.0, 1.0, 0.5),
 }
 FAILED_AT = (1, 2, 1)  # this run failed: no row
 NAN_AT = {("switch_sigma_h_change_pct", 2, 3, 1), ("discharge_rate", 0, 1, 0),
@@ -220,7 +222,10 @@ def test_run_table_shows_every_runs_numbers_and_regime(study):
     table = next(t for t in parser.tables if t[0][0] == "run")
     assert table[0][1:] == ["change sigma_h [%]", "change sigma_v [%]",
                             "sigma_h/sigma_v discharge [-]", "CV of the ratio [-]", "regime",
-                            "wall peak change [%]", "discharge rate [kg/s]", "flow pattern"]
+                            "wall peak change, peak to peak [%]",
+                            "wall change at the filling peak's height [%]",
+                            "emptied at the window's end [%]", "discharge rate [kg/s]",
+                            "flow pattern"]
     body = table[1:]
     assert len(body) == len(plan.runs) == 24
     columns = [("switch_sigma_h_change_pct", 3), ("switch_sigma_v_change_pct", 3),
@@ -239,8 +244,10 @@ def test_run_table_shows_every_runs_numbers_and_regime(study):
         assert cells[5] == expected, (run.id, cv)
         regimes.add(expected)
         assert _shown_ok(cells[6], _value("wall_peak_change_pct", r, c, s), 3)
-        assert _shown_ok(cells[7], _value("discharge_rate", r, c, s), 4)
-        assert cells[8] == (_pattern(r, c, s) or "n/a")
+        assert _shown_ok(cells[7], _value("wall_at_fill_peak_change_pct", r, c, s), 3)
+        assert _shown_ok(cells[8], _value("window_emptied_end_pct", r, c, s), 3)
+        assert _shown_ok(cells[9], _value("discharge_rate", r, c, s), 4)
+        assert cells[10] == (_pattern(r, c, s) or "n/a")
     assert regimes == {"n/a", "anisotropic", "continuum-like"}
 
 

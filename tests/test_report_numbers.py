@@ -403,9 +403,13 @@ def test_wall_profile_and_switch_zone_peak(synth):
     assert a.peaks["discharge"] == pytest.approx((6500.0, 0.375), rel=REL)
     _check(s, {"wall_peak_fill": 4500.0, "wall_peak_z_fill": 0.5,
                "wall_peak_discharge": 6500.0, "wall_peak_z_discharge": 0.375,
-               "wall_peak_change_pct": _pct(4500.0, 6500.0)})
+               "wall_peak_change_pct": _pct(4500.0, 6500.0),
+               "wall_at_fill_peak_change_pct": _pct(4500.0, 6000.0)})
     _check(a.change["wall peak"], {"sigma_h_fill": 4500.0, "sigma_h_discharge": 6500.0,
-                                   "sigma_h_change_pct": _pct(4500.0, 6500.0)})
+                                   "sigma_h_change_pct": _pct(4500.0, 6500.0),
+                                   "z_fill": 0.5, "z_discharge": 0.375})
+    assert a.wall_at_fill_peak == pytest.approx((0.5, 4500.0, 6000.0, _pct(4500.0, 6000.0)),
+                                                rel=REL)
 
 
 def test_surface_height_and_bulk_density(synth):
@@ -602,8 +606,13 @@ def test_key_numbers_of_the_report(synth):
     assert float(_number(a, "dead-zone fraction")) == pytest.approx(0.15, rel=5e-3)
     assert float(_number(a, "mass flow index")) == pytest.approx(1 / 3, rel=5e-3)
     assert _number(a, "change fill -> discharge, switch_centre") == "h n/a %, v 50 %"
-    peak = _number(a, "change fill -> discharge, wall peak")
-    assert float(peak.split()[1]) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
+    # the peaks lie at different heights (0.5 and 0.375 m): the row says so, and the stress
+    # at the filling peak's height (6000 Pa there in discharge) is the same-place change
+    peak = _number(a, "change fill -> discharge, wall peak: the switch zone's largest wall "
+                   "normal stress in each window, at z = 0.5 m -> 0.375 m")
+    assert float(peak) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
+    assert _number(a, "wall normal stress at the filling peak's height z = 0.5 m") == (
+        f"4,500 -> 6,000 Pa ({significant(_pct(4500.0, 6000.0), 3)} %)")
 
 
 def test_bulk_density_above_the_grain_density_is_flagged(synth):
@@ -1091,7 +1100,8 @@ DOC_COLUMNS = [
     "switch_sigma_v_fill", "switch_sigma_v_discharge", "switch_sigma_v_change_pct",
     "switch_ratio_fill", "switch_ratio_discharge", "switch_ratio_cv_fill",
     "switch_ratio_cv_discharge", "wall_peak_fill", "wall_peak_z_fill", "wall_peak_discharge",
-    "wall_peak_z_discharge", "wall_peak_change_pct", "coordination_fill",
+    "wall_peak_z_discharge", "wall_peak_change_pct", "wall_at_fill_peak_change_pct",
+    "coordination_fill",
     "coordination_discharge", "coordination_change_pct", "janssen_K_fill", "janssen_K_fill_err",
     "en1991_4_class", "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill",
     "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",

@@ -57,6 +57,8 @@ class Analysis:
     switch: tuple[float, float] = (0.0, 0.0)
     change: dict[str, dict[str, float]] = field(default_factory=dict)
     change_missing: str = ""  # why there is no change fill -> discharge at all ("": there is)
+    # (z of the filling peak [m], stress there after filling, during discharge [Pa], change %)
+    wall_at_fill_peak: tuple[float, float, float, float] | None = None
     flow: dict[str, Any] = field(default_factory=dict)
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
@@ -286,12 +288,30 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
             f = window_mean(stress[masks["fill"], k, comp])
             dd = window_mean(stress[masks["discharge"], k, comp])
             row[label + "_fill"], row[label + "_discharge"] = f, dd
-            row[label + "_change_pct"] = float(100.0 * (dd - f) / f) if f else float("nan")
+            row[label + "_change_pct"] = _pct(f, dd)
         a.change[str(name)] = row
     if "fill" in a.peaks and "discharge" in a.peaks:
-        f, dd = a.peaks["fill"][0], a.peaks["discharge"][0]
+        # the switch zone's largest wall normal stress in each window, wherever it lies (the
+        # two may be on different walls), and the discharge window's stress at the height of
+        # the filling peak: the same place
+        (f, z_f), (dd, z_d) = a.peaks["fill"], a.peaks["discharge"]
         a.change["wall peak"] = {"sigma_h_fill": f, "sigma_h_discharge": dd,
-                                 "sigma_h_change_pct": 100.0 * (dd - f) / f if f else np.nan}
+                                 "sigma_h_change_pct": _pct(f, dd), "z_fill": z_f,
+                                 "z_discharge": z_d}
+        same = wall_stress_at(a.edge["discharge"], z_f)
+        a.wall_at_fill_peak = (z_f, f, same, _pct(f, same))
+
+
+def _pct(before: float, after: float) -> float:
+    """Percentage change from ``before`` to ``after``; NaN from 0."""
+    return 100.0 * (after - before) / before if before else float("nan")
+
+
+def wall_stress_at(edge: EdgeProfile, z: float) -> float:
+    """The wall normal stress [Pa] of ``edge``'s bin at height ``z`` (the bins are the same
+    in every window); NaN if no bin lies there."""
+    k = np.flatnonzero(np.isclose(edge.z, z, rtol=0.0, atol=1e-9))
+    return float(edge.sigma_n[k[0]]) if k.size else float("nan")
 
 
 def _flow(a: Analysis, shape) -> None:
@@ -413,9 +433,20 @@ def _numbers(a: Analysis) -> None:
         n.append(("change fill -> discharge", f"n/a ({a.change_missing})", "%"))
     else:
         for name, row in a.change.items():
+            if name == "wall peak":
+                label = ("change fill -> discharge, wall peak: the switch zone's largest wall "
+                         f"normal stress in each window, at z = {_fmt(row['z_fill'], 3)} m "
+                         f"-> {_fmt(row['z_discharge'], 3)} m")
+                n.append((label, _fmt(row["sigma_h_change_pct"], 3), "%"))
+                continue
             parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
                      if k.endswith("change_pct")]
             n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
+        if a.wall_at_fill_peak is not None:
+            z, f, dd, pct = a.wall_at_fill_peak
+            label = (f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m, "
+                     "after filling -> during discharge (the same place)")
+            n.append((label, f"{pascals(f)} -> {pascals(dd)} Pa ({_fmt(pct, 3)} %)", ""))
     f = a.flow
     if "rate" in f:
         r = f["rate"]

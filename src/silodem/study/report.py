@@ -293,8 +293,9 @@ def _fmt(value: Any, digits: int = 3) -> str:
 
 def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[str, str]) -> str:
     head = ("run", "change sigma_h [%]", "change sigma_v [%]", "sigma_h/sigma_v discharge [-]",
-            "CV of the ratio [-]", "regime", "wall peak change [%]", "discharge rate [kg/s]",
-            "flow pattern")
+            "CV of the ratio [-]", "regime", "wall peak change, peak to peak [%]",
+            "wall change at the filling peak's height [%]", "emptied at the window's end [%]",
+            "discharge rate [kg/s]", "flow pattern")
     cells = "".join(f"<th>{html.escape(h)}</th>" for h in head)
     body = []
     for run in plan.runs:
@@ -313,7 +314,9 @@ def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[st
                 _fmt(row.get("switch_ratio_discharge")),
                 _fmt(row.get("switch_ratio_cv_discharge")),
                 regime(as_float(row.get("switch_ratio_cv_discharge"))),
-                _fmt(row.get("wall_peak_change_pct")), _fmt(row.get("discharge_rate"), 4),
+                _fmt(row.get("wall_peak_change_pct")),
+                _fmt(row.get("wall_at_fill_peak_change_pct")),
+                _fmt(row.get("window_emptied_end_pct")), _fmt(row.get("discharge_rate"), 4),
                 str(row.get("flow_pattern") or "n/a")]
         body.append(f"<tr><td>{name}</td>" + "".join(f"<td>{html.escape(v)}</td>" for v in vals)
                     + "</tr>")

@@ -48,7 +48,11 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("wall_peak_z_fill", "m", "height of that peak"),
     ("wall_peak_discharge", "Pa", "switch-zone peak of the wall normal stress during discharge"),
     ("wall_peak_z_discharge", "m", "height of that peak"),
-    ("wall_peak_change_pct", "%", "change of the wall peak, filling -> discharge"),
+    ("wall_peak_change_pct", "%", ("change from the filling peak to the discharge peak, each "
+     "at its own height (wall_peak_z_fill, wall_peak_z_discharge: they may lie on different "
+     "walls)")),
+    ("wall_at_fill_peak_change_pct", "%", ("change of the wall normal stress at the filling "
+     "peak's height, filling -> discharge: the same place")),
     ("coordination_fill", "-", ("coordination number C_n (eq. 10) in the band across the silo "
      "at the junction, filling window mean")),
     ("coordination_discharge", "-", "the same, discharge window mean"),
@@ -172,8 +176,9 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # Raise when summarise_run gives other numbers for the same results.h5, so that a study's
 # finished runs are summarised again (execute.read_summary) instead of keeping stale numbers:
 # 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved);
-# the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*.
-ANALYSIS_VERSION = 3
+# the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*;
+# 4: wall_at_fill_peak_change_pct.
+ANALYSIS_VERSION = 4
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
@@ -244,6 +249,8 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
         if key in a.peaks:
             out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = map(as_float, a.peaks[key])
     out["wall_peak_change_pct"] = _change(out["wall_peak_fill"], out["wall_peak_discharge"])
+    if a.wall_at_fill_peak is not None:
+        out["wall_at_fill_peak_change_pct"] = as_float(a.wall_at_fill_peak[3])
     flow = a.flow
     if "rate" in flow:
         out["discharge_rate"], out["discharge_rate_err"] = as_float(flow["rate"].rate), \
