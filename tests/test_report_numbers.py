@@ -16,6 +16,7 @@ Geometry of ``tiny_hopper_config``: B = 1.2 m, D = 0.4 m, theta = 50 deg, radii 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import itertools
 import math
 import types
@@ -593,6 +594,15 @@ def test_key_numbers_of_the_report(synth):
     _numbers(below)
     ratio = 4500.0 / float(_janssen_sigma_h(SURF_FILL - Z_J, K_TRUE))
     assert float(_number(below, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
+    # with K poorly determined (error over half of it) the ratio says so
+    loose = copy.copy(below)
+    loose.janssen = {**a.janssen, "fill": dataclasses.replace(a.janssen["fill"], K_err=0.4)}
+    loose.numbers = []
+    _numbers(loose)
+    value = _number(loose, "switch-zone peak / Janssen")
+    assert float(value.split()[0]) == pytest.approx(ratio, rel=5e-3)
+    assert value.endswith("(K = 0.55 +- 0.4 is poorly determined: a ratio to a curve the run "
+                          "does not measure)")
     assert _first_float(_number(a, "Janssen K fitted to the cell wall profile, after")) == (
         pytest.approx(K_TRUE, rel=5e-3))
     assert _number(a, "measured mean vertical stress q on the junction, after") == "5,000"
@@ -653,8 +663,20 @@ def test_en1991_4_loads_of_the_report(synth):
     assert en["z"][0] == pytest.approx(Z_J, rel=REL) and en["z"][-1] == SURF_FILL
     row = _number(a, "EN 1991-4 slenderness")
     assert float(row.split(":")[0]) == pytest.approx(h_c / B, rel=5e-3)
-    assert row.endswith("squat, loads of §5.3")
+    assert row.endswith("squat, loads of §5.3 drawn")
     assert _number(a, "EN 1991-4 discharge magnifiers") == "1, 1"
+    # the loads take the wall friction fully mobilised; the cell walls carry 900 Pa of shear
+    # on the three fitted bins (test_mobilised_wall_friction_and_janssen_fits), a share of it
+    prof = _profile_fill()
+    share = 900.0 / (prof[1.25] + prof[1.0] + prof[0.75]) / MU_WALL
+    assert _number(a, "EN 1991-4 loads' wall friction") == f"{significant(100 * share, 2)} %"
+    assert share == pytest.approx(0.684, abs=1e-3)  # over FEW_MOBILISED = 0.5: no caveat
+    b = copy.copy(a)  # a quarter mobilised (0.061 of 0.445 in the quick case 2: 14 %)
+    b.en1991_4, b.numbers = {**a.en1991_4, "mobilised": 0.25}, []
+    _numbers(b)
+    assert _number(b, "EN 1991-4 loads' wall friction") == (
+        "25 %: the settled silo does not show the wall support these loads assume; read them "
+        "as the standard's, not as a model of this silo")
 
 
 def test_en1991_4_hopper_loads_of_the_report(synth):
@@ -790,7 +812,8 @@ def test_a_fill_too_shallow_for_the_janssen_fit_says_why_and_keeps_its_en_class(
                           "ratio": pytest.approx(h_c / B, rel=REL),
                           "missing": "no K: no Janssen fit after filling"}
     assert _number(b, "EN 1991-4 slenderness") == (
-        f"{significant(h_c / B, 3)}: squat, loads of §5.3 (no K: no Janssen fit after filling)")
+        f"{significant(h_c / B, 3)}: squat, no loads drawn (§5.3): no K: no Janssen fit after "
+        "filling")
     assert not [row for row in b.numbers if "discharge magnifiers" in row[0]]
 
 
@@ -819,8 +842,8 @@ def test_a_retaining_silo_is_named_but_gets_no_en_loads(synth):
     b.en1991_4 = {"kind": "retaining", "section": "5.4", "h_c": 0.4, "ratio": 0.4 / B}
     b.numbers = []
     _numbers(b)
-    assert _number(b, "EN 1991-4 slenderness").endswith("retaining, loads of §5.4 (not built "
-                                                        "in silodem)")
+    assert _number(b, "EN 1991-4 slenderness").endswith("retaining, no loads drawn (§5.4, not "
+                                                        "built in silodem)")
     assert not [row for row in b.numbers if "discharge magnifiers" in row[0]]
     ax = Figure().subplots()
     for key in ("fill", "discharge"):
@@ -1222,3 +1245,27 @@ def test_en1991_4_loads_are_not_drawn_from_a_poorly_determined_k(synth):
     assert noisy.en1991_4["kind"] == a.en1991_4["kind"] and "p_hf" not in noisy.en1991_4
     assert noisy.en1991_4["missing"] == ("K = 3.1 +- 5.2 of the Janssen fit after filling is "
                                          "poorly determined")
+
+
+def test_a_free_janssen_fit_above_the_coulomb_limit_is_flagged(synth):
+    """A free fit's mu_w above tan(phi_P) by more than its error is friction no wall contact
+    can carry (|F_t| <= mu F_n, Coulomb): the key number and the Fig. 3a legend say the profile
+    does not follow Janssen (a study run gave mu_w = 0.81 +- 0.12 for tan phi_P = 0.176).
+    The synthetic profile's mu_w = tan 24 deg is at the walls' own tan phi_P: not flagged;
+    with walls of tan phi_P = 0.2 it is."""
+    from silodem.report.analysis import above_coulomb
+    from silodem.report.figures_stress import fig_horizontal
+
+    a, _ = synth
+    row = "Janssen free fit after filling: K, mu_w"
+    assert "above tan phi_P" not in _number(a, row)
+    assert not above_coulomb(a.janssen_free, MU_WALL)
+    b = copy.copy(a)
+    b.geom, b.numbers = {**a.geom, "mu_wall": 0.2}, []
+    _numbers(b)
+    assert above_coulomb(b.janssen_free, 0.2)
+    assert _number(b, row).endswith("; above tan phi_P = 0.2, the most friction the walls can "
+                                    "carry: this profile does not follow Janssen's law")
+    legend = fig_horizontal(b, "fill").legends[0]  # legend_below: the figure's
+    labels = [" ".join(t.get_text().split()) for t in legend.get_texts()]
+    assert any(t.endswith("(> tan phi_P: not Janssen)") for t in labels), labels

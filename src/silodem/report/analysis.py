@@ -302,6 +302,15 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
         a.wall_at_fill_peak = (z_f, f, same, _pct(f, same))
 
 
+def above_coulomb(fit: th.JanssenFit, mu_wall: float) -> bool:
+    """A free Janssen fit whose mu_w lies above tan(phi_P) by more than its standard error:
+    no wall contact can transmit a shear over mu_wall times its normal force (Coulomb), so
+    the fit describes the curve's shape, not the walls' friction.  (A margin of 1e-6 mu_wall
+    keeps an exact fit to a profile at the limit, its error ~1e-15, unflagged.)"""
+    err = fit.mu_w_err if math.isfinite(fit.mu_w_err) else 0.0
+    return fit.mu_w - err > mu_wall * (1.0 + 1e-6)
+
+
 def _pct(before: float, after: float) -> float:
     """Percentage change from ``before`` to ``after``; NaN from 0."""
     return 100.0 * (after - before) / before if before else float("nan")
@@ -404,6 +413,9 @@ def _numbers(a: Analysis) -> None:
         j = a.janssen_free
         mu = ("~0 (at the fit's lower bound: the profile shows no wall support)"
               if j.mu_w_at_bound else _fitted(j.mu_w, j.mu_w_err))
+        if above_coulomb(j, g["mu_wall"]):
+            mu += (f"; above tan phi_P = {_fmt(g['mu_wall'], 3)}, the most friction the walls "
+                   "can carry: this profile does not follow Janssen's law")
         value = f"{_fitted(j.K, j.K_err)}, {mu}"
         n.append(("Janssen free fit after filling: K, mu_w", value, "-"))
     if "fill" in a.janssen and "fill" in a.peaks:
@@ -414,7 +426,12 @@ def _numbers(a: Analysis) -> None:
                                  g["B"], a.janssen["fill"].K, g["mu_wall"])
         label = ("switch-zone peak / Janssen sigma_h at its height (at the junction for a "
                  "peak below it), after filling")
-        n.append((label, _fmt(v / jan, 3) if jan > 0 else "n/a", "-"))
+        value = _fmt(v / jan, 3) if jan > 0 else "n/a"
+        K = a.janssen["fill"]
+        if jan > 0 and poorly_determined(K.K, K.K_err):
+            value += (f" (K = {_fmt(K.K, 3)} +- {_fmt(K.K_err, 2)} is poorly determined: a "
+                      "ratio to a curve the run does not measure)")
+        n.append((label, value, "-"))
     n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
     for key, hop in a.hopper.items():
         when = "after filling" if key == "fill" else "during discharge"

@@ -75,7 +75,8 @@ def add_loads(a: Analysis, wall_top: float) -> None:
         a.en1991_4["missing"] = f"the form does not apply: h_o = {h_o:.3g} m >= z_o"
         return
     a.en1991_4.update(h_o=h_o, phi_r=phi_r, C_h=C_h, C_w=C_w, z=z, p_hf=p_hf, p_he=C_h * p_hf,
-                      p_wf=p_wf, p_we=C_w * p_wf)
+                      p_wf=p_wf, p_we=C_w * p_wf,
+                      mobilised=a.mu_mobilised.get("fill", np.nan) / g["mu_wall"])
     if not flat:
         a.en1991_4["hopper"] = hopper_loads(a, j.K, float(p_vf[0]))
 
@@ -112,9 +113,10 @@ def key_numbers(en: dict[str, Any], measure: Measure) -> list[tuple[str, str, st
     """The report's key-number rows (quantity, value, unit) of :func:`add_loads`'s dict."""
     n: list[tuple[str, str, str]] = []
     if en:
-        built = ("" if "p_hf" in en else f" ({en['missing']})" if "missing" in en
-                 else " (not built in silodem)")
-        value = f"{significant(en['ratio'], 3)}: {en['kind']}, loads of §{en['section']}{built}"
+        loads = (f"loads of §{en['section']} drawn" if "p_hf" in en
+                 else f"no loads drawn (§{en['section']}): {en['missing']}" if "missing" in en
+                 else f"no loads drawn (§{en['section']}, not built in silodem)")
+        value = f"{significant(en['ratio'], 3)}: {en['kind']}, {loads}"
         n.append(("EN 1991-4 slenderness h_c/d_c (junction or floor to the surface, over B)",
                   value, "-"))
     if "p_hf" in en:
@@ -127,9 +129,28 @@ def key_numbers(en: dict[str, Any], measure: Measure) -> list[tuple[str, str, st
             n.append((label, value, ""))
         n.append(("EN 1991-4 discharge magnifiers C_h, C_w",
                   f"{significant(en['C_h'], 4)}, {significant(en['C_w'], 4)}", "-"))
+        n.append(mobilisation_row(en["mobilised"]))
     if "hopper" in en:
         _hopper_numbers(n, en["hopper"])
     return n
+
+
+FEW_MOBILISED = 0.5  # of tan(phi_P): below it the loads' wall friction is not measured
+
+
+def mobilisation_row(share: float) -> tuple[str, str, str]:
+    """The key number on the loads' assumption: EN's loads (and K, fitted with mu_w = tan
+    phi_P) take the wall friction fully mobilised; the share the cell walls carry after
+    filling, sum(tau) / sum(sigma_n) over tan(phi_P).  Under FEW_MOBILISED the row says that
+    the settled silo does not show the wall support the loads assume (its pressures are then
+    nearer hydrostatic, and K takes up the missing friction)."""
+    label = ("EN 1991-4 loads' wall friction, mu = tan phi_P fully mobilised (as for K): the "
+             "share the cell walls carry after filling")
+    value = f"{significant(100 * share, 2)} %"
+    if share < FEW_MOBILISED:
+        value += (": the settled silo does not show the wall support these loads assume; "
+                  "read them as the standard's, not as a model of this silo")
+    return label, value, ""
 
 
 def _hopper_numbers(n: list, h: dict[str, Any]) -> None:

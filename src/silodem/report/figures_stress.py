@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from silodem import theory as th
-from silodem.report.analysis import Analysis
+from silodem.report.analysis import Analysis, above_coulomb
 from silodem.report.draw import (
     draw_walls,
     legend_below,
@@ -84,7 +84,8 @@ def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
     if key == "fill" and a.janssen_free is not None:
         jf = a.janssen_free
         ax.plot(f(depth, a.rho_b, g["g"], g["B"], jf.K, max(jf.mu_w, 1e-9)), z, color="#17becf",
-                lw=1.2, ls="-.", label=f"Janssen free fit K = {jf.K:.2f}, mu_w = {jf.mu_w:.2g}")
+                lw=1.2, ls="-.", label=f"Janssen free fit K = {jf.K:.2f}, mu_w = {jf.mu_w:.2g}"
+                + (" (> tan phi_P: not Janssen)" if above_coulomb(jf, g["mu_wall"]) else ""))
     if which == "v":
         ax.plot(a.rho_b * g["g"] * depth, z, color="0.5", lw=1, ls=":",
                 label="hydrostatic rho_b g depth")
