@@ -192,17 +192,38 @@ def test_validate_refuses_an_out_that_is_a_file(tmp_path):
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
-def test_validate_case_runs_only_the_named_family(tmp_path):
-    """``--case statics``: the settled column's records and figure, nothing of the others;
-    its check is a conservation law (floor + walls carry the weight)."""
+def _statics(out) -> tuple[subprocess.CompletedProcess[str], list[dict]]:
+    """``silodem validate --case statics --json --out OUT``: exit 0 and records that all pass."""
     proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--case", "statics",
-                           "--json", "--out", str(tmp_path)], capture_output=True, text=True,
+                           "--json", "--out", str(out)], capture_output=True, text=True,
                           timeout=300, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
     records = json.loads(proc.stdout)
     assert records and all(r["pass"] is True for r in records)
+    return proc, records
+
+
+def test_validate_case_runs_only_the_named_family(tmp_path):
+    """``--case statics``: the settled column's records and figure, nothing of the others;
+    its check is a conservation law (floor + walls carry the weight)."""
+    _, records = _statics(tmp_path)
     assert {r["case"].split(",")[0] for r in records} == {"settled column"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["statics.png"]
+
+
+def test_a_figure_that_cannot_be_written_keeps_the_records(tmp_path):
+    """A folder where statics.png should go (or a full disk) made the whole validation end with
+    exit code 2, the bad-input code, and nothing on stdout: every record lost.  The records are
+    now printed and judged as ever (exit 0: they pass), with a warning naming the figure; the
+    progress line counts checks apart from reported values, as the table does."""
+    (tmp_path / "statics.png").mkdir()
+    proc, records = _statics(tmp_path)
+    checked = sum(r["tolerance_kind"] != "info" for r in records)
+    lines = proc.stderr.strip().splitlines()
+    assert any(line.startswith("validate: warning: statics.png not written (") for line in lines)
+    assert any(f": {checked} checks ({len(records) - checked} reported values), 0 failed," in line
+               for line in lines), lines
+    assert "Traceback" not in proc.stderr
 
 
 @pytest.mark.parametrize("args, words", [

@@ -206,7 +206,8 @@ def validate(
     as_json: Annotated[
         bool,
         typer.Option("--json", help="Print the records as one JSON list (case, quantity, "
-                     "expected, got, tolerance, tolerance_kind, unit, pass, note) and nothing "
+                     "expected, got, tolerance, tolerance_kind, unit, pass, note; expected "
+                     "and tolerance are null for a value reported, not checked) and nothing "
                      "else on stdout; progress goes to stderr."),
     ] = False,
     out: Annotated[
@@ -222,7 +223,8 @@ def validate(
     (docs/validation.md).
 
     Prints a table (case, quantity, expected, got, tolerance, pass) and writes figures into
-    DIR. Exit code 0 when every check passes, 1 when one fails. Examples:
+    DIR. Exit codes: 0 every check passed, 1 a check failed, 2 bad input, 130 / 143
+    interrupted (Ctrl-C / SIGTERM). Examples:
 
       silodem validate --quick
 

@@ -12,8 +12,8 @@ B = 1.02 max(2.5 D, D + 30 d) for the widest outlet, 76.5 d (walls far enough fr
 not to matter); filled by pouring to a height H = B (>= 2.5 D, Beverloo's condition); the gate
 is then withdrawn and every grain that leaves is put back at a random free place in a band of
 20 d above the surface (``discharge.reinsert``), so that the fill height, hence the rate, stays
-steady.  The run stops after one silo-full of grains or at a time limit chosen to let about a
-thousand grains pass at the smallest outlet.
+steady.  The run stops after one silo-full of grains or at a time limit chosen to let about
+1500 grains pass at the smallest outlet (:func:`max_time`).
 
 Why one silo: the rate of this model grows with the pressure above the outlet (about as
 P^0.3; docs/validation.md, section 5).  A silo scaled with each outlet (B ~ D + 30 d, H = B)

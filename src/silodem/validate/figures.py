@@ -230,6 +230,8 @@ def janssen(data: dict[str, Any], path: Path) -> Path:
     ax[0].plot(th.janssen_sigma_h(z, rho, g, B, data["K_tensor"], data["mu_w"]), z, "k--",
                label=f"Janssen with K_tensor = {data['K_tensor']:.2f}, tan(phi_w) = "
                f"{data['mu_w']:.3f}")
+    ax[0].axvline(rho * g * B / (2 * data["mu_mob"]), color="k", ls=":", lw=1,
+                  label="saturation rho_b g B / (2 mu_mob) (checked)")
     ax[0].axvline(rho * g * B / (2 * data["mu_w"]), color="gray", ls=":", lw=1,
                   label="saturation rho_b g B / (2 tan phi_w)")
     ax[0].axhline(3 * data["length"], color="C1", lw=0.8, label="3 Janssen lengths")

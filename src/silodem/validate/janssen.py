@@ -25,9 +25,15 @@ Measured (averaged over 20 frames and five fills with different seeds):
 * the bulk density rho_b of the column.
 
 Checks: K fitted to the wall profile with ``theory.fit_janssen`` (mu_w = the mobilised
-friction) agrees with K_tensor within 10 %; the saturation wall stress (mean of sigma_h deeper
-than three Janssen lengths B/(2 K mu_w)) matches the 2D Janssen value rho_b g B/(2 mu_w) with
-mu_w = tan(phi_w) within 10 %.
+friction) agrees with K_tensor within 10 % (traction continuity: the wall's normal stress is
+the grains' sigma_xx at the wall, so two independent measurements of one ratio); the
+saturation wall stress (mean of sigma_h deeper than three Janssen lengths B/(2 K mu_mob))
+matches 2D Janssen with the mobilised friction at the same depths within 5 %: deep down the
+walls carry the weight, 2 mu_mob sigma_h = rho_b g B (vertical force balance; the saturation
+level does not depend on K, which only sets how close to it the bins are).  Reported, not
+checked: the textbook level rho_b g B/(2 tan(phi_w)), which assumes full mobilisation and so
+lies below the measured one by the mobilised share (about 1/0.91 = 1.10, the size of a 10 %
+tolerance: a check against it passed or failed by the scatter between fills).
 """
 
 from __future__ import annotations
@@ -47,7 +53,7 @@ from silodem.validate.records import Record, info, rel
 
 CASE = "Janssen slot silo"
 K_TOL = 0.10
-SATURATION_TOL = 0.10
+SATURATION_TOL = 0.05
 D = 0.01  # mean grain diameter [m]
 WIDTH = 12  # slot width / d
 N_GRAINS = 1700
@@ -174,7 +180,8 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
     s_deep = s_cell & (s_depth > 3.0 * length)
     sat_h = float(sn[deep].mean()) if deep.any() else float("nan")
     sat_v = float(slices[s_deep, 1].mean()) if s_deep.any() else float("nan")
-    expected_h = rho_b * g * B / (2.0 * mu_w)
+    expected_h = (float(np.mean(th.janssen_sigma_h(depth[deep], rho_b, g, B, fit.K, mu_mob)))
+                  if deep.any() else float("nan"))
     label = (f"{CASE}, B = {WIDTH} d, {len(SEEDS)} fills of {N_GRAINS} grains, "
              f"phi_w = {WALL_FRICTION_DEG:g} deg")
     records = [
@@ -187,7 +194,12 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
             note=f"expected: K = sigma_xx/sigma_zz within {STRIP / D:g} d of the walls "
             f"(Love-Weber); fit +- {fit.K_err:.2g}"),
         rel(label, "saturation wall stress sigma_h (depth > 3 Janssen lengths)", expected_h,
-            sat_h, SATURATION_TOL, "Pa", note="2D Janssen: rho_b g B / (2 tan(phi_w))"),
+            sat_h, SATURATION_TOL, "Pa",
+            note="2D Janssen with mu_mob at those depths, -> rho_b g B / (2 mu_mob): the walls "
+            "carry the weight"),
+        info(label, "the same against full mobilisation, rho_b g B / (2 tan(phi_w))", sat_h,
+             "Pa", expected=rho_b * g * B / (2.0 * mu_w),
+             note="lower by the mobilised share mu_mob / tan(phi_w)"),
         info(label, "free Janssen fit (K and mu_w): K", free.K),
         info(label, "free Janssen fit (K and mu_w): mu_w", free.mu_w),
         info(label, "saturation mean vertical stress (slices)", sat_v, "Pa",

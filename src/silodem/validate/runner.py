@@ -41,7 +41,7 @@ class Family:
     title: str
     quick: bool  # part of --quick
     run: Callable[[bool], tuple[list[Record], object]]
-    figure: Callable[[object, Path], Path] | None
+    figure: Callable[[object, Path], Path]
 
 
 # (name, title, part of --quick): each name is a module of this package with ``run(quick)``
@@ -79,6 +79,7 @@ class Validation:
     records: list[Record] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
+    figure_errors: dict[str, str] = field(default_factory=dict)  # family -> why not drawn
 
     @property
     def passed(self) -> bool:
@@ -107,12 +108,18 @@ def run_validation(quick: bool = False, out: Path | None = None,
         t0 = time.perf_counter()
         records, data = fam.run(quick)
         result.records.extend(records)
-        if out is not None and fam.figure is not None:
-            result.figures.append(fam.figure(data, Path(out) / f"{fam.name}.png"))
+        if out is not None:  # the records stand without their picture: a figure that cannot
+            try:             # be written (full disk, a folder in its place) is said, not fatal
+                result.figures.append(fam.figure(data, Path(out) / f"{fam.name}.png"))
+            except Exception as exc:  # noqa: BLE001 - reported with the records kept
+                why = f"{type(exc).__name__}: {exc}"
+                result.figure_errors[fam.name] = why
+                say(f"validate: warning: {fam.name}.png not written ({why})")
         result.seconds[fam.name] = time.perf_counter() - t0
+        checked = sum(r.kind != "info" for r in records)
         bad = sum(not r.passed for r in records)
-        say(f"validate: {fam.title}: {len(records)} checks, {bad} failed, "
-            f"{result.seconds[fam.name]:.1f} s")
+        say(f"validate: {fam.title}: {checked} checks ({len(records) - checked} reported "
+            f"values), {bad} failed, {result.seconds[fam.name]:.1f} s")
     return result
 
 
@@ -164,6 +171,9 @@ def print_table(result: Validation, console: Console) -> None:
                       style="bold red")
     for path in result.figures:
         console.print(f"figure: {path}", markup=False, highlight=False, soft_wrap=True)
+    for name, why in result.figure_errors.items():
+        console.print(f"warning: {name}.png not written ({why})", markup=False,
+                      highlight=False, soft_wrap=True)
 
 
 def failure_line(r: Record) -> str:
