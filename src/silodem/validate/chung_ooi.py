@@ -145,7 +145,7 @@ def dem_wall_impact(vn: float, vt: float, omega: float, e: float, mu: float, r: 
     zeta = damping_ratio_from_restitution(e)
     ref = im.spring_dashpot(kn, m, zeta)
     sim = im.wall_sim(im.law(kn=kn, mu=mu, zeta=zeta), ref.t_c / steps, vn, vt, omega, r=r)
-    im.follow_contact(sim, im.wall_overlap, im._wall_force, mu)
+    im.follow_contact(sim, im.wall_overlap, im._wall_force)
     p = sim.particles
     return WallImpact(vn, vt, omega, ref.e_star, mu, float(p.vy[0]), float(p.vx[0]),
                       float(p.omega[0]))
@@ -189,7 +189,7 @@ def dem_pair_impact(r1: float, r2: float, v: float, w1: float, w2: float, e: flo
     mom0 = np.array([np.dot(p.mass[:2], p.vx[:2]), np.dot(p.mass[:2], p.vy[:2])])
     ang0, ke0 = _angular_momentum(p), p.kinetic_energy()
     vy2_0 = float(p.vy[1])
-    tr = im.follow_contact(sim, im.pair_overlap, im._pair_force, mu)
+    tr = im.follow_contact(sim, im.pair_overlap, im._pair_force)
     mom1 = np.array([np.dot(p.mass[:2], p.vx[:2]), np.dot(p.mass[:2], p.vy[:2])])
     impulse = m2 * (float(p.vy[1]) - vy2_0)
     lever = float(tr.overlap.max()) * abs(impulse)

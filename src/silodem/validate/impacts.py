@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -160,9 +160,6 @@ class ContactTrace:
     fs: np.ndarray
     start: float
     end: float
-    sliding_steps: int = 0  # steps where |F_s| was at the Coulomb cap mu F_n
-    contact_steps: int = 0
-    extra: dict = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -170,12 +167,11 @@ class ContactTrace:
 
 
 def follow_contact(sim: Simulation, overlap: Callable[[Simulation], float],
-                   force: Callable[[Simulation], tuple[float, float]], mu: float = 0.0,
+                   force: Callable[[Simulation], tuple[float, float]],
                    max_steps: int = 1_000_000) -> ContactTrace:
     """Step ``sim`` until its single contact has started and ended (reads only)."""
     ts, ds, fns, fss = [], [], [], []
     started = False
-    sliding = touching = 0
     for _ in range(max_steps):
         t, d = sim.time, overlap(sim)
         sim.step()
@@ -186,9 +182,6 @@ def follow_contact(sim: Simulation, overlap: Callable[[Simulation], float],
         fss.append(fs)
         if fn != 0.0 or fs != 0.0:
             started = True
-            touching += 1
-            if mu > 0 and fn > 0 and abs(fs) >= mu * fn * (1.0 - 1e-12):
-                sliding += 1
         elif started:
             break
     else:
@@ -206,7 +199,7 @@ def follow_contact(sim: Simulation, overlap: Callable[[Simulation], float],
         f1, f0 = fn[last], fn[last - 1]
         frac = f1 / (f0 - f1) if f0 > f1 else 1.0
         end = t[last] + dt * min(max(frac, 0.0), 1.0)
-    return ContactTrace(t, dl, fn, fs, float(start), float(end), sliding, touching)
+    return ContactTrace(t, dl, fn, fs, float(start), float(end))
 
 
 @dataclass(frozen=True)

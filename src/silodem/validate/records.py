@@ -43,17 +43,6 @@ class Record:
             return err <= self.tolerance * abs(exp)
         return err <= self.tolerance
 
-    @property
-    def error(self) -> float:
-        """|got - expected|, relative for 'rel' records (NaN when not computable)."""
-        try:
-            err = abs(float(self.got) - float(self.expected))
-        except (TypeError, ValueError):
-            return math.nan
-        if self.kind == "rel":
-            return err / abs(float(self.expected)) if self.expected else math.nan
-        return err
-
     def to_dict(self) -> dict:
         """JSON-ready: NaN and inf become None."""
         def clean(v):
