@@ -486,3 +486,21 @@ def test_settled_and_final_pictures_have_a_force_colour_bar(run_dir, monkeypatch
     draw_state(res.snapshot("settled"), res.group("walls"), tmp_path / "s.png", "settled")
     labels = [ax.get_ylabel() for ax in saved[0].axes]
     assert "normal contact force F_n [N]" in labels
+
+
+def test_the_run_events_table_gives_each_event_its_meaning_and_unit(run_dir):
+    """The events table showed raw attribute names and bare numbers (initial_mass 4074.7):
+    every event a run writes, and every one docs/output.md lists, has its meaning and unit."""
+    from pathlib import Path
+
+    from silodem.report.html import EVENT_MEANINGS
+
+    with h5py.File(run_dir / "results.h5", "r") as h5:
+        written = set(h5["events"].attrs)
+    doc = (Path(__file__).parents[1] / "docs" / "output.md").read_text(encoding="utf-8")
+    row = next(line for line in doc.splitlines() if line.startswith("| `/events`"))
+    listed = set(re.findall(r"`([a-z_]+)`", row.split("|")[4]))
+    assert written and written <= listed == set(EVENT_MEANINGS)
+    html = (run_dir / "report.html").read_text(encoding="utf-8")
+    for name in written:
+        assert f"<td>{name}</td>" in html and EVENT_MEANINGS[name] in html

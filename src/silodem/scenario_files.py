@@ -291,7 +291,7 @@ def config_to_toml(cfg: Config) -> str:
 
 
 def quick_variant(cfg: Config) -> Config:
-    """The same procedure on a small silo (a few hundred grains, well under a minute).
+    """The same procedure on a small silo (0.36 of the grains, well under a minute).
 
     Cell width x 0.6, wall height x 0.6 (at least hopper height + 1 m), same outlet,
     grains x 0.36 (at least 50), phase time limits capped; name suffixed ``-quick``.

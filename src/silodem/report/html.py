@@ -110,11 +110,11 @@ def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]
     return out
 
 
-QUICK_CAVEAT = ("A --quick silo is small: 0.6 of the cell width with the same outlet, a few "
-                "hundred grains, a hopper a few grains tall. It checks a setup in seconds; its "
-                "stresses, flow pattern, dead zones and fill -> discharge changes (its discharge "
-                "window falls while the silo is emptying fast) are not those of the full-size "
-                "silo.")
+QUICK_CAVEAT = ("A --quick silo is small: 0.6 of the cell width with the same outlet, 0.36 of "
+                "the grains (about 150 in the paper's case 2), a hopper a few grains tall. It "
+                "checks a setup in seconds; its stresses, flow pattern, dead zones and fill -> "
+                "discharge changes (its discharge window falls while the silo is emptying "
+                "fast) are not those of the full-size silo.")
 
 
 # the style and the table of a run's report.html and a study's (study/report.py)
@@ -127,7 +127,8 @@ text-align:left;font-size:.92em;vertical-align:top}th{background:#f4f4f4}
 figure{margin:1.5em 0;padding:.5em;border:1px solid #eee;background:#fff}
 figure img{max-width:100%;height:auto;display:block;margin:auto}
 figcaption{font-size:.92em;color:#444;margin-top:.4em}.warn{color:#8a4b00}
-pre{background:#f7f7f7;padding:.8em;overflow:auto;font-size:.85em}
+pre{background:#f7f7f7;padding:.8em;overflow:auto;font-size:.85em;white-space:pre-wrap;
+overflow-wrap:anywhere}
 """
 
 
@@ -139,12 +140,29 @@ def html_table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
     return f"<table><tr>{h}</tr>{body}</table>"
 
 
-def _event_rows(events: dict) -> list[tuple[str, str]]:
+# the meaning and unit of each event (results.h5 /events; docs/output.md)
+EVENT_MEANINGS = {
+    "n_poured": "grains poured",
+    "fill_time": "time the filling took [s]",
+    "settle_time": "time the settling took [s]",
+    "settle_criterion_value": "settling criterion at its end (force ratio or kinetic energy)",
+    "fill_level": "fill level after settling [m]",
+    "discharge_start_time": "time the gate opened [s]",
+    "initial_mass": "mass in the silo when the gate opened (per thickness t) [kg]",
+    "discharge_end_reason": "what ended the discharge (fraction, time or clog)",
+    "discharge_time": "time the discharge took [s]",
+    "discharged_fraction": "share of the initial mass discharged [-]",
+    "lost_count": "grains that slipped out through a wall (warned) [-]",
+}
+
+
+def _event_rows(events: dict) -> list[tuple[str, str, str]]:
+    """(event, value, its meaning and unit) for the run events table."""
     out = []
     for k, v in events.items():
         if isinstance(v, float | np.floating):
             v = f"{v:.6g}"
-        out.append((k, str(v)))
+        out.append((k, str(v), EVENT_MEANINGS.get(k, "")))
     return out
 
 
@@ -223,7 +241,8 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         parts.append(f"<figure id='{name}'><img alt='{html.escape(name)}' "
                      f"src='data:image/png;base64,{b64}'><figcaption>{html.escape(caption)}"
                      "</figcaption></figure>")
-    parts.append("<h2>Run events</h2>" + html_table(_event_rows(res.events), ("event", "value")))
+    parts.append("<h2>Run events</h2>" + html_table(_event_rows(res.events),
+                                                      ("event", "value", "meaning [unit]")))
     parts.append("<h2>Configuration</h2><pre>" + html.escape(res.config_toml) + "</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)
