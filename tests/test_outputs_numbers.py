@@ -82,7 +82,10 @@ LINEAR = {
     "switch_sigma_h_change_pct": (-20.0, 10.0, 1.0, 2.5),
     "switch_sigma_v_change_pct": (5.0, -10.0, -1.0, 1.5),
     "switch_ratio_discharge": (0.5, 0.25, 0.125, 0.0625),
+    "wall_peak_fill": (2000.0, 500.0, 50.0, 25.0),
     "wall_peak_discharge": (1000.0, 1000.0, 100.0, 50.0),
+    "janssen_K_fill": (0.5, 0.125, 0.0625, 0.03125),
+    "wall_friction_mobilised_fill": (0.0625, 0.015625, 0.03125, 0.0078125),
     "discharge_rate": (12.5, 2.0, 0.5, 0.25),
     "mass_flow_index": (0.25, 0.25, 0.125, 0.0625),
     "coordination_discharge": (2.5, 0.25, 0.125, 0.0625),
@@ -96,7 +99,8 @@ NAN_AT = {("switch_sigma_h_change_pct", 2, 3, 1), ("discharge_rate", 0, 1, 0),
 FAILURE = "unstable: grain 17 left through a wall"
 # the heat maps of docs/sweeps.md, in its order
 HEATMAP_COLUMNS = ["switch_sigma_h_change_pct", "switch_sigma_v_change_pct",
-                   "switch_ratio_discharge", CV, "wall_peak_discharge", "discharge_rate",
+                   "switch_ratio_discharge", CV, "wall_peak_fill", "wall_peak_discharge",
+                   "janssen_K_fill", "wall_friction_mobilised_fill", "discharge_rate",
                    "mass_flow_index", "coordination_discharge"]
 
 
@@ -289,7 +293,8 @@ def test_fig8_bars_are_seed_means_with_seed_deviations(study):
 
 def test_heatmaps_are_seed_means_of_the_documented_quantities(study):
     """docs/sweeps.md: heat maps of the change of sigma_h, of sigma_v, sigma_h / sigma_v in
-    discharge, its CV, the wall peak in discharge, the discharge rate and the mass flow index,
+    discharge, its CV, the wall peak after filling and in discharge, Janssen's K and the
+    mobilised wall friction after filling, the discharge rate and the mass flow index,
     rows = theta, columns = (phi_G, phi_P), seed means written in the cells ('n/a' where no
     seed has a value).  The change maps are centred on zero (limits +- the largest |mean|)."""
     plan, rows, _, _ = study

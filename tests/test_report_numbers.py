@@ -440,10 +440,11 @@ def test_mobilised_wall_friction_and_janssen_fits(synth):
     three Janssen values.  Those values are Janssen's sigma_h with K = 0.55 and mu_w = tan 24
     deg, so the fit with mu_w = tan(phi_P) must give K = 0.55 and the free fit (K, mu_w) =
     (0.55, tan 24 deg), up to the optimiser's convergence (FIT_REL)."""
-    a, _ = synth
+    a, summary = synth
     prof = _profile_fill()
     assert a.mu_mobilised["fill"] == pytest.approx(
         900.0 / (prof[1.25] + prof[1.0] + prof[0.75]), rel=REL)
+    assert summary["wall_friction_mobilised_fill"] == a.mu_mobilised["fill"]  # results.csv
     assert a.janssen["fill"].K == pytest.approx(K_TRUE, rel=FIT_REL)
     assert a.janssen["fill"].mu_w == MU_WALL
     assert a.janssen_free.K == pytest.approx(K_TRUE, rel=FIT_REL)
@@ -1126,6 +1127,7 @@ DOC_COLUMNS = [
     "wall_peak_z_discharge", "wall_peak_change_pct", "wall_at_fill_peak_change_pct",
     "coordination_fill",
     "coordination_discharge", "coordination_change_pct", "janssen_K_fill", "janssen_K_fill_err",
+    "wall_friction_mobilised_fill",
     "en1991_4_class", "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill",
     "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",
     "window_emptied_start_pct", "window_emptied_end_pct",

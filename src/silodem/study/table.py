@@ -60,6 +60,9 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("janssen_K_fill", "-", "Janssen K fitted to the cell walls after filling, mu_w = tan phi_P"),
     ("janssen_K_fill_err", "-", ("its standard error (over half of K: K is poorly determined, "
      "as the run report says)")),
+    ("wall_friction_mobilised_fill", "-", ("mobilised wall friction sum(tau)/sum(sigma_n) on the "
+     "cell-wall bins of the Janssen fit after filling (tan phi_P when fully mobilised, as "
+     "Janssen and EN 1991-4 assume)")),
     ("en1991_4_class", "", "EN 1991-4 slenderness class: slender, intermediate, squat, retaining"),
     ("en1991_4_hopper_class", "", "EN 1991-4 hopper class: steep, shallow or flat"),
     ("en1991_4_hopper_p_n_fill", "Pa", ("EN 1991-4 hopper normal pressure at the transition, "
@@ -177,7 +180,7 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # finished runs are summarised again (execute.read_summary) instead of keeping stale numbers:
 # 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved);
 # the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*;
-# 4: wall_at_fill_peak_change_pct.
+# 4: wall_at_fill_peak_change_pct, wall_friction_mobilised_fill.
 ANALYSIS_VERSION = 4
 
 
@@ -197,6 +200,8 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
                discharge_end_reason=str(ev.get("discharge_end_reason", "")),
                steps=int(res.attrs.get("steps", 0)), dt=as_float(res.attrs.get("dt")),
                flow_pattern="", en1991_4_class="", en1991_4_hopper_class="")
+    if "fill" in a.mu_mobilised:
+        out["wall_friction_mobilised_fill"] = as_float(a.mu_mobilised["fill"])
     if "fill" in a.janssen:
         out["janssen_K_fill"] = as_float(a.janssen["fill"].K)
         out["janssen_K_fill_err"] = as_float(a.janssen["fill"].K_err)
