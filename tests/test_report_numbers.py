@@ -772,6 +772,14 @@ def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):
     ax = Figure().subplots()
     _en1991_4_curve(ax, b, "fill")
     assert [line.get_label()[:15] for line in ax.lines] == ["EN 1991-4 §5.3 "]
+    # Fig. 6 draws the standard's discharge loads, those of the full silo, against a profile
+    # measured as it empties: the labels say whose they are
+    ax = Figure().subplots()
+    _en1991_4_curve(ax, a, "discharge")
+    labels = [line.get_label() for line in ax.lines]
+    assert len(labels) == 2 and labels[0].endswith(
+        f"; the full silo's, surface at z = {a.surface['fill']:.2f} m)")
+    assert labels[1].endswith("; the full silo's)")
 
 
 def test_en1991_4_skips_frictionless_walls(synth):

@@ -119,14 +119,18 @@ def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
         inputs = f"K of filling, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
         if en["section"] == "5.3":
             inputs += f", h_o = {en['h_o']:.2f} m, phi_r = {en['phi_r']:.3g} deg"
+        if key == "discharge":  # the standard's discharge load is the full silo's
+            inputs += f"; the full silo's, surface at z = {a.surface['fill']:.2f} m"
         ax.plot(en["p_hf"] if key == "fill" else en["p_he"], en["z"], color="#9467bd", lw=1.4,
                 ls=(0, (5, 2)), label=f"EN 1991-4 §{en['section']} {what} ({inputs})")
     h = en.get("hopper", {})
     p_n = h.get("p_nf" if key == "fill" else "p_ne")
     if p_n is not None:
         what = "filling F_f p_v" if key == "fill" else "discharge F_e p_v"
+        full = "" if key == "fill" else "; the full silo's"
         ax.plot(p_n, h["z"], color="#9467bd", lw=1.4, ls=(0, (1, 1)),
-                label=f"EN 1991-4 §6 hopper {what} ({h['kind']}, p_vft = p_vf at the junction)")
+                label=f"EN 1991-4 §6 hopper {what} ({h['kind']}, p_vft = p_vf at the junction"
+                f"{full})")
 
 
 def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
