@@ -222,6 +222,9 @@ def test_run_table_shows_every_runs_numbers_and_regime(study):
     meta = {row[0]: row[1] for row in parser.tables[0][1:]}
     assert meta["runs finished / planned"] == "23 / 24"
     assert meta["failed"] == "1"
+    from silodem import __version__
+
+    assert meta["silodem"] == __version__  # which code made the study
     assert "above 0.5 'anisotropic', else 'continuum-like'" in page.replace("&#x27;", "'")
     table = next(t for t in parser.tables if t[0][0] == "run")
     assert table[0][1:] == ["change sigma_h [%]", "change sigma_v [%]",

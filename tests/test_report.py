@@ -46,6 +46,8 @@ def test_run_writes_a_self_contained_report(run_dir):
     assert "switch-zone peak" in html and "Janssen" in html and "PLANAR" in html
     assert "src='http" not in html and "<script" not in html  # nothing to fetch or run
     assert "[silo]" in html  # the config
+    # which results file, in what state, made the page
+    assert f"Results: {(run_dir / 'results.h5').resolve()}, status complete." in html
     # force-network snapshots of the frames (issue 8): end of filling, early/late discharge
     for view in ("end_of_filling", "early_discharge", "late_discharge"):
         assert f"id='network_{view}'" in html

@@ -208,7 +208,9 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     intro = (f"<p>silodem {html.escape(str(res.attrs.get('silodem_version', '?')))}, seed "
              f"{cfg.seed}, time step {res.attrs.get('dt', float('nan')):.3g} s. Stresses are "
              "compressive positive [Pa]: a 2D force per unit length divided by the grains' "
-             f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle}</p>")
+             f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle} Results: "
+             f"{html.escape(str(res.folder.resolve() / 'results.h5'))}, status "
+             f"{html.escape(str(res.attrs.get('status', '?')))}.</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>",
              f"<p>{html.escape(cfg.description)}</p>", intro]
     if cfg.name.endswith(QUICK_SUFFIX):  # (scenario_files.quick_variant names it so)

@@ -24,6 +24,7 @@ matplotlib.use("Agg")
 import numpy as np
 from matplotlib.figure import Figure
 
+from silodem import __version__
 from silodem.atomic import write_atomic
 from silodem.report.draw import (
     png_bytes,
@@ -424,6 +425,7 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             ("runs finished / planned", f"{n_done} / {len(plan.runs)}", ""),
             ("failed", str(len(failed)), ""),
             ("computed on", where or "n/a", ""),
+            ("silodem", __version__, ""),
             ("written", time.strftime("%Y-%m-%d %H:%M:%S"), "")]
     parts += ["<h2>Study</h2>", html_table([(a, b) for a, b, _ in meta], ("item", "value"))]
     if plan.quick:
