@@ -467,11 +467,14 @@ def _numbers(a: Analysis) -> None:
     f = a.flow
     if "rate" in f:
         r = f["rate"]
-        n.append(("steady discharge rate W", f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}", "kg/s"))
+        label = f"steady discharge rate W (of a slot of thickness t = {_fmt(a.geom['t'], 3)} m)"
+        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}", "kg/s"))
     if "pattern" in f:
         n.append(("mass flow index v_wall / v_axis", _fmt(f["mfi"], 3), "-"))
         n.append(("dead-zone fraction of the grains", _fmt(f["dead_fraction"], 3), "-"))
         n.append(("flow pattern", f["pattern"], ""))
     if "beverloo_C" in f:
-        n.append(("Beverloo 2D constant C implied by W (k = 1.5)", _fmt(f["beverloo_C"], 3),
-                  "-"))
+        hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
+                  "its slope)" if a.res.cfg.silo.kind == "hopper" else "")
+        n.append((f"Beverloo 2D constant C implied by W (k = 1.5){hopper}",
+                  _fmt(f["beverloo_C"], 3), "-"))
