@@ -74,7 +74,7 @@ def test_beverloo_validation_exponent_and_rates(tmp_path):
     fitted with A, k, b free is the 2D Beverloo law's 3/2 within 0.1 (Mankoc et al. 2007,
     Janda et al. 2012), and the rate grows with the outlet. The family's fill-height check is
     known to fail with this contact law (issue 6, blocked on the owner's choice; section 5):
-    the test asserts every other check. About 20 minutes, so marked slow; CI runs it."""
+    the test asserts every other check. About 11 minutes, so marked slow; CI runs it."""
     proc = subprocess.run([sys.executable, "-m", "silodem", "validate", "--case", "beverloo",
                            "--json", "--out", str(tmp_path)], capture_output=True, text=True,
                           timeout=3600, check=False)

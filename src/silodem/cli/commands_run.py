@@ -191,7 +191,8 @@ def plot(
     """Re-draw every figure of a run from DIR/results.h5 (nothing is re-run) and write
     DIR/report.html: one page with the figures, the key numbers and the config, to open in a
     browser. Figures also go to DIR/figures/*.png, and settled.png and final.png are drawn
-    again (and DIR/vtk/fields_*.vtu, where the run wrote VTK files). Example:
+    again where the run drew them (output.png), as is DIR/vtk/fields_*.vtu where the run
+    wrote VTK files. Example:
 
       silodem plot runs/paper-case2
     """

@@ -195,13 +195,13 @@ def validate(
         typer.Option("--quick", help="Only the particle-impact cases (linear, Chung & Ooi's "
                      "tests, Hertz-Mindlin), the settled column and the trajectories against "
                      "LAMMPS (the subset CI runs; well under a minute). The full suite adds the "
-                     "Janssen and Beverloo silos (about 13 minutes on two cores)."),
+                     "Janssen and Beverloo silos (10-19 minutes on two cores)."),
     ] = False,
     cases: Annotated[
         list[str] | None,
         typer.Option("--case", metavar="NAME", help="Run only this family of cases "
                      "(repeatable): impacts, chung_ooi, hertz_mindlin, statics, lammps, "
-                     "janssen (about 3 minutes), beverloo (about 10)."),
+                     "janssen (about 2 minutes), beverloo (about 11)."),
     ] = None,
     as_json: Annotated[
         bool,

@@ -9,7 +9,8 @@ One step, in the order the code runs it (``Simulation.run``; ``step`` is ``run(1
    are computed (even strips of cell rows, then odd ones: race-free with threads);
 3. per grain: its grain-wall contact forces, added to its sums, then integrate (leap-frog,
    gravity, optional local damping); note the displacements;
-4. move the walls that have a velocity; advance the clock.
+4. advance the clock (in the compiled loop); then move the walls that have a velocity (in
+   Python, one step per call while any wall moves).
 
 Nothing else changes the state inside a step: measurements read the arrays between steps.
 """
