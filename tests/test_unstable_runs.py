@@ -164,3 +164,41 @@ def test_a_real_instability_is_stopped_before_it_produces_garbage(monkeypatch, c
     assert non_finite or outside or energetic, diag
     assert diag["dt"] > diag["dt_crit"]
     assert read_checkpoint(out).step <= diag["step"]  # the last good state stays resumable
+
+
+def test_a_silo_that_lost_every_grain_through_its_walls_stops_with_exit_3(capsys, tmp_path):
+    """Contacts of 10 N/m under grains of some 100 N: every grain goes out through the walls.
+    The run ended with exit 0, 'settled to a fill level of 0.00 m' and '100 % of the mass
+    left' (its discharged fraction of an empty silo was 1) and a report of nothing.  It now
+    stops with one line naming the cause and exit code 3, kind all_lost in the diagnosis."""
+    out = tmp_path / "run"
+    soft = [f"{key}=10" for key in ("material.kn", "material.ks", "walls.kn", "walls.ks")]
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(out, *soft))
+    assert exit_info.value.code == 3
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert line.startswith("run stopped: no grain is left in the silo: all ") and \
+        "have gone out through its walls" in line, line
+    diag = _strict_json(out / "diagnostic.json")
+    assert diag["kind"] == "all_lost" and diag["n_grains"] == 0
+    assert diag["details"]["lost_count"] > 0 and diag["grain"] is None
+
+
+def test_a_discharged_grain_far_below_the_outlet_is_not_an_escape():
+    """A grain under the removal level has been discharged and goes at the next chunk, however
+    far it fell (under gravity = 1000 m/s^2 one passed the domain's floor within a chunk, and
+    the run stopped as unstable, exit 3).  Only its x is tested: one thrown far sideways down
+    there is still found."""
+    from silodem.safety import domain_of, find_problem
+
+    run = SiloRun(quick_config())
+    for _ in range(3):
+        run.advance_chunk()
+    p = run.sim.particles
+    assert p.n > 0 and find_problem(run) is None
+    floor = domain_of(run).ymin
+    p.y[0] = floor - 100.0  # discharged, far down
+    assert find_problem(run) is None
+    p.x[0] = domain_of(run).xmax + 1.0  # and far to the side: out of the domain
+    problem = find_problem(run)
+    assert problem is not None and problem.kind == "outside_domain"

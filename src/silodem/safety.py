@@ -11,7 +11,9 @@ A run is stopped as unstable (exit code 3) when, between two chunks,
 * a grain has a non-finite position, velocity or spin;
 * a grain is outside the domain: the silo's bounding box grown by one silo size
   L = max(cell width, wall height) on every side (grains that slip just through a wall are
-  removed by the procedure and reported as lost; a grain that far away was thrown);
+  removed by the procedure and reported as lost; a grain that far away was thrown); of a
+  grain under the removal level, discharged and removed at the next chunk, only x is tested;
+* every grain has gone out through the walls, after pouring and with none discharged;
 * the kinetic energy exceeds ``ENERGY_FACTOR`` times the energy the grains in the silo could gain
   by falling from the wall top to the removal level under the outlet, plus their pouring energy:
   E_max = 100 * M * (max(g, 9.81 m/s^2) * (z_top - z_remove) + v0^2 / 2);
@@ -133,7 +135,7 @@ def grain_record(run: SiloRun, index: int) -> dict[str, Any]:
 class Problem:
     """What is wrong, with the grain to blame (``index`` into the live grains, or None)."""
 
-    kind: str  # non_finite | outside_domain | energy | engine
+    kind: str  # non_finite | outside_domain | energy | engine | all_lost
     message: str
     index: int | None
     details: dict[str, Any] = field(default_factory=dict)
@@ -148,13 +150,20 @@ def find_problem(run: SiloRun) -> Problem | None:
     """The first unphysical thing in the state of ``run`` (module docstring), or None."""
     p = run.sim.particles
     n = p.n
+    when = f"at t = {run.sim.time:.6g} s (step {run.sim.steps}, {run.state.phase})"
     if n == 0:
+        lost = int(run.events.get("lost_count", 0))
+        # poured (a pour may lose its first batch and go on) and none left by the outlet
+        if lost > 0 and run.state.phase != "fill" and run.state.discharged_mass == 0.0:
+            return Problem("all_lost", f"no grain is left in the silo: all {lost} have gone "
+                           f"out through its walls, {when}; the contacts are far too soft for "
+                           "the silo's weight (the soft-contact warning gives the stiffness to "
+                           "use) or the time step is too large", None, {"lost_count": lost})
         return None
     uid = p.view("uid")
     bad = np.zeros(n, dtype=bool)
     for key in _STATE_FIELDS:
         bad |= ~np.isfinite(p.view(key))
-    when = f"at t = {run.sim.time:.6g} s (step {run.sim.steps}, {run.state.phase})"
     if np.any(bad):
         idx = np.flatnonzero(bad)
         i = int(idx[np.argmin(uid[idx])])
@@ -165,7 +174,10 @@ def find_problem(run: SiloRun) -> Problem | None:
                        {"n_non_finite": int(idx.size),
                         "non_finite_uids": sorted(int(u) for u in uid[idx])[:20]})
     domain = domain_of(run)
-    out = domain.distance_outside(p.view("x"), p.view("y"))
+    # a grain under the removal level has been discharged: it is removed at the start of the
+    # next chunk however far it fell in this one (at 100 m/s under gravity = 1000 m/s^2, past
+    # the domain's floor), so only its x is tested
+    out = domain.distance_outside(p.view("x"), np.maximum(p.view("y"), run.z_remove))
     if np.any(out > 0):
         i = int(np.argmax(out))
         rec = grain_record(run, i)
