@@ -217,8 +217,31 @@ def test_paper_case1_stiffness_warns_with_the_numbers():
     assert est.overlap_fraction > 1.0  # overlaps of the order of the radius, and more
     assert est.recommended == pytest.approx(2 * sigma * 0.2 / (0.01 * 0.1), rel=1e-12)
     run = SiloRun(cfg)
-    assert any("soft contacts" in w and "material.kn >=" in w for w in run.warnings)
+    assert any("soft contacts" in w and "a grain stiffness material.kn and a wall stiffness "
+               "walls.kn >=" in w for w in run.warnings)  # Table 1: both are soft
     assert not SiloRun(load_config("paper-case2")).warnings
+
+
+@pytest.mark.parametrize(("scenario", "sets", "named", "not_named"), [
+    ("paper-case2", ["material.kn=1e8", "walls.kn=1e3"], "a wall stiffness walls.kn >=",
+     "material.kn"),
+    ("paper-case2", ["material.kn=2e4", "walls.kn=1e8"], "a grain stiffness material.kn >=",
+     "walls.kn"),
+    ("paper-case2", ["material.kn=2e4", "walls.kn=2e4"],
+     "a grain stiffness material.kn and a wall stiffness walls.kn >=", None),
+    ("paper-case2-hertz", ["material.young_modulus=1e9", "walls.young_modulus=1e5"],
+     "a wall Young's modulus walls.young_modulus >=", "material.young_modulus"),
+])
+def test_the_soft_contact_advice_names_the_soft_side(scenario, sets, named, not_named):
+    """The advice named material.kn even when the grains were stiff (1e8 N/m) and the walls
+    soft (1e3 N/m): raising the stiff side changes nothing.  It names the keys below the
+    stiffness (modulus) it recommends, each the overlap of 1 % needs on its own."""
+    est = estimate_overlap(load_config(scenario, sets))
+    assert est.too_soft
+    text = est.warning()
+    assert named in text, text
+    if not_named is not None:
+        assert not_named not in text, text
 
 
 def test_grains_lost_through_soft_walls_are_all_counted():
@@ -307,3 +330,18 @@ def test_kinetic_energy_criterion_ends_settling_below_its_threshold():
     value = run.events["settle_criterion_value"]
     assert value == pytest.approx(energy.mean(), rel=1e-12)
     assert 0 < value < threshold
+
+
+def test_a_pour_cut_short_by_its_rate_says_so_not_that_there_was_no_room():
+    """fill.rate = 20 grains/s for fill.max_time = 2 s pours about 40 of 155 grains: the
+    warning blamed 'no room in the pouring band'; it now names the rate and what it pours."""
+    cfg = quick_variant(load_config("paper-case2", ["fill.rate=20", "fill.max_time=2"]))
+    run = SiloRun(cfg)
+    while run.state.phase == "fill":
+        run.advance_chunk()
+    placed = run.events["n_poured"]
+    assert 35 <= placed <= 45 < cfg.fill.n_particles  # 20 / s for 2 s, in batches
+    expected = (f"pouring stopped after fill.max_time = 2.0 s with {placed} of "
+                f"{cfg.fill.n_particles} grains placed: fill.rate = 20 grains/s pours only "
+                "about 40 in that time")
+    assert [w for w in run.warnings if w.startswith("pouring stopped")] == [expected]

@@ -117,6 +117,10 @@ def test_an_unphysical_state_stops_the_run_with_a_diagnosis_and_a_checkpoint(
         (["material.density=1e-320"], "time step"),
         (["time.dt=1e-300"], "steps"),
         (["material.thickness=1e-300"], "steps"),
+        # a clog called at the first check (an 'arch' before any grain reached the outlet)
+        (["discharge.clog_time=1e-6"], "discharge.clog_time = 1e-06 s is shorter than"),
+        # grains put in the pouring band at rest, with no gravity: they hang there
+        (["gravity=0"], "the poured grains would hang where they are put"),
     ],
 )
 def test_values_valid_one_by_one_but_unusable_together_are_refused(sets, needle):

@@ -89,16 +89,20 @@ class OverlapEstimate:
     # modulus [Pa] (Hertz-Mindlin law)
     recommended: float
     hertz: bool = False
+    # the keys of the grains' and the walls' stiffness (modulus) below ``recommended``
+    soft_keys: tuple[str, ...] = ()
 
     @property
     def too_soft(self) -> bool:
         return self.overlap_fraction > WARN_OVERLAP
 
     def warning(self) -> str:
-        advice = (f"a grain Young's modulus material.young_modulus >= "
-                  f"{self.recommended:.2g} Pa (and a wall modulus as large)" if self.hertz
-                  else f"a grain stiffness material.kn >= {self.recommended:.2g} N/m (and a "
-                  "wall stiffness as large)")
+        what, unit = ("Young's modulus", "Pa") if self.hertz else ("stiffness", "N/m")
+        keys = self.soft_keys or (("material.young_modulus", "walls.young_modulus") if self.hertz
+                                  else ("material.kn", "walls.kn"))
+        named = [f"a {'grain' if key.startswith('material.') else 'wall'} {what} {key}"
+                 for key in keys]  # the soft ones: raising a stiff one does nothing
+        advice = f"{' and '.join(named)} >= {self.recommended:.2g} {unit}"
         return (
             f"soft contacts: under the expected {self.fill_height:.2f} m of grains the vertical "
             f"stress reaches ~{self.sigma_v:.3g} Pa, "
@@ -127,6 +131,7 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
     sigma_v = float(janssen_sigma_v(depth, rho_b, cfg.gravity, s.cell_width, JANSSEN_K, mu_w))
     force = sigma_v * 2.0 * r_mean * m.thickness
     c = contact_constants(cfg)
+    w = cfg.walls
     if c.hertz:
         overlap = max(hertz.overlap_under_force(force, c.grain_kn, 0.5 * r_mean),
                       hertz.overlap_under_force(force, c.wall_kn, r_mean))
@@ -138,8 +143,12 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
         overlap = force / min(c.grain_kn, c.wall_kn)
         # grain stiffness k with contact stiffness k/2 >= F / (0.01 r)
         recommended = 2.0 * force / (TARGET_OVERLAP * r_mean)
+    given = ((("material.young_modulus", m.young_modulus), ("walls.young_modulus",
+                                                            w.young_modulus)) if c.hertz
+             else (("material.kn", m.kn), ("walls.kn", w.kn)))
+    soft = tuple(key for key, value in given if value < recommended)
     return OverlapEstimate(fill_height, sigma_v, force, overlap, overlap / r_mean, recommended,
-                           c.hertz)
+                           c.hertz, soft)
 
 
 # --- values that give no usable run together, and arrays too large -------------------------------
@@ -193,6 +202,19 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"{step:.3g} m in one time step of {dt:.3g} s, more than its radius "
             f"(material.radius_min = {cfg.material.radius_min:.3g} m): contacts would be "
             f"missed; give at most {floor_3(cfg.material.radius_min / dt):.3g} m/s")
+    if cfg.fill.method == "pour" and cfg.gravity == 0.0 and cfg.fill.initial_speed == 0.0:
+        raise InputError("gravity = 0 with fill.method = 'pour' and fill.initial_speed = 0: "
+                         "the poured grains would hang where they are put and never fill the "
+                         "silo; give gravity > 0 or fill.initial_speed > 0")
+    from silodem.silo.procedure import CHECK_INTERVAL
+
+    if cfg.discharge.enabled and cfg.discharge.clog_time < CHECK_INTERVAL:
+        raise InputError(
+            f"discharge.clog_time = {cfg.discharge.clog_time:g} s is shorter than the "
+            f"{CHECK_INTERVAL:g} s between the discharge checks, the shortest stop of the "
+            "flow they can tell: a check with no grain out since the last one (the first, "
+            f"before any reached the outlet) would be called a clog; give at least "
+            f"{CHECK_INTERVAL:g} s")
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
         from silodem.silo.geometry import silo_shape
         from silodem.silo.procedure import loose_sites
