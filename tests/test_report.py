@@ -506,3 +506,32 @@ def test_the_run_events_table_gives_each_event_its_meaning_and_unit(run_dir):
     html = (run_dir / "report.html").read_text(encoding="utf-8")
     for name in written:
         assert f"<td>{name}</td>" in html and EVENT_MEANINGS[name] in html
+
+
+def test_figures_left_out_for_lack_of_data_are_named(run_dir, tmp_path):
+    """A figure whose data the run lacks was dropped from report.html without a word (Fig. 8
+    of a run whose discharge window got no sample; the three network snapshots of a
+    results.h5 copied without its frames/).  The page now names what it left out."""
+    import html as html_module
+
+    from silodem.report.analysis import analyse
+    from silodem.report.html import FIGURES, build_html, render_figures
+    from silodem.report.load import load_results
+
+    a = analyse(load_results(run_dir))
+    figures = render_figures(a, tmp_path / "figures")
+    assert [spec.name for spec, _ in figures] == [spec.name for spec in FIGURES]
+    page = build_html(a, [f for f in figures if f[0].name != "fig8_change"])
+    assert ("Left out for lack of data in this run: fig8_change (Fig. 8) (the key numbers' "
+            "n/a rows and the warnings say what is missing).") in html_module.unescape(page)
+    assert "Left out: network_end_of_filling, network_early_discharge, network_late_discharge;"\
+        in page  # no snapshots given
+    copy = tmp_path / "copy"
+    shutil.copytree(run_dir, copy)
+    shutil.rmtree(copy / "frames")
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", str(copy)])
+    assert exc.value.code == 0
+    page = (copy / "report.html").read_text(encoding="utf-8")
+    assert "Left out: network_end_of_filling, network_early_discharge, network_late_discharge;"\
+        in page and "Left out for lack of data" not in page

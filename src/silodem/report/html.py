@@ -230,14 +230,28 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
                      "paper's eq. 12 is the conical form (m = 1), which doubles the wall support "
                      "of a slice and so underestimates the stresses of a 2D hopper "
                      "(docs/theory.md).</p>")
+    drawn = {spec.name for spec, _ in figures}
+    left_out = [f"{spec.name}" + (f" ({spec.paper})" if spec.paper else "")
+                for spec in FIGURES if spec.name not in drawn]
+    if left_out:  # a figure with no data is not drawn: say which, not leave a silent gap
+        parts.append(f"<p class='warn'>Left out for lack of data in this run: "
+                     f"{html.escape(', '.join(left_out))} (the key numbers' n/a rows and the "
+                     "warnings say what is missing).</p>")
     for spec, png in figures:
         b64 = base64.b64encode(png).decode("ascii")
         label = f"{spec.paper} equivalent. " if spec.paper else ""
         parts.append(f"<figure id='{spec.name}'><img alt='{html.escape(spec.name)}' "
                      f"src='data:image/png;base64,{b64}'><figcaption><b>{html.escape(label)}"
                      f"</b>{html.escape(spec.caption)}</figcaption></figure>")
-    if snapshots:
-        parts.append("<h2>Force network snapshots</h2>")
+    parts.append("<h2>Force network snapshots</h2>")
+    if len(snapshots) < len(_SNAPSHOT_CAPTIONS):
+        shown = {name for name, _, _ in snapshots}
+        missing = [f"network_{view.replace('-', '_')}" for view in _SNAPSHOT_CAPTIONS
+                   if f"network_{view.replace('-', '_')}" not in shown]
+        parts.append(f"<p class='warn'>Left out: {html.escape(', '.join(missing))}; they are "
+                     "drawn from the frames saved beside results.h5 (frames/), which are "
+                     "missing or hold no frame of that moment (a run without discharge has "
+                     "none of it).</p>")
     for name, caption, png in snapshots:
         b64 = base64.b64encode(png).decode("ascii")
         parts.append(f"<figure id='{name}'><img alt='{html.escape(name)}' "
