@@ -332,3 +332,21 @@ def test_run_warnings_print_once_when_stdout_and_stderr_are_one_stream(tmp_path)
     lines = one.stdout.splitlines()
     assert [line for line in lines if line.startswith("warning: ")] == live
     assert f"warnings: {len(live)} printed above as they came" in lines
+
+
+def test_a_warning_rewritten_after_it_was_printed_is_in_the_summary():
+    """The running total of lost grains is rewritten in place as more are lost: the summary
+    counted it as printed above and its final number (65 lost, where 34 were printed while the
+    run went) was shown nowhere on a terminal.  The summary skips only texts printed as they
+    were, so the final total is in it."""
+    from silodem.run import RunSummary
+
+    summary = RunSummary("x", Path("out"), 1.0, 10, 1e-3, {},
+                         ["soft contacts", "grains lost in all: 65 grain(s)"],
+                         frozenset({"soft contacts", "grains lost in all: 34 grain(s)"}))
+    lines = summary.lines(shown_above=True)
+    assert "warnings: 1 printed above as they came" in lines
+    assert [line for line in lines if line.startswith("warning: ")] == [
+        "warning: grains lost in all: 65 grain(s)"]
+    assert [line for line in summary.lines() if line.startswith("warning")] == [
+        "warning: soft contacts", "warning: grains lost in all: 65 grain(s)"]

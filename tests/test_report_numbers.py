@@ -41,7 +41,6 @@ from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
 from silodem.study.table import (
     COLUMNS,
-    _change,
     _ratio_stats,
     read_table,
     summarise_run,
@@ -628,6 +627,12 @@ def test_key_numbers_of_the_report(synth):
     assert float(peak) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
     assert _number(a, "wall normal stress at the filling peak's height z = 0.5 m") == (
         f"4,500 -> 6,000 Pa ({significant(_pct(4500.0, 6000.0), 3)} %)")
+    # peaks at one height: the peak-to-peak row is the same-place change, given once
+    one = copy.copy(a)
+    one.change = {**a.change, "wall peak": {**a.change["wall peak"], "z_discharge": 0.5}}
+    one.numbers = []
+    _numbers(one)
+    assert not [r for r in one.numbers if r[0].startswith("wall normal stress at the filling")]
 
 
 def test_bulk_density_above_the_grain_density_is_flagged(synth):
@@ -919,13 +924,16 @@ def test_an_empty_fill_window_gives_nan_fill_columns(tmp_path):
 
 
 def test_change_without_a_base_is_nan():
-    """_change(fill, discharge) = 100 (discharge - fill) / fill (docs/sweeps.md), worked by
-    hand; a zero, NaN or infinite base, or a NaN after, has no % change: NaN."""
-    assert _change(200.0, 150.0) == -25.0
-    assert _change(-200.0, -100.0) == -50.0
-    assert _change(4.0, 5.0) == 25.0
+    """percent_change(fill, discharge) = 100 (discharge - fill) / fill (docs/sweeps.md; the
+    report's and the study's), worked by hand; a zero, NaN or infinite base, or a NaN after,
+    has no % change: NaN."""
+    from silodem.report.numbers import percent_change
+
+    assert percent_change(200.0, 150.0) == -25.0
+    assert percent_change(-200.0, -100.0) == -50.0
+    assert percent_change(4.0, 5.0) == 25.0
     for before, after in ((0.0, 5.0), (-0.0, 5.0), (NAN, 5.0), (math.inf, 5.0), (4.0, NAN)):
-        assert math.isnan(_change(before, after)), (before, after)
+        assert math.isnan(percent_change(before, after)), (before, after)
 
 
 def test_ratio_stats_by_hand():
@@ -1283,3 +1291,9 @@ def test_a_free_janssen_fit_above_the_coulomb_limit_is_flagged(synth):
     legend = fig_horizontal(b, "fill").legends[0]  # legend_below: the figure's
     labels = [" ".join(t.get_text().split()) for t in legend.get_texts()]
     assert any(t.endswith("(> tan phi_P: not Janssen)") for t in labels), labels
+    # not judged: an exact fit to two bins (no error) and a fit at its lower bound (no wall
+    # support), which the row calls ~0 already (frictionless walls: tan phi_P = 0)
+    exact = dataclasses.replace(b.janssen_free, mu_w_err=math.nan)
+    assert not above_coulomb(exact, 0.2)
+    bound = dataclasses.replace(b.janssen_free, mu_w=1e-6, mu_w_err=4e-7)
+    assert bound.mu_w_at_bound and not above_coulomb(bound, 0.0)

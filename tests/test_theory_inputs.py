@@ -250,4 +250,10 @@ def test_the_slice_stress_at_the_apex_of_a_hopper_with_n_below_zero_is_infinite(
     c = G * 1.0 / (1.0 - n) + 1000.0  # the leading term's coefficient near the apex
     assert got[1] == pytest.approx(c * 1e-6**n, rel=1e-3)
     assert th.hopper_sigma_v(0.0, 1.0, -c - 1.0, G, 60.0, 0.1, 0.7) == -math.inf
+    # n just above 0 (D = 1 here: n = 0.1 cot 60 deg = 0.058): the limit at the apex is 0,
+    # which the clipped height left as q 1e-300^n (1.4e-14 here, 1.0 at n = 0.01); a scalar
+    # height gives a scalar either way
+    small = th.hopper_sigma_v(0.0, 1.0, 1000.0, G, 60.0, 0.1, 1.0)
+    assert small == 0.0 and np.ndim(small) == 0
+    assert np.ndim(th.hopper_sigma_v(0.0, 1.0, 1000.0, G, 60.0, 0.1, 0.7)) == 0
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

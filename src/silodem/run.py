@@ -33,7 +33,9 @@ class RunSummary:
     dt: float
     events: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
-    warnings_shown: int = 0  # the first this many were printed on stderr as they came
+    # the warnings' texts printed on stderr as they came; one rewritten since (the running
+    # total of lost grains) has a new text, which the summary then gives
+    warnings_shown: frozenset[str] = frozenset()
 
     def lines(self, *, shown_above: bool = False) -> list[str]:
         """The summary's lines.  ``shown_above``: stdout and stderr are one stream (a
@@ -51,10 +53,11 @@ class RunSummary:
                 f"discharge: {100 * e['discharged_fraction']:.1f}% of the mass left in "
                 f"{e['discharge_time']:.2f} s (ended by: {e['discharge_end_reason']})"
             )
-        skip = self.warnings_shown if shown_above else 0
-        if skip:
-            out.append(f"warnings: {skip} printed above as they came")
-        out += [f"warning: {w}" for w in self.warnings[skip:]]
+        shown = self.warnings_shown if shown_above else frozenset()
+        above = sum(w in shown for w in self.warnings)
+        if above:
+            out.append(f"warnings: {above} printed above as they came")
+        out += [f"warning: {w}" for w in self.warnings if w not in shown]
         out.append(f"results: {self.out_dir}")
         return out
 
@@ -138,7 +141,8 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                  TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
                  transient=False) as bar:
             task = bar.add_task("compiling kernels...", total=3, phase="start")
-            live: dict = {"run": None, "warned": 0, "phase": "", "logged": 0.0}
+            live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "",
+                          "logged": 0.0}
 
             def show(pr: Progress) -> None:
                 text = (f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
@@ -163,9 +167,9 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                     console.quiet = True
                 raise
             bar.update(task, completed=3)
-        shown = live["warned"]
+        shown = frozenset(live["printed"])
     else:
-        shown = 0
+        shown = frozenset()
         run = SiloRun(cfg, recorders=recorders)
         guard.drive(run)
     if guard.checkpoint_path.exists() and guard.last_checkpoint is not None:
@@ -212,8 +216,9 @@ def _warn_new(console, live: dict) -> None:
     run = live["run"]
     if run is None:
         return
-    for w in run.warnings[live["warned"]:]:
+    for w in run.warnings[live["warned"]:]:  # (a total rewritten in place is not repeated)
         console.print(f"[yellow]warning:[/] {w}")
+        live["printed"].add(w)
     live["warned"] = len(run.warnings)
 
 

@@ -157,8 +157,9 @@ def find_problem(run: SiloRun) -> Problem | None:
         if lost > 0 and run.state.phase != "fill" and run.state.discharged_mass == 0.0:
             return Problem("all_lost", f"no grain is left in the silo: all {lost} have gone "
                            f"out through its walls, {when}; the contacts are far too soft for "
-                           "the silo's weight (the soft-contact warning gives the stiffness to "
-                           "use) or the time step is too large", None, {"lost_count": lost})
+                           "the silo's weight (the soft-contact warning, if any, gives the "
+                           "stiffness to use) or the time step is too large", None,
+                           {"lost_count": lost})
         return None
     uid = p.view("uid")
     bad = np.zeros(n, dtype=bool)

@@ -206,9 +206,10 @@ def validate(
     as_json: Annotated[
         bool,
         typer.Option("--json", help="Print the records as one JSON list (case, quantity, "
-                     "expected, got, tolerance, tolerance_kind, unit, pass, note; expected "
-                     "and tolerance are null for a value reported, not checked) and nothing "
-                     "else on stdout; progress goes to stderr."),
+                     "expected, got, tolerance, tolerance_kind, unit, pass, note; a value "
+                     "reported, not checked, has tolerance_kind 'info' and tolerance null, "
+                     "and expected null unless given for comparison) and nothing else on "
+                     "stdout; progress goes to stderr."),
     ] = False,
     out: Annotated[
         Path,

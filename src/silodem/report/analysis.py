@@ -17,7 +17,7 @@ from silodem.measure import regions
 from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report import eurocode
 from silodem.report.load import Results
-from silodem.report.numbers import pascals, poorly_determined, significant
+from silodem.report.numbers import pascals, percent_change, poorly_determined, significant
 from silodem.silo.geometry import silo_shape
 
 if TYPE_CHECKING:
@@ -288,7 +288,7 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
             f = window_mean(stress[masks["fill"], k, comp])
             dd = window_mean(stress[masks["discharge"], k, comp])
             row[label + "_fill"], row[label + "_discharge"] = f, dd
-            row[label + "_change_pct"] = _pct(f, dd)
+            row[label + "_change_pct"] = percent_change(f, dd)
         a.change[str(name)] = row
     if "fill" in a.peaks and "discharge" in a.peaks:
         # the switch zone's largest wall normal stress in each window, wherever it lies (the
@@ -296,24 +296,21 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
         # the filling peak: the same place
         (f, z_f), (dd, z_d) = a.peaks["fill"], a.peaks["discharge"]
         a.change["wall peak"] = {"sigma_h_fill": f, "sigma_h_discharge": dd,
-                                 "sigma_h_change_pct": _pct(f, dd), "z_fill": z_f,
+                                 "sigma_h_change_pct": percent_change(f, dd), "z_fill": z_f,
                                  "z_discharge": z_d}
         same = wall_stress_at(a.edge["discharge"], z_f)
-        a.wall_at_fill_peak = (z_f, f, same, _pct(f, same))
+        a.wall_at_fill_peak = (z_f, f, same, percent_change(f, same))
 
 
 def above_coulomb(fit: th.JanssenFit, mu_wall: float) -> bool:
     """A free Janssen fit whose mu_w lies above tan(phi_P) by more than its standard error:
     no wall contact can transmit a shear over mu_wall times its normal force (Coulomb), so
     the fit describes the curve's shape, not the walls' friction.  (A margin of 1e-6 mu_wall
-    keeps an exact fit to a profile at the limit, its error ~1e-15, unflagged.)"""
-    err = fit.mu_w_err if math.isfinite(fit.mu_w_err) else 0.0
-    return fit.mu_w - err > mu_wall * (1.0 + 1e-6)
-
-
-def _pct(before: float, after: float) -> float:
-    """Percentage change from ``before`` to ``after``; NaN from 0."""
-    return 100.0 * (after - before) / before if before else float("nan")
+    keeps an exact fit to a profile at the limit, its error ~1e-15, unflagged.)  A fit with no
+    error (two bins: exact) or at its lower bound (no wall support) is not judged."""
+    if not math.isfinite(fit.mu_w_err) or fit.mu_w_at_bound:
+        return False
+    return fit.mu_w - fit.mu_w_err > mu_wall * (1.0 + 1e-6)
 
 
 def wall_stress_at(edge: EdgeProfile, z: float) -> float:
@@ -459,8 +456,9 @@ def _numbers(a: Analysis) -> None:
             parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
                      if k.endswith("change_pct")]
             n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
-        if a.wall_at_fill_peak is not None:
-            z, f, dd, pct = a.wall_at_fill_peak
+        same = a.wall_at_fill_peak
+        if same is not None and same[0] != a.change.get("wall peak", {}).get("z_discharge"):
+            z, f, dd, pct = same  # (at one height the peak-to-peak row says it already)
             label = (f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m, "
                      "after filling -> during discharge (the same place)")
             n.append((label, f"{pascals(f)} -> {pascals(dd)} Pa ({_fmt(pct, 3)} %)", ""))

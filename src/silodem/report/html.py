@@ -145,7 +145,8 @@ EVENT_MEANINGS = {
     "n_poured": "grains poured",
     "fill_time": "time the filling took [s]",
     "settle_time": "time the settling took [s]",
-    "settle_criterion_value": "settling criterion at its end (force ratio or kinetic energy)",
+    "settle_criterion_value": ("settling criterion at its end (force ratio [-] or mean "
+                               "kinetic energy [J])"),
     "fill_level": "fill level after settling [m]",
     "discharge_start_time": "time the gate opened [s]",
     "initial_mass": "mass in the silo when the gate opened (per thickness t) [kg]",

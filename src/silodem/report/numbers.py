@@ -30,3 +30,9 @@ def poorly_determined(value: float, error: float) -> bool:
 def pascals(value: float | None) -> str:
     """A stress in whole pascals with thousands separators (20,929), 'n/a' for None or NaN."""
     return f"{value:,.0f}" if value is not None and math.isfinite(value) else "n/a"
+
+
+def percent_change(before: float, after: float) -> float:
+    """100 (after - before) / before [%]; NaN from a zero or non-finite ``before``."""
+    return 100.0 * (after - before) / before if before and math.isfinite(before) \
+        else float("nan")

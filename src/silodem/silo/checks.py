@@ -165,8 +165,9 @@ def law_key_names(cfg: Config) -> str:
 def check_numbers(cfg: Config) -> tuple[float, float]:
     """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
     run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, a pouring
-    speed that carries a grain more than its radius in one step, or a loose fill with more
-    grains than fit in the silo)."""
+    speed that carries a grain more than its radius in one step, grains poured at rest without
+    gravity, a clog time shorter than the first grain needs to leave
+    (:func:`shortest_clog_time`), or a loose fill with more grains than fit in the silo)."""
     from silodem.silo.geometry import build_walls
 
     law_keys = law_key_names(cfg)
@@ -206,15 +207,14 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
         raise InputError("gravity = 0 with fill.method = 'pour' and fill.initial_speed = 0: "
                          "the poured grains would hang where they are put and never fill the "
                          "silo; give gravity > 0 or fill.initial_speed > 0")
-    from silodem.silo.procedure import CHECK_INTERVAL
-
-    if cfg.discharge.enabled and cfg.discharge.clog_time < CHECK_INTERVAL:
+    shortest = shortest_clog_time(cfg)
+    if cfg.discharge.enabled and cfg.discharge.clog_time < shortest:
         raise InputError(
-            f"discharge.clog_time = {cfg.discharge.clog_time:g} s is shorter than the "
-            f"{CHECK_INTERVAL:g} s between the discharge checks, the shortest stop of the "
-            "flow they can tell: a check with no grain out since the last one (the first, "
-            f"before any reached the outlet) would be called a clog; give at least "
-            f"{CHECK_INTERVAL:g} s")
+            f"discharge.clog_time = {cfg.discharge.clog_time:g} s is shorter than the first "
+            f"grain needs to leave ({shortest:.3g} s: its fall from the outlet to the removal "
+            "level 4 material.radius_max below it, plus the 0.05 s between the checks): the "
+            f"discharge would be called a clog before any grain left; give at least "
+            f"{math.ceil(shortest * 1000.0) / 1000.0:g} s")
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
         from silodem.silo.geometry import silo_shape
         from silodem.silo.procedure import loose_sites
@@ -226,6 +226,19 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"a time step of {dt:.3g} s would allow {total / dt:.2g} steps in the phase time "
             f"limits ({total:g} s = {words}), more than {MAX_STEPS:.0e}; check {keys}")
     return dt, dt_crit
+
+
+def shortest_clog_time(cfg: Config) -> float:
+    """The least ``discharge.clog_time`` [s] that can tell a clog from a start: the time a
+    grain at rest in the outlet takes to fall to the removal level 4 r_max below it,
+    sqrt(8 r_max / g), plus one check interval, since the clog clock starts when the gate
+    opens and exits are counted at the checks (0.05 s apart).  Without gravity, the interval
+    alone."""
+    from silodem.silo.procedure import CHECK_INTERVAL
+
+    g = cfg.gravity
+    fall = math.sqrt(8.0 * cfg.material.radius_max / g) if g > 0 else 0.0
+    return fall + CHECK_INTERVAL
 
 
 def phase_time_limits(cfg: Config) -> tuple[float, str]:

@@ -401,13 +401,13 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     for name, paper, caption in FIGURES:
         try:
             fig = makers[name]()
+            png = png_bytes(fig) if fig is not None else None  # (drawing happens here)
         except Exception as exc:  # noqa: BLE001 - the other figures and the tables stand
             undrawn[name] = f"{type(exc).__name__}: {exc}"
-            fig = None
-        if fig is None:
+            png = None
+        if png is None:
             (fig_dir / f"{name}.png").unlink(missing_ok=True)
             continue
-        png = png_bytes(fig)
         write_atomic(fig_dir / f"{name}.png", png)
         pngs.append((name, paper, caption, png))
     spec = plan.study.spec

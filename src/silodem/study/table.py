@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -106,10 +105,6 @@ def as_float(value: Any) -> float:
         return NAN
 
 
-def _change(before: float, after: float) -> float:
-    return 100.0 * (after - before) / before if before and math.isfinite(before) else NAN
-
-
 UNLOADED = 0.1  # samples with sigma_v under this fraction of its window median are left out
 
 
@@ -188,6 +183,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
     """The per-run quantities of :data:`COLUMNS` (and per-circle ones) from a results folder."""
     from silodem.report.analysis import analyse, window_mean
     from silodem.report.load import load_results
+    from silodem.report.numbers import percent_change
 
     res = load_results(folder)
     a = analyse(res)
@@ -222,7 +218,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
         if band is not None:
             for key, mask in masks.items():
                 out[f"coordination_{key}"] = window_mean(band[mask])
-            out["coordination_change_pct"] = _change(out["coordination_fill"],
+            out["coordination_change_pct"] = percent_change(out["coordination_fill"],
                                                      out["coordination_discharge"])
         c = m["circles"]
         names = [str(n) for n in c["name"]]
@@ -239,7 +235,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
                 elif key == "discharge":
                     out[f"{prefix}ratio_cv_discharge"] = cv
             for comp in ("sigma_h", "sigma_v"):
-                out[f"{prefix}{comp}_change_pct"] = _change(out[f"{prefix}{comp}_fill"],
+                out[f"{prefix}{comp}_change_pct"] = percent_change(out[f"{prefix}{comp}_fill"],
                                                             out[f"{prefix}{comp}_discharge"])
 
         if names:
@@ -253,7 +249,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
     for key in ("fill", "discharge"):
         if key in a.peaks:
             out[f"wall_peak_{key}"], out[f"wall_peak_z_{key}"] = map(as_float, a.peaks[key])
-    out["wall_peak_change_pct"] = _change(out["wall_peak_fill"], out["wall_peak_discharge"])
+    out["wall_peak_change_pct"] = percent_change(out["wall_peak_fill"], out["wall_peak_discharge"])
     if a.wall_at_fill_peak is not None:
         out["wall_at_fill_peak_change_pct"] = as_float(a.wall_at_fill_peak[3])
     flow = a.flow

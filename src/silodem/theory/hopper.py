@@ -97,11 +97,14 @@ def _sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar):
         else:
             growth = -np.expm1(a * log_x) / a
         sigma = gamma * h * growth + q * np.exp(n * log_x)
-    if n <= 0.0:  # at the apex sigma_v -> (gamma H / (1 - n) + q) (h/H)^n: infinite for n < 0
+    # at the apex sigma_v -> (gamma H / (1 - n) + q) (h/H)^n: 0 for n > 0, infinite for n < 0
+    # (the clipped x above leaves q 1e-300^n there, far from 0 for n near 0)
+    if n > 0.0:
+        apex = 0.0
+    else:
         c = gamma * H / (1.0 - n) + q
-        apex = c if n == 0.0 else math.copysign(math.inf, c) if c != 0.0 else 0.0
-        sigma = np.where(h == 0.0, apex, sigma)
-    return sigma
+        apex = c if n == 0.0 else math.copysign(math.inf, c) if c else 0.0
+    return np.where(h == 0.0, apex, sigma)[()]  # [()]: a scalar for a scalar h
 
 
 def _check_heights(func: str, h, H, q, gamma, alpha_deg, mu_w, D, planar) -> np.ndarray:

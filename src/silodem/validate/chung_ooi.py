@@ -333,6 +333,7 @@ def damped_shortfall(records: list[Record]) -> None:
     vt = psi * mu * (1.0 + e) * vn
     d = dem_wall_impact(vn, vt, 0.0, e_nom, mu)
     shortfall = 1.0 - (vt - d.vt_after) / (mu * (vn + d.vn_after))
+    # k_n / k_s = 1: dem_wall_impact's law has k_s = k_n
     estimate = 2.0 * damping_ratio_from_restitution(e_nom) ** 2 / (psi * (1.0 + e) ** 2)
     records.append(info("Chung-Ooi 5, disk-wall, e = 0.5, Psi_1 = 3",
                         "tangential impulse shortfall 1 - P_t/(mu P_n)", shortfall,

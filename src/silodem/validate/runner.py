@@ -171,9 +171,6 @@ def print_table(result: Validation, console: Console) -> None:
                       style="bold red")
     for path in result.figures:
         console.print(f"figure: {path}", markup=False, highlight=False, soft_wrap=True)
-    for name, why in result.figure_errors.items():
-        console.print(f"warning: {name}.png not written ({why})", markup=False,
-                      highlight=False, soft_wrap=True)
 
 
 def failure_line(r: Record) -> str:
