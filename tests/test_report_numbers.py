@@ -641,6 +641,13 @@ def test_bulk_density_above_the_grain_density_is_flagged(synth):
     the key number says so.  The synthetic silo's rho_b (below rho = 800) is printed plain."""
     a, _ = synth
     assert RHO_B < RHO and _number(a, "bulk density") == significant(RHO_B, 4)
+    assert _number(a, "bulk density rho_b (cell)") == significant(RHO_B, 4)
+    # a fill under 4 diameters above the junction: measured over the whole fill, and said
+    thin = copy.copy(a)
+    thin.surface, thin.numbers = {**a.surface, "fill": Z_J + 3.5 * DIAM}, []
+    _numbers(thin)
+    assert _number(thin, "bulk density rho_b (whole fill: under 4 grain diameters of it above "
+                   "the junction)") == significant(RHO_B, 4)
     b = copy.copy(a)
     b.rho_b = 1.25 * RHO
     b.numbers = []

@@ -102,6 +102,14 @@ def surface_height(snap: dict[str, Any] | None, width: float, d: float) -> float
     return float(np.mean(tops)) if tops.size else float("nan")
 
 
+def density_band(junction: float, surface: float, d: float) -> tuple[float, float]:
+    """Heights [m] of the band the bulk density is measured in: the cell from one diameter
+    ``d`` above the junction to one under the surface, or the whole fill (0 to the surface)
+    when that band would be under 2 d."""
+    lo, hi = junction + d, surface - d
+    return (lo, hi) if hi - lo >= 2 * d else (0.0, surface)
+
+
 def bulk_density(snap: dict[str, Any] | None, cfg: Config, shape: SiloShape,
                  surface: float) -> float:
     """Mass per volume of the grains in the cell [kg/m^3], between the junction (+1 diameter)
@@ -111,9 +119,7 @@ def bulk_density(snap: dict[str, Any] | None, cfg: Config, shape: SiloShape,
     p = snap["particles"]
     d = regions.mean_diameter(cfg)
     mass = cfg.material.density * math.pi * p["radius"] ** 2 * cfg.material.thickness
-    lo, hi = shape.junction + d, surface - d
-    if hi - lo < 2 * d:
-        lo, hi = 0.0, surface
+    lo, hi = density_band(shape.junction, surface, d)
     sel = (p["y"] >= lo) & (p["y"] < hi)
     area = shape.area_below(hi) - shape.area_below(lo)
     return float(mass[sel].sum() / (area * cfg.material.thickness)) if area > 0 else float("nan")
@@ -387,7 +393,10 @@ def _numbers(a: Analysis) -> None:
     surface = ("free surface after filling (mean top of the grain columns, one diameter "
                "wide; the run's fill level is the mean top of its 5 highest grains)")
     n.append((surface, _fmt(a.surface["fill"]), "m"))
-    n.append(("bulk density rho_b (cell)",
+    top = a.surface["fill"]
+    cell = not np.isfinite(top) or density_band(g["z_j"], top, g["d"])[0] > 0.0
+    where = "cell" if cell else "whole fill: under 4 grain diameters of it above the junction"
+    n.append((f"bulk density rho_b ({where})",
               _bulk_density_text(a.rho_b, a.res.cfg.material.density), "kg/m^3"))
     n.append(("switch zone", f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))
     for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
