@@ -208,6 +208,9 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
                          "the poured grains would hang where they are put and never fill the "
                          "silo; give gravity > 0 or fill.initial_speed > 0")
     shortest = shortest_clog_time(cfg)
+    if cfg.discharge.enabled and not math.isfinite(shortest):
+        raise InputError(f"gravity = {cfg.gravity:g} m/s^2 is too weak for a grain to fall out "
+                         "of the outlet within any discharge.clog_time; give a larger gravity")
     if cfg.discharge.enabled and cfg.discharge.clog_time < shortest:
         raise InputError(
             f"discharge.clog_time = {cfg.discharge.clog_time:g} s is shorter than the first "
