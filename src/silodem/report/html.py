@@ -167,6 +167,11 @@ def _event_rows(events: dict) -> list[tuple[str, str, str]]:
     return out
 
 
+def _snapshot_name(view: str) -> str:
+    """The figure name of a force-network view ("end-of-filling" -> network_end_of_filling)."""
+    return f"network_{view.replace('-', '_')}"
+
+
 _SNAPSHOT_CAPTIONS = {
     "end-of-filling": "Force network at the end of filling (settled), from the saved frames.",
     "early-discharge": "Force network early in the discharge (15 % of the discharge time).",
@@ -185,7 +190,7 @@ def render_snapshots(folder: Path, fig_dir: Path) -> list[tuple[str, str, bytes]
         pngs = {}
     out = []
     for view, caption in _SNAPSHOT_CAPTIONS.items():
-        name = f"network_{view.replace('-', '_')}"
+        name = _snapshot_name(view)
         if view not in pngs:
             (fig_dir / f"{name}.png").unlink(missing_ok=True)
             continue
@@ -247,8 +252,8 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     parts.append("<h2>Force network snapshots</h2>")
     if len(snapshots) < len(_SNAPSHOT_CAPTIONS):
         shown = {name for name, _, _ in snapshots}
-        missing = [f"network_{view.replace('-', '_')}" for view in _SNAPSHOT_CAPTIONS
-                   if f"network_{view.replace('-', '_')}" not in shown]
+        missing = [_snapshot_name(view) for view in _SNAPSHOT_CAPTIONS
+                   if _snapshot_name(view) not in shown]
         parts.append(f"<p class='warn'>Left out: {html.escape(', '.join(missing))}; they are "
                      "drawn from the frames saved beside results.h5 (frames/), which are "
                      "missing or hold no frame of that moment (a run without discharge has "
