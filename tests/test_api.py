@@ -28,6 +28,12 @@ def test_scenario_takes_dotted_keys_and_quick():
         api.scenario("paper-case2", set={"material.friction": 25.0})
     with pytest.raises(InputError, match="not a TOML value"):
         api.scenario("paper-case2", set={"material.kn": object()})
+    # the messages name the API's argument, not the command line's --set
+    with pytest.raises(InputError, match=r"\(from set material.kn=-1\)$") as bad:
+        api.scenario("paper-case2", set={"material.kn": -1})
+    assert "--set" not in str(bad.value)
+    with pytest.raises(InputError, match=r"^set material.kn.x=1: 'material.kn' is a value"):
+        api.scenario("paper-case2", set={"material.kn.x": 1})
 
 
 def test_tables_are_the_datasets_of_results_h5(res):
@@ -184,6 +190,7 @@ def _unfinished(parent):
     (lambda r: api.open_results(""), "folder must be"),  # was the current folder
     (lambda r: api.run(r.config, r.folder.parent / "a\0b"), "not a usable path"),
     (lambda r: api.scenario(set={"material.kn=3": 1e7}), "a key is a dotted name"),
+    (lambda r: api.scenario(set={" ": 1e7}), "a key is a dotted name"),
     (lambda r: study.load_study(None), "source must be a study's name"),
     # a key model_copy(update=...) does not know was dropped without a word before
     (lambda r: api.run(r.config.model_copy(update={"sed": 7}), r.folder / "n"),

@@ -56,14 +56,14 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
             value = value.item()
         if isinstance(value, Mapping):
             raise InputError(f"set {key!r}: give each value by its dotted key, not a table")
-        if not isinstance(key, str) or "=" in key:
+        if not isinstance(key, str) or "=" in key or not key.strip():
             raise InputError(f"set {key!r}: a key is a dotted name such as 'material.kn' "
                              "(its value goes on the right of the colon)")
         try:
             sets.append(f"{key}={_toml_value(value)}")
         except TypeError:
             raise InputError(f"set {key!r}: {value!r} is not a TOML value") from None
-    cfg = load_config(str(source), sets)
+    cfg = load_config(str(source), sets, flag="set")
     return quick_variant(cfg) if quick else cfg
 
 

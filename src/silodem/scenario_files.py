@@ -137,42 +137,47 @@ def _short(item: str, limit: int = 60) -> str:
     return item if len(item) <= limit else item[: limit - 3] + "..."
 
 
-def _split_set(item: str) -> tuple[list[str], str]:
+def _split_set(item: str, flag: str = "--set") -> tuple[list[str], str]:
     key, sep, value = item.partition("=")
     key = key.strip()
     if not sep or not key:
         raise InputError(
-            f"--set '{_short(item)}': expected dotted.key=value, e.g. --set material.kn=2e7"
+            f"{flag} '{_short(item)}': expected dotted.key=value, e.g. {flag} material.kn=2e7"
         )
     return [p.strip() for p in key.split(".")], value.strip()
 
 
-def _check_key(parts: list[str], item: str) -> None:
+def _check_key(parts: list[str], item: str, flag: str = "--set") -> None:
     """Raise InputError when ``parts`` is not a key path of the schema."""
     model: type[BaseModel] | None = Config
     for i, part in enumerate(parts):
         if model is None:
             section = ".".join(parts[:i])
             raise InputError(
-                f"--set {_short(item)}: '{section}' is a value, not a section, so "
+                f"{flag} {_short(item)}: '{section}' is a value, not a section, so "
                 f"'{'.'.join(parts)}' does not exist"
             )
         if part not in model.model_fields:
-            raise InputError(f"--set {_short(item)}: {unknown_key_message(Config, parts[: i + 1])}")
+            raise InputError(
+                f"{flag} {_short(item)}: {unknown_key_message(Config, parts[: i + 1])}"
+            )
         model = submodel(model.model_fields[part].annotation)
 
 
-def apply_sets(data: dict[str, Any], sets: Iterable[str]) -> dict[str, Any]:
-    """Apply ``dotted.key=value`` overrides to the raw dict ``data`` (in place; returned)."""
+def apply_sets(data: dict[str, Any], sets: Iterable[str],
+               flag: str = "--set") -> dict[str, Any]:
+    """Apply ``dotted.key=value`` overrides to the raw dict ``data`` (in place; returned);
+    ``flag`` names where they came from in error messages (``--set``, or ``set`` for the
+    Python API)."""
     for item in sets:
-        parts, text = _split_set(item)
-        _check_key(parts, item)
+        parts, text = _split_set(item, flag)
+        _check_key(parts, item, flag)
         node = data
         for i, part in enumerate(parts[:-1]):
             child = node.setdefault(part, {})
             if not isinstance(child, dict):
                 raise InputError(
-                    f"--set {_short(item)}: '{'.'.join(parts[: i + 1])}' holds a value, "
+                    f"{flag} {_short(item)}: '{'.'.join(parts[: i + 1])}' holds a value, "
                     "not a section"
                 )
             node = child
@@ -195,7 +200,7 @@ def config_from_text(text: str, where: str, error: type[InputError] = InputError
         raise error(f"{where} does not load: {detail}") from None
 
 
-def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
+def _validate(data: dict[str, Any], sets: Iterable[str] = (), flag: str = "--set") -> Config:
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
@@ -205,7 +210,7 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = ()) -> Config:
         for item in reversed(list(sets)):  # the last --set of a key is the one in force
             key = item.partition("=")[0].strip()
             if dotted and (key == dotted or dotted.startswith(key + ".")):
-                message += f" (from --set {_short(item)})"
+                message += f" (from {flag} {_short(item)})"
                 break
         raise InputError(message) from None
 
@@ -231,17 +236,18 @@ def _put_strays(model: BaseModel, data: dict[str, Any]) -> None:
             _put_strays(value, data[key])
 
 
-def load_config(source: str, sets: Iterable[str] = ()) -> Config:
+def load_config(source: str, sets: Iterable[str] = (), flag: str = "--set") -> Config:
     """The validated :class:`Config` of an embedded scenario name or a ``.toml`` path.
 
-    ``sets`` are ``dotted.key=value`` overrides applied before validation.  Every problem
+    ``sets`` are ``dotted.key=value`` overrides applied before validation (``flag`` names
+    them in messages: ``--set`` on the command line, ``set`` in the Python API).  Every problem
     (missing file, malformed TOML, unknown scenario or key, bad value) raises
     :class:`InputError` with a one-line message.
     """
     sets = list(sets)
     data = _read_source(str(source))
-    apply_sets(data, sets)
-    return _validate(data, sets)
+    apply_sets(data, sets, flag)
+    return _validate(data, sets, flag)
 
 
 # --- writing -------------------------------------------------------------------------------
