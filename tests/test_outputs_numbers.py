@@ -315,6 +315,7 @@ def test_heatmaps_are_seed_means_of_the_documented_quantities(study):
         texts = {tuple(np.round(t.get_position()).astype(int)): t.get_text() for t in ax.texts}
         for (r, c), v in np.ndenumerate(expected):
             assert _shown_ok(texts[(c, r)], v, 3), (column, r, c, texts[(c, r)])
+        assert not any(t.endswith("*") for t in texts.values())  # no fit errors in these rows
         if column.endswith("change_pct"):
             lim = max(abs(v) for v in expected[ok])
             assert ax.images[0].get_clim() == pytest.approx((-lim, lim), rel=REL)
@@ -322,6 +323,29 @@ def test_heatmaps_are_seed_means_of_the_documented_quantities(study):
         assert [t.get_text() for t in ax.get_xticklabels()] == [
             f"phiG={g}, phiP={p}" for g, p in COLS]
     assert any(np.isnan(_seed_mean("discharge_rate", r, c)) for r in range(3) for c in range(4))
+
+
+def test_heatmap_of_K_stars_the_cells_where_a_run_poorly_determines_it(study):
+    """As the run report says of K (error over half of it: poorly determined), the K map
+    stars the cells where any seed's K has an error over half its value or no finite error;
+    a row without the error column (a study written before it) is not starred."""
+    plan, rows, _, _ = study
+    shaky = {(2, 0, 1): 0.6, (0, 3, 0): math.nan, (1, 1, 0): 0.5}  # error / K; 0.5 is not over
+    with_err = []
+    for row in rows:
+        r, c, s = _index(next(run for run in plan.runs if run.id == row["id"]))
+        row = dict(row, janssen_K_fill_err=shaky.get((r, c, s), 0.1) * row["janssen_K_fill"])
+        if (r, c, s) == (1, 2, 0):  # the only run at (1, 2): an old row, not starred
+            del row["janssen_K_fill_err"]
+        with_err.append(row)
+    fig = fig_heatmaps(plan, {r["id"]: r for r in with_err}, layout_of(plan))
+    ax = [a for a in fig.axes if a.images][HEATMAP_COLUMNS.index("janssen_K_fill")]
+    starred = {tuple(np.round(t.get_position()).astype(int))[::-1] for t in ax.texts
+               if t.get_text().endswith("*")}
+    assert starred == {(2, 0), (0, 3)}
+    assert "poorly determined (error over half the value)" in ax.get_title()
+    others = [a for a in fig.axes if a.images and a is not ax]
+    assert not any(t.get_text().endswith("*") for a in others for t in a.texts)
 
 
 # --- Fig. 7: the switch-zone series of every case ----------------------------------------------

@@ -34,7 +34,7 @@ from silodem.report.draw import (
     tight_layout,
 )
 from silodem.report.html import PAGE_CSS, QUICK_CAVEAT, html_table
-from silodem.report.numbers import significant
+from silodem.report.numbers import poorly_determined, significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
 from silodem.study.table import (
@@ -247,10 +247,27 @@ HEATMAPS = [
     ("coordination_discharge", "coordination number at the junction, discharge [-]",
      "viridis", False),
 ]
+# heat maps whose cells are starred where a run's fit is poorly determined: value -> its error
+FIT_ERRORS = {"janssen_K_fill": "janssen_K_fill_err"}
+
+
+def _poorly_fitted(rows_by_id: dict, runs: list[PlannedRun], column: str) -> bool:
+    """Whether any run of ``runs`` has a finite ``column`` whose standard error (the column
+    ``FIT_ERRORS[column]``) is over half of it or not finite, as the run report says of K.
+    A row written before the error column existed is not starred."""
+    for run in runs:
+        row = rows_by_id.get(run.id)
+        if row is None or FIT_ERRORS[column] not in row:
+            continue
+        value = as_float(row.get(column))
+        if math.isfinite(value) and poorly_determined(value, as_float(row[FIT_ERRORS[column]])):
+            return True
+    return False
 
 
 def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
-    """One heat map per quantity over the grid (seed means, the value written in each cell)."""
+    """One heat map per quantity over the grid (seed means, the value written in each cell;
+    a star where a run's fitted value there is poorly determined, see ``FIT_ERRORS``)."""
     n = len(HEATMAPS)
     ncols = 2
     nrows = math.ceil(n / ncols)
@@ -268,10 +285,16 @@ def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | Non
             lim = float(np.max(np.abs(finite))) or 1.0
             kw = {"vmin": -lim, "vmax": lim}
         im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, aspect="auto", **kw)
+        starred = False
         for (i, j), v in np.ndenumerate(grid):
-            ax.text(j, i, significant(v), ha="center",
+            star = column in FIT_ERRORS and math.isfinite(v) and _poorly_fitted(
+                rows_by_id, _runs_at(plan, lay, lay.rows[i], lay.cols[j]), column)
+            starred |= star
+            ax.text(j, i, significant(v) + ("*" if star else ""), ha="center",
                     va="center", fontsize=7, color="k",
                     bbox={"facecolor": "white", "alpha": 0.6, "lw": 0, "pad": 1})
+        if starred:
+            title += "\n*: a run's fit there is poorly determined (error over half the value)"
         ax.set_xticks(range(len(lay.cols)), [lay.col_label(c) for c in lay.cols], fontsize=7,
                       rotation=20, ha="right")
         ax.set_yticks(range(len(lay.rows)), [lay.row_label(r) for r in lay.rows], fontsize=7)
