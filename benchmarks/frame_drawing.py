@@ -58,7 +58,7 @@ def seconds_per_frame(artist: FrameArtist, frame: Frame, repeat: int) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--grains", type=float, nargs="+", default=[1e4, 1e5, 1e6])
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()

@@ -37,7 +37,7 @@ def timed(law: str, nx: int, ny: int, settle: int, steps: int, modulus: float):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=int, default=31_700)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--settle", type=int, default=10_000)

@@ -225,7 +225,7 @@ def show(row):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--copies", default="1,10,100", help="comma-separated silo counts")
     ap.add_argument("--settle", type=int, default=10_000)
     ap.add_argument("--steps", type=int, default=500)
