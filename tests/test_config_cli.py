@@ -93,6 +93,10 @@ def test_config_to_toml_lists_defaults_and_keeps_set_optional_values(tmp_path):
     cfg = load_config("paper-case2", ["time.dt=1e-4", "material.damping_ratio=0.3"])
     text = config_to_toml(cfg)
     assert "sample_interval" in text and "local_damping" in text
+    # the scenario's e = 0.5 is not in force beside zeta: shown unset (it was 'restitution =
+    # 0.5' beside 'damping_ratio = 0.3'), and zeta is the damping the contacts get
+    assert cfg.material.restitution is None and cfg.material.normal_damping_ratio == 0.3
+    assert "# restitution is unset;" in text and "\nrestitution =" not in text
     path = tmp_path / "c.toml"
     path.write_text(text)
     assert load_config(str(path)) == cfg

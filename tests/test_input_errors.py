@@ -146,6 +146,17 @@ def test_a_measurement_circle_outside_the_silo_is_refused_before_the_run(capsys,
     assert not out.exists()
 
 
+@pytest.mark.parametrize("name, needle", [
+    ("band", "'band' is the junction band's name"),  # its columns replaced the band's (api)
+    (" ", "must not be empty"),
+])
+def test_circle_names_that_clash_or_are_blank_are_refused(capsys, name, needle):
+    sets = [f"measure.circle_names=[\"{name}\"]", "measure.circle_x=[1.5]",
+            "measure.circle_z=[0.6]", "measure.circle_radius=[0.3]"]
+    assert_names(refused(capsys, "show", *[arg for s in sets for arg in ("--set", s)]),
+                 "measure.circle_names", needle)
+
+
 def test_restitution_and_damping_ratio_together_are_refused(capsys):
     """damping_ratio replaced a given restitution without a word."""
     line = refused(capsys, "show", "--set", "material.damping_ratio=0.3",

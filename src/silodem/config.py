@@ -14,7 +14,7 @@ keys of the law not chosen are refused, not ignored (``law_keys``).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -77,6 +77,18 @@ class Material(_Strict):
         False, description="allow an attractive normal force while a contact separates"
     )
 
+    @model_validator(mode="before")
+    @classmethod
+    def _damping_ratio_replaces_restitution(cls, data: Any) -> Any:
+        """A damping_ratio beside the default restitution (a scenario file's e = 0.5 and a
+        ``--set material.damping_ratio``) leaves restitution unset, so that the resolved and
+        saved config show only the damping in force; another restitution is refused below."""
+        default_e = cls.model_fields["restitution"].default
+        if (isinstance(data, dict) and data.get("damping_ratio") is not None
+                and data.get("restitution", default_e) == default_e):
+            data = {**data, "restitution": None}
+        return data
+
     @model_validator(mode="after")
     def _check(self) -> Material:
         if self.radius_max < self.radius_min:
@@ -85,8 +97,7 @@ class Material(_Strict):
                 f"({self.radius_min})"
             )
         law_keys(self, "material", self.contact_model)
-        default_e = type(self).model_fields["restitution"].default
-        if self.damping_ratio is not None and self.restitution not in (None, default_e):
+        if self.damping_ratio is not None and self.restitution is not None:
             raise ValueError(
                 f"material.restitution ({self.restitution}) and material.damping_ratio "
                 f"({self.damping_ratio}) both set the normal damping; give one of them"
@@ -357,6 +368,11 @@ class Measure(_Strict):
                              "have the same length")
         if len(set(self.circle_names)) != len(self.circle_names):
             raise ValueError("measure.circle_names must be unique")
+        if not all(name.strip() for name in self.circle_names):
+            raise ValueError("measure.circle_names must not be empty")
+        if "band" in self.circle_names:  # the junction band's columns are band_* (api.py)
+            raise ValueError("measure.circle_names: 'band' is the junction band's name; "
+                             "give the circle another")
         for key in ("circle_x", "circle_z", "circle_radius"):
             if not all(math.isfinite(v) for v in lists[key]):
                 raise ValueError(f"measure.{key} must hold finite numbers")

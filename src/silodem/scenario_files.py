@@ -265,7 +265,8 @@ def _field_lines(model: BaseModel, width: int) -> list[str]:
         value = getattr(model, name)
         desc = one_line(field.description or "")
         if value is None:
-            lines.append(f"# {name} is unset (the default)" + (f"; {desc}" if desc else ""))
+            default = " (the default)" if field.default is None else ""
+            lines.append(f"# {name} is unset{default}" + (f"; {desc}" if desc else ""))
             continue
         text = f"{name} = {_toml_value(value)}"
         lines.append(f"{text:<{width}}  # {desc}" if desc else text)
