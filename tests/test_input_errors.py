@@ -86,6 +86,16 @@ def test_a_section_that_is_not_a_table_is_refused(capsys, tmp_path, replacement)
     assert_names(refused(capsys, "show", str(path)), "material")
 
 
+def test_a_quoted_dotted_key_is_named_as_written(capsys, tmp_path):
+    """'"settle.threshold" = 0.01' is one key named settle.threshold at the top level (TOML):
+    the message said "unknown key 'settle.threshold' (did you mean 'settle.threshold'?)"."""
+    text = config_to_toml(load_config("paper-case2"))
+    path = tmp_path / "quoted.toml"
+    path.write_text('"settle.threshold" = 0.01\n' + text)
+    assert_names(refused(capsys, "show", str(path)), "unknown key '\"settle.threshold\"'",
+                 "write settle.threshold without quotes")
+
+
 def test_a_file_that_is_not_toml_at_all_is_refused(capsys, tmp_path):
     path = tmp_path / "binary.toml"
     path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00")

@@ -8,6 +8,8 @@ and what is allowed; the command line prints it as is and exits with code 2, no 
 from __future__ import annotations
 
 import difflib
+import json
+import re
 import types
 import typing
 from collections.abc import Iterable, Sequence
@@ -121,10 +123,18 @@ def suggest_key(root: type[BaseModel], parts: Sequence[str]) -> str | None:
     return leaves[hit] if hit is not None else None
 
 
+def _toml_key(parts: Sequence[str]) -> str:
+    """The key path with a part that holds a dot or a space (``"settle.threshold"`` quoted in
+    a TOML file is one name) or nothing in double quotes, as TOML writes it."""
+    return ".".join(json.dumps(p) if not p or re.search(r"[.\s]", p) else p for p in parts)
+
+
 def unknown_key_message(root: type[BaseModel], parts: Sequence[str]) -> str:
     """``unknown key 'a.b' (did you mean 'a.c'?)``, or the keys allowed at that level."""
-    dotted = ".".join(parts)
+    dotted = _toml_key(parts)
     hint = suggest_key(root, parts)
+    if hint is not None and hint == ".".join(parts):  # '"settle.threshold" = 1' at the top
+        return f"unknown key '{dotted}': a quoted key is one name; write {hint} without quotes"
     if hint is not None:
         return f"unknown key '{dotted}' (did you mean '{hint}'?)"
     parent = model_at(root, parts[:-1])
