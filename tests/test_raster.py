@@ -140,3 +140,25 @@ def test_the_colour_scale_over_many_grains_is_taken_from_a_thinned_sample(monkey
     monkeypatch.setattr(draw, "SCALE_SAMPLE", 10**9)  # all of them: the exact percentile
     assert FrameArtist(frames, "velocity").norm.vmax == pytest.approx(
         np.percentile(speeds, 95.0), rel=1e-6)
+
+
+def test_a_wide_silo_gets_a_lower_figure_not_one_wider_than_the_codec_takes():
+    """A flat silo 70 m wide and 1 m tall drawn 800 px tall was 26,800 px wide, which libx264
+    refused after every frame had been drawn: the figure is at most WIDTH_PX_MAX wide, lower
+    instead, with equal scales on both axes (metres per pixel the same in x and z)."""
+    from silodem.silo.frames import WallGeometry
+    from silodem.viz.draw import WIDTH_PX_MAX
+
+    lattice = _many_grains(10)
+    walls = WallGeometry(["floor", "left", "right"], np.array([0.0, 0.0, 70.0]),
+                         np.array([0.0, 1.0, 1.0]), np.array([70.0, 0.0, 70.0]), np.zeros(3))
+    frames = Frames(list(lattice), walls, {}, {}, "wide")
+    artist = FrameArtist(frames, "velocity", height_px=800)
+    assert artist.width_px <= WIDTH_PX_MAX and artist.height_px < 800
+    artist.draw(frames[0])
+    assert artist.rgb().shape[:2] == (artist.height_px, artist.width_px)
+    box = artist.ax.get_window_extent()
+    m_per_px = [(hi - lo) / size for (lo, hi), size in
+                ((artist.ax.get_xlim(), box.width), (artist.ax.get_ylim(), box.height))]
+    assert m_per_px[0] == pytest.approx(m_per_px[1], rel=0.02)
+    assert box.width > 0.9 * (WIDTH_PX_MAX - 200)  # the room is used, not a thin strip

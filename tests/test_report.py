@@ -490,6 +490,39 @@ def test_settled_and_final_pictures_have_a_force_colour_bar(run_dir, monkeypatch
     assert "normal contact force F_n [N]" in labels
 
 
+def test_settled_picture_frames_the_silo_at_any_size(run_dir, monkeypatch, tmp_path):
+    """Margins of a fixed 0.3-0.5 m put a silo 0.2 m wide in a seventh of settled.png: the
+    same silo and grains scaled by 0.05 or 20 are framed alike, the axes' limits scaled by
+    the same factor (the picture of a similar silo is similar), the walls spanning most of
+    either axis and every grain inside them."""
+    import silodem.report.draw
+    from silodem.output import draw_state
+    from silodem.report.load import load_results
+
+    saved, save = [], silodem.report.draw.save_png
+    monkeypatch.setattr(silodem.report.draw, "save_png",
+                        lambda fig, target: (saved.append(fig), save(fig, target)))
+    res = load_results(run_dir, only=("walls", "settled"))
+    snap = res.snapshot("settled")
+    limits = {}
+    for scale in (1.0, 0.05, 20.0):
+        p = dict(snap["particles"])
+        for key in ("x", "y", "radius"):
+            p[key] = np.asarray(p[key], dtype=float) * scale
+        walls = {k: np.asarray(v) * scale if k in ("ax", "ay", "bx", "by") else v
+                 for k, v in res.group("walls").items()}
+        draw_state({**snap, "particles": p}, walls, tmp_path / "s.png", "scaled")
+        ax = saved[-1].axes[0]
+        (x0, x1), (z0, z1) = limits[scale] = ax.get_xlim(), ax.get_ylim()
+        wx = np.concatenate([walls["ax"], walls["bx"]])
+        wz = np.concatenate([walls["ay"], walls["by"]])
+        assert np.ptp(wx) > 0.7 * (x1 - x0) and np.ptp(wz) > 0.7 * (z1 - z0)
+        assert x0 <= wx.min() and wx.max() <= x1 and z0 <= (p["y"] - p["radius"]).min()
+        assert (p["y"] + p["radius"]).max() <= z1
+    for scale in (0.05, 20.0):
+        np.testing.assert_allclose(limits[scale], np.multiply(limits[1.0], scale), rtol=1e-6)
+
+
 def test_the_run_events_table_gives_each_event_its_meaning_and_unit(run_dir):
     """The events table showed raw attribute names and bare numbers (initial_mass 4074.7):
     every event a run writes, and every one docs/output.md lists, has its meaning and unit."""

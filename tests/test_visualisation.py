@@ -516,15 +516,19 @@ def test_animate_mp4_has_one_video_frame_per_saved_frame(run_dir, h5):
 
 
 def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):
+    """GIF stores a frame's delay in whole hundredths of a second: --fps 15 is 100 / 7 =
+    14.3 frames per second, and the summary says so (it said 15 while Pillow had rounded
+    66.7 ms down to 60, 16.7 fps)."""
     res = cli("animate", str(run_dir), "--color", "coordination", "--format", "gif",
-              "--fps", "5")
+              "--fps", "15")
     assert res.returncode == 0, res.stderr
+    assert "14.3 fps for --fps 15" in res.stdout
     images = []
     with Image.open(run_dir / "animation.gif") as gif:
         assert gif.n_frames == h5["frame_time"].size
         for k in range(gif.n_frames):
             gif.seek(k)
-            assert gif.info["duration"] == 200
+            assert gif.info["duration"] == 70
             images.append(np.asarray(gif.convert("RGB")))
     _check_frames_differ_and_not_blank(images)
 

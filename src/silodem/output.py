@@ -108,14 +108,24 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
     from silodem.report.draw import draw_force_network, save_png, tight_layout
 
     p = snap["particles"]
-    fig, ax = plt.subplots(figsize=(6.6, 9), dpi=110)
-    lines, _ = draw_force_network(ax, snap, walls)
     wall_x = np.concatenate([walls["ax"], walls["bx"]])
     wall_y = np.concatenate([walls["ay"], walls["by"]])
-    low = min(-0.5, float(wall_y.min()), float(np.min(p["y"] - p["radius"], initial=0.0)))
+    # margins scaled to the silo, as the animation's (viz.draw.FrameArtist): fixed ones of
+    # 0.3-0.5 m left a silo 0.2 m wide in a seventh of the picture
+    r_max = float(np.max(p["radius"], initial=0.0))
+    margin = max(0.05 * float(np.ptp(wall_y)), 3 * r_max)
+    low = min(float(wall_y.min()) - 5.5 * r_max,
+              float(np.min(p["y"] - p["radius"], initial=np.inf)))
+    xlim = (float(wall_x.min()) - margin, float(wall_x.max()) + margin)
+    ylim = (low, float(wall_y.max()) + margin)
+    # a tall silo in a portrait figure, a wide one in a landscape figure (9 in on the long side)
+    aspect = (xlim[1] - xlim[0]) / (ylim[1] - ylim[0])
+    size = (max(3.5, 9 * aspect) + 1.6, 9) if aspect <= 1 else (12 + 1.6, max(3, 12 / aspect) + 1)
+    fig, ax = plt.subplots(figsize=size, dpi=110)
+    lines, _ = draw_force_network(ax, snap, walls)
     ax.set_aspect("equal")
-    ax.set_xlim(float(wall_x.min()) - 0.3, float(wall_x.max()) + 0.3)
-    ax.set_ylim(low, float(wall_y.max()) + 0.3)
+    ax.set_xlim(*xlim)
+    ax.set_ylim(*ylim)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(title, fontsize=9)

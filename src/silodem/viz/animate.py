@@ -32,6 +32,7 @@ class AnimationResult:
     seconds: float  # wall time spent rendering and encoding [s]
     width: int
     height: int
+    fps: float  # frames per second the file plays at (a GIF's: 100 / its delay in 1/100 s)
 
 
 def load_run_frames(run_dir: Path | str) -> Frames:
@@ -161,8 +162,9 @@ def render_animation(plan: AnimationPlan,
     finally:
         if tmp.exists():
             tmp.unlink()
+    played = plan.fps if fmt == "mp4" else 100.0 / gif_delay_cs(plan.fps)
     return AnimationResult(out_path, total, time.perf_counter() - t0, artist.width_px,
-                           artist.height_px)
+                           artist.height_px, played)
 
 
 def _write_mp4(path: Path, pictures, fps: int) -> None:
@@ -178,6 +180,13 @@ def _write_mp4(path: Path, pictures, fps: int) -> None:
         writer.close()
 
 
+def gif_delay_cs(fps: int) -> int:
+    """A GIF frame's delay [1/100 s] nearest to ``1 / fps``: GIF stores whole hundredths of
+    a second (Pillow rounds its milliseconds down to them), and browsers play delays under
+    2/100 s slower, so at most 50 frames per second (15 fps plays at 100 / 7 = 14.3)."""
+    return max(2, round(100 / fps))
+
+
 def _write_gif(path: Path, pictures, fps: int) -> None:
     from PIL import Image
 
@@ -185,4 +194,4 @@ def _write_gif(path: Path, pictures, fps: int) -> None:
     images = [Image.fromarray(np.ascontiguousarray(rgb)).quantize(colors=255, method=fast)
               for rgb in pictures]
     images[0].save(path, format="GIF", save_all=True, append_images=images[1:],
-                   duration=max(20, round(1000 / fps)), loop=0, optimize=False, disposal=1)
+                   duration=10 * gif_delay_cs(fps), loop=0, optimize=False, disposal=1)

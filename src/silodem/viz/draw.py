@@ -43,6 +43,9 @@ CHAIN_COLOR = "#c0152f"
 PLAIN_GRAIN = "#ddd5c4"
 _MAX_COORD = 7
 HEIGHT_PX = (200, 8000)  # the heights [px] a figure may have (room for its axes and key)
+# the widest figure [px]: libx264 refused a 26,800 px wide frame (a silo 70 m wide and 1 m
+# tall), after every frame had been drawn; wider silos get a lower figure
+WIDTH_PX_MAX = 8000
 
 
 # force-line widths [pt]: CHAIN_WIDTH at the run's force scale, clipped to CHAIN_WIDTHS
@@ -163,11 +166,15 @@ class FrameArtist:
         # the figure: axes sized to the silo (equal scales), a colour bar on the right [px]
         dpi = 100
         aspect = (self.xlim[1] - self.xlim[0]) / (self.ylim[1] - self.ylim[0])
-        self.height_px = h = _even16(height_px)
+        h = _even16(height_px)
         left, bottom, top = 62, 45, 28
+        right = 120 if self.norm is not None else 24
+        widest_plot = WIDTH_PX_MAX - left - right - 16  # (room for the rounding to 16 px)
+        if aspect * (h - bottom - top) > widest_plot:  # a wide silo: lower, not wider
+            h = max(96, 16 * int((widest_plot / aspect + bottom + top) // 16))
+        self.height_px = h
         plot_h = h - bottom - top
         plot_w = aspect * plot_h
-        right = 120 if self.norm is not None else 24
         self.width_px = w = _even16(left + plot_w + right + 8)
         # grains under RASTER_BELOW_PX across even at their largest: drawn as cells of pixels
         diameter_px = 2.0 * r_max * plot_h / (self.ylim[1] - self.ylim[0])
