@@ -675,6 +675,23 @@ def test_force_network_pictures_of_filling_and_discharge(run_dir, frames, h5):
                                                                     "final")
 
 
+def test_force_network_pictures_are_of_distinct_moments_and_need_frames(frames):
+    """With one saved discharge frame the early and late discharge pictures were the same
+    picture under two labels: the late one is left out.  Frames without any frame are a
+    ValueError, as the docstring says (an empty dict before)."""
+    from silodem.silo.frames import Frames
+    from silodem.viz import force_network_pngs
+
+    first_out = next(k for k, p in enumerate(frames.phases) if p == "discharge")
+    one = Frames([frames[k] for k in range(first_out + 1)], frames.walls, {}, frames.attrs)
+    assert list(force_network_pngs(one)) == ["end-of-filling", "early-discharge"]
+    two = Frames([frames[k] for k in range(first_out + 2)], frames.walls, {}, frames.attrs)
+    assert list(force_network_pngs(two)) == ["end-of-filling", "early-discharge",
+                                             "late-discharge"]
+    with pytest.raises(ValueError, match="has no frames"):
+        force_network_pngs(Frames([], frames.walls, {}, frames.attrs))
+
+
 @pytest.mark.parametrize("call, needle", [
     (lambda d: _network(d, float("inf")), "a time in seconds; got inf"),
     (lambda d: _network(d, float("nan")), "a time in seconds; got nan"),

@@ -62,7 +62,7 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
             write_snapshot(h5.create_group(name), snap)
 
 
-PICTURES = {"settled": "end of settling", "final": "end of run"}  # file stem: caption
+PICTURES = {"settled": "end of filling (settled)", "final": "end of run"}  # stem: caption
 
 
 def write_views(folder: Path | str) -> list[Path]:

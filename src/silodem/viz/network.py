@@ -49,8 +49,9 @@ def select_frame(frames: Frames, which: str | float) -> Frame:
                      "'settled' or a time in seconds")
 
 
-_LABEL = {"end-of-filling": "end of filling", "early-discharge": "early discharge",
-          "late-discharge": "late discharge", "final": "end of run", "settled": "end of filling"}
+_LABEL = {"end-of-filling": "end of filling (settled)", "early-discharge": "early discharge",
+          "late-discharge": "late discharge", "final": "end of run",
+          "settled": "end of filling (settled)"}
 
 
 def force_network_png(results_h5: Path | str | Frames, which: str | float = "end-of-filling",
@@ -95,19 +96,24 @@ def _png(artist, frame: Frame, which: str | float) -> bytes:
 
 
 def force_network_pngs(results_h5: Path | str | Frames) -> dict[str, bytes]:
-    """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge),
+    """The PNGs of ``VIEWS`` that the run has (no discharge pictures without a discharge;
+    no late one when it would be the early one's frame: a discharge of one saved frame),
     drawn by one artist (one pass over the frames for its scales), as ``force_network_png``
-    draws each."""
+    draws each.  ValueError (one line) when the file has no frames."""
     from silodem.viz.draw import FrameArtist
 
     frames = _frames(results_h5)
-    if len(frames) == 0:
-        return {}
+    if len(frames) == 0:  # (as force_network_png says; the report takes it as no pictures)
+        raise ValueError("the run has no frames")
     artist = FrameArtist(frames, "none", height_px=700)
-    out = {}
+    out, drawn = {}, set()
     for view in VIEWS:
         try:
-            out[view] = _png(artist, select_frame(frames, view), view)
+            frame = select_frame(frames, view)
         except ValueError:
             continue
+        if frame.step in drawn:  # (frames read from a file are new objects each time)
+            continue
+        drawn.add(frame.step)
+        out[view] = _png(artist, frame, view)
     return out
