@@ -354,3 +354,14 @@ def test_a_warning_rewritten_after_it_was_printed_is_in_the_summary():
         "warning: grains lost in all: 65 grain(s)"]
     assert [line for line in summary.lines() if line.startswith("warning")] == [
         "warning: soft contacts", "warning: grains lost in all: 65 grain(s)"]
+
+
+def test_the_phase_time_limits_say_how_often_they_are_checked():
+    """A discharge.max_time of 0.01 s ended after 0.05 s: the procedure checks its phases
+    every CHECK_INTERVAL of simulated time, which the keys' descriptions (shown by 'silodem
+    show') now say, with the interval's value."""
+    from silodem.config import Discharge, Settle
+    from silodem.silo.procedure import CHECK_INTERVAL
+
+    for section in (Settle, Discharge):
+        assert f"checked every {CHECK_INTERVAL:g} s" in section.model_fields["max_time"].description

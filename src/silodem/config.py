@@ -214,8 +214,10 @@ class Settle(_Strict):
         description="'force_ratio': mean unbalanced force / mean contact force (PFC's ratio); "
         "'kinetic_energy': mean kinetic energy per grain [J]",
     )
-    threshold: float = Field(1e-3, gt=0, description="settled when the criterion is below this")
-    max_time: float = Field(10.0, gt=0, description="stop settling after this time [s] (warns)")
+    threshold: float = Field(1e-3, gt=0, description="settled when the criterion is below this "
+                             "([-] for force_ratio, [J] for kinetic_energy)")
+    max_time: float = Field(10.0, gt=0, description="stop settling after this time [s] (warns; "
+                            "checked every 0.05 s of simulated time)")
     min_time: float = Field(0.2, ge=0, description="settle at least this long [s]")
 
     @model_validator(mode="after")
@@ -233,7 +235,8 @@ class Discharge(_Strict):
     stop_fraction: float = Field(
         0.9, gt=0, le=1, description="stop when this mass fraction has left the silo [-]"
     )
-    max_time: float = Field(30.0, gt=0, description="stop after this discharge time [s]")
+    max_time: float = Field(30.0, gt=0, description="stop after this discharge time [s] "
+                            "(checked every 0.05 s of simulated time)")
     clog_time: float = Field(
         2.0, gt=0, description="no grain leaving for this long [s] means a clog (arch)"
     )
