@@ -157,7 +157,8 @@ class Silo(_Strict):
         gt=0,
         lt=90,
         description="hopper wall slope theta measured FROM THE HORIZONTAL [deg] (the paper's "
-        "'slope'; hopper theory uses 90 - theta, measured from the vertical)",
+        "'slope'; hopper theory uses 90 - theta, measured from the vertical); kind 'hopper' "
+        "only, a flat silo ignores it",
     )
 
     @model_validator(mode="after")
