@@ -315,6 +315,60 @@ def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, mon
     assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
 
 
+def test_a_second_signal_dropped_by_a_weakref_callback_still_stops_without_saving(
+        tmp_path, capsys):
+    """Python drops an exception raised inside a weakref callback and prints its traceback:
+    a second Ctrl-C that landed there printed 'Exception ignored in ... Traceback' and the
+    run went on to save.  The hard stop is now noted: nothing is printed, and the next chunk
+    hook raises it (no save)."""
+    import gc
+    import weakref
+
+    from silodem.errors import RunInterrupted
+    from silodem.safety import RunGuard
+
+    class Obj:
+        pass
+
+    def callback(_ref):
+        signal.raise_signal(signal.SIGINT)  # the handler runs in here: its raise is dropped
+        time.sleep(0.01)
+
+    guard = RunGuard(tmp_path, "", quick_config())
+    with guard.signals():
+        signal.raise_signal(signal.SIGINT)  # the first: save at the end of the chunk
+        assert guard.stop_signal == signal.SIGINT and guard.hard_stop is None
+        obj = Obj()
+        ref = weakref.ref(obj, callback)
+        del obj
+        gc.collect()
+        assert ref() is None and guard.hard_stop == signal.SIGINT
+        with pytest.raises(RunInterrupted, match="SIGINT again: stopped at once, without "
+                                                 "saving"):
+            guard(None)  # the chunk hook: before any check or save of the run
+    assert capsys.readouterr().err == ""
+    assert not list(tmp_path.iterdir())  # nothing saved
+
+
+def test_an_ignored_sigint_stays_ignored_during_a_run(tmp_path):
+    """'silodem run ... &' in a script starts with SIGINT ignored, as Python leaves it; the
+    run's handler took it over once the run began, so a SIGINT stopped it only then."""
+    from silodem.safety import RunGuard
+
+    guard = RunGuard(tmp_path, "", quick_config())
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with guard.signals():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL  # the run's
+            signal.raise_signal(signal.SIGINT)
+            time.sleep(0.01)
+            assert guard.stop_signal is None
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     """An old run's settled.png, report.html and figures stayed beside a new run that drew
     none, and a new run stopped before its first save left its config beside the old run's

@@ -250,6 +250,7 @@ class RunGuard:
         self.settings = cfg.checkpoint
         self.resume_from = resume_from
         self.stop_signal: int | None = None
+        self.hard_stop: int | None = None  # a second signal: stop without saving
         self.save_failed = False
         self.last_step = 0
         self.last_wall = wallclock.perf_counter()
@@ -284,6 +285,8 @@ class RunGuard:
 
     def __call__(self, run: SiloRun) -> None:
         """The chunk hook: check the state, then save if a signal came or a save is due."""
+        if self.hard_stop is not None:  # its raise was dropped (``signals``)
+            raise self._hard_stop_error()
         problem = find_problem(run)
         if problem is not None:
             self.fail(run, problem, during_step=False)
@@ -418,19 +421,34 @@ class RunGuard:
 
         def handler(signum: int, frame: Any) -> None:
             if self.stop_signal is not None:
-                raise RunInterrupted(f"{signal.Signals(signum).name} again: stopped at once, "
-                                     "without saving", signum)
+                self.hard_stop = signum  # (for the chunk hook, should the raise be dropped)
+                raise self._hard_stop_error()
             self.stop_signal = signum
             if sys.stderr.isatty():
                 sys.stderr.write(f"\nsilodem: {signal.Signals(signum).name}: saving at the end "
                                  "of the current chunk; send it again to stop at once\n")
 
+        def unraisable(info: Any) -> None:
+            """Python drops an exception raised inside a weakref callback or __del__ (a second
+            signal's, now and then) and prints its traceback: this one is kept quiet, and the
+            chunk hook raises it again."""
+            if not isinstance(info.exc_value, RunInterrupted):
+                before_hook(info)
+
         wanted = (signal.SIGINT, signal.SIGTERM)
-        previous = {s: signal.getsignal(s) for s in wanted}
-        for s in wanted:
+        # a signal ignored where silodem was started (SIGINT of 'silodem run ... &' in a
+        # script) stays ignored, as Python leaves it: it stopped the run only once this was set
+        previous = {s: h for s in wanted if (h := signal.getsignal(s)) is not signal.SIG_IGN}
+        for s in previous:
             signal.signal(s, handler)
+        before_hook, sys.unraisablehook = sys.unraisablehook, unraisable
         try:
             yield
         finally:
+            sys.unraisablehook = before_hook
             for s, old in previous.items():
                 signal.signal(s, old if old is not None else signal.SIG_DFL)
+
+    def _hard_stop_error(self) -> RunInterrupted:
+        name = signal.Signals(self.hard_stop).name
+        return RunInterrupted(f"{name} again: stopped at once, without saving", self.hard_stop)
