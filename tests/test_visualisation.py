@@ -254,6 +254,28 @@ def test_a_checkpoint_whose_frames_file_is_gone_is_refused_naming_it(frames, tmp
         FramesRecorder(0.1, store_dir=tmp_path / "frames").restore(state)
 
 
+def test_a_checkpoint_with_another_runs_frames_files_is_refused(frames, tmp_path):
+    """A checkpoint copied into another run's folder found segment files of the same names
+    holding other frames: the resume linked them, and reading /frames then failed in HDF5
+    ('different number of elements selected').  The row counts saved with the checkpoint
+    are checked against each file's tables."""
+    frames_list = list(frames)
+    rec = FramesRecorder(0.1, store_dir=tmp_path / "a" / "frames")
+    for frame in frames_list[:3]:
+        rec.frames.append(frame)
+        rec.write_out()
+    state = rec.state()
+    other = FramesRecorder(0.1, store_dir=tmp_path / "b" / "frames")
+    for frame in frames_list[-3:]:  # the same file names, other frames (other grains)
+        other.frames.append(frame)
+        other.write_out()
+    assert other.store.names == rec.store.names
+    with pytest.raises(ValueError, match=r"frames-00000\d-00000\d\.h5 is not the one this "
+                                         r"checkpoint wrote: it holds \["):
+        FramesRecorder(0.1, store_dir=tmp_path / "b" / "frames").restore(state)
+    FramesRecorder(0.1, store_dir=tmp_path / "a" / "frames").restore(state)  # its own: taken
+
+
 def test_frames_that_cannot_be_written_out_stay_held_for_the_next_save(frames, tmp_path,
                                                                       monkeypatch):
     """Writing out frames past the cap fails (a full disk): recording goes on with the

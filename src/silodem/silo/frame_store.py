@@ -136,13 +136,33 @@ class FrameStore:
         return {"names": np.array(self.names, dtype=str), "rows": self.rows.copy()}
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Inverse of ``state``; a listed segment file that is not there is a ValueError."""
+        """Inverse of ``state``; a listed segment file that is not there, or whose tables'
+        row counts are not the ones saved (another run's file of the same name: a checkpoint
+        copied into another run's folder), is a ValueError."""
+        import h5py
+
         self.names = [str(n) for n in np.asarray(state["names"]).tolist()]
         self.rows = np.asarray(state["rows"], dtype=np.int64).reshape(-1, 3)
+        if len(self.names) != len(self.rows):
+            raise ValueError(f"{len(self.names)} frame segments listed with "
+                             f"{len(self.rows)} row counts")
         gone = [n for n in self.names if not (self.folder / n).is_file()]
         if gone:
             raise ValueError(f"the saved frames' file {self.folder / gone[0]} is missing "
                              f"({len(gone)} of {len(self.names)} missing)")
+        for name, rows in zip(self.names, self.rows.tolist(), strict=True):
+            path = self.folder / name
+            try:
+                with h5py.File(path, "r") as h5:
+                    held = [h5[f"frames/{table}/{next(iter(fields))}"].shape[0]
+                            for table, fields in FIELDS.items()]
+            except (OSError, KeyError) as exc:
+                raise ValueError(f"the saved frames' file {path} cannot be read "
+                                 f"({exc})") from None
+            if held != rows:
+                raise ValueError(f"the saved frames' file {path} is not the one this "
+                                 f"checkpoint wrote: it holds {held} grain, contact and wall "
+                                 f"contact rows, not {rows} (another run's?)")
 
 
 def clear(folder: Path) -> None:
