@@ -283,7 +283,8 @@ class LoadedCheckpoint:
             self._restore(run)
         except CheckpointError:
             raise
-        except (KeyError, IndexError, ValueError, TypeError) as exc:  # what _check_parts missed
+        except (KeyError, IndexError, ValueError, TypeError, AttributeError) as exc:  # what
+            # _check_parts missed
             raise CheckpointError(f"{self.path} holds a state this run cannot take "
                                   f"({type(exc).__name__}: {one_line(exc)}); it cannot be "
                                   "resumed") from None
@@ -303,6 +304,9 @@ class LoadedCheckpoint:
         check_kinds(run.state, r["state"], "run.state")
         run.state = type(run.state)(**r["state"])
         rng_state = json.loads(r["rng"])
+        if not isinstance(rng_state, dict) or not isinstance(json.loads(r["events"]), dict):
+            raise CheckpointError(f"{self.path}: its random generator state or events are "
+                                  "not tables: it cannot be resumed")
         if rng_state.get("bit_generator") != type(run.rng.bit_generator).__name__:
             raise CheckpointError(f"{self.path}: random generator {rng_state.get('bit_generator')}"
                                   f" is not this silodem's {type(run.rng.bit_generator).__name__}")
@@ -405,3 +409,41 @@ def _check_parts(data: dict[str, Any], path: Path) -> None:
     if phase not in PHASES:
         raise CheckpointError(f"{path}: its phase {phase!r} is not one of {', '.join(PHASES)}: "
                               "it cannot be resumed")
+    taken = data["run"]["snapshots"]
+    needed = {"discharge": ("settled",), "done": ("settled", "final")}.get(phase, ())
+    lacking = [name for name in needed if not (isinstance(taken, dict) and name in taken)]
+    if lacking:  # (a phase edited by hand: 'done' gave a complete results.h5 without them)
+        raise CheckpointError(f"{path}: its phase {phase!r} comes after the {lacking[0]} "
+                              "snapshot, which it lacks: it cannot be resumed")
+    _check_neighbors(data["neighbors"], int(n), path)
+
+
+def _check_neighbors(nb: dict[str, Any], n: int, path: Path) -> None:
+    """CheckpointError when the neighbour list's offsets and indices do not fit its arrays
+    and the ``n`` grains: the kernels index with them unchecked, and a shortened pair_j or
+    i_start (a hand-edited file) ended the resume in a segmentation fault."""
+    def arr(key: str) -> np.ndarray:
+        value = nb.get(key)
+        return np.asarray(value) if isinstance(value, np.ndarray) else np.zeros(0, np.int64)
+
+    problems = []
+    for start, owned in (("i_start", ("pair_j", "pair_fs", "pair_fn")),
+                         ("w_start", ("wc_w", "wc_fs", "wc_fn", "wc_fx", "wc_fy"))):
+        offsets = arr(start)
+        sizes = {arr(k).size for k in owned}
+        if (offsets.size != n + 1 or len(sizes) != 1 or offsets[0] != 0
+                or np.any(np.diff(offsets) < 0) or offsets[-1] > min(sizes)):
+            problems.append(f"{start} and {', '.join(owned)}")
+    j = arr("pair_j")[: arr("i_start")[-1] if arr("i_start").size else 0]
+    if j.size and not (0 <= j.min() and j.max() < n):
+        problems.append("pair_j's grains")
+    for key in ("i_apart", "wall_gap"):
+        if arr(key).size != n:
+            problems.append(key)
+    for key in ("strip_start", "cell_start", "slot_of_uid"):
+        v = arr(key)
+        if v.size and not (-1 <= v.min() and v.max() <= n):
+            problems.append(key)
+    if problems:
+        raise CheckpointError(f"{path}: its neighbour list does not fit its {n} grains "
+                              f"({'; '.join(problems)}): it cannot be resumed")
