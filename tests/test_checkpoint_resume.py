@@ -583,6 +583,28 @@ def test_a_checkpoint_with_wrong_contents_is_refused_in_one_line(uninterrupted, 
     assert "\n" not in str(exc.value) and needle in str(exc.value), exc.value
 
 
+def test_bytes_changed_on_disk_in_a_checkpoints_arrays_are_refused(uninterrupted, tmp_path):
+    """4000 random bytes written over the middle of a checkpoint were resumed from without a
+    word (HDF5 keeps no checksum unless asked): its arrays carry Fletcher-32 checksums, and a
+    changed byte in the grains' positions is a one-line refusal when the file is read."""
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(quick_config()),
+                    reason="test")
+    read_checkpoint(path)  # unchanged: read
+    with h5py.File(path, "r") as h5:
+        ds = h5["particles/x"]
+        assert ds.fletcher32 and ds.size > 0
+        at = ds.id.get_chunk_info(0).byte_offset + 8
+    with open(path, "r+b") as f:
+        f.seek(at)
+        byte = f.read(1)
+        f.seek(at)
+        f.write(bytes([byte[0] ^ 0xFF]))
+    with pytest.raises(CheckpointError, match="cannot be read as a checkpoint") as exc:
+        read_checkpoint(path)
+    assert "\n" not in str(exc.value)
+
+
 def test_a_refused_resume_prints_one_line_and_no_progress_bar(uninterrupted, tmp_path):
     """A checkpoint refused while it is restored (inside the progress bar) printed the bar's
     last state ('start ... compiling kernels...') above the error: stderr is now the error's

@@ -86,8 +86,11 @@ def put(group: h5py.Group, name: str, value: Any) -> None:
             ds = group.create_dataset(name, data=value.astype(object),
                                       dtype=h5py.string_dtype())
             ds.attrs[_KIND] = "str_array"
-        elif value.dtype.kind in "biufc":
-            group.create_dataset(name, data=value)
+        elif value.dtype.kind in "biufc":  # with a checksum (HDF5's Fletcher-32), so that
+            # bytes changed on disk are refused on reading, not resumed from; one chunk (with
+            # the 1.10 format, save_checkpoint: no chunk index, no larger than without)
+            group.create_dataset(name, data=value, fletcher32=value.size > 0,
+                                 chunks=value.shape if value.size > 0 else None)
         else:
             raise TypeError(f"checkpoint: cannot store an array of dtype {value.dtype} ({name})")
     elif isinstance(value, dict):
@@ -220,7 +223,7 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
 
     Call it between two chunks of the procedure (a chunk hook), never inside a step."""
     sim = run.sim
-    with atomic_hdf5(path, track_order=True) as h5:
+    with atomic_hdf5(path, track_order=True, libver=("v110", "latest")) as h5:
         h5.attrs["format"] = FORMAT
         h5.attrs["format_version"] = FORMAT_VERSION
         h5.attrs["silodem_version"] = __version__
