@@ -382,7 +382,8 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     for name in ("settled.png", "final.png", "report.html", "failure.h5", "figures/fig8.png",
                  "animation.mp4", "animation.gif",
                  "vtk/particles_000000.vtu", "vtk/contacts.pvd", "vtk/fields_settled.vtu",
-                 "frames/frames-000000-000999.h5", "frames/.frames-001000-001001.h5.tmp"):
+                 "frames/frames-000000-000999.h5", "frames/.frames-001000-001001.h5.tmp",
+                 ".checkpoint.h5.tmp", ".results.h5.tmp"):  # (saves a SIGKILL cut short)
         (out / name).write_bytes(b"old run")
     (out / "notes.txt").write_text("mine")
     (out / "frames" / "mine.txt").write_text("mine")
@@ -393,6 +394,20 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     assert left == ["config.toml", "frames/mine.txt", "notes.txt", "results.h5"]
     assert_frames_whole(out, tidy=True)  # the new run's segments, and only those
     assert list((out / "vtk").iterdir()) == []  # and the views wrote no fields into it
+
+
+def test_a_completed_run_leaves_no_partial_save_behind(tmp_path):
+    """A SIGKILL during a save leaves '.checkpoint.h5.tmp'; a resumed run that saved no more
+    checkpoints finished with that 1.3 MB copy beside its results (docs/reliability.md says
+    such a file is harmless and overwritten next time: there was no next time)."""
+    from types import SimpleNamespace
+
+    from silodem.safety import RunGuard
+
+    for name in (".checkpoint.h5.tmp", ".results.h5.tmp", "checkpoint.h5", "mine.tmp"):
+        (tmp_path / name).write_bytes(b"left")
+    RunGuard(tmp_path, "", quick_config()).completed(SimpleNamespace(recorders=[]))
+    assert [p.name for p in tmp_path.iterdir()] == ["mine.tmp"]
 
 
 def test_a_new_run_keeps_files_it_did_not_write_in_vtk(tmp_path):

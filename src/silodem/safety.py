@@ -77,12 +77,22 @@ def clear_previous_run(out: Path) -> None:
 
     for name in _RUN_FILES:
         (out / name).unlink(missing_ok=True)
+    remove_partial_saves(out)
     frame_store.clear(out / FOLDER)
     figures = out / "figures"
     if figures.is_dir():
         for png in figures.glob("*.png"):
             png.unlink()
     remove_written(out / "vtk")
+
+
+def remove_partial_saves(out: Path) -> None:
+    """Remove the temporary files (``atomic.atomic_file``'s ``.NAME.tmp``) of results.h5,
+    checkpoint.h5 and config.toml that a SIGKILL in the middle of a save left in ``out``:
+    the next save of the same file replaced them, but a run that saved no more (it ended, or
+    checkpoints are off) kept a stale copy of a checkpoint beside its results."""
+    for name in (RESULTS_NAME, CHECKPOINT_NAME, "config.toml"):
+        (out / f".{name}.tmp").unlink(missing_ok=True)
 
 
 # --- finding what went wrong ---------------------------------------------------------------
@@ -311,6 +321,7 @@ class RunGuard:
     def completed(self, run: SiloRun) -> None:
         """The run finished and its results are written: the checkpoint is no longer needed."""
         self.checkpoint_path.unlink(missing_ok=True)
+        remove_partial_saves(self.out)
         for rec in run.recorders:
             rec.saved_everywhere()
 
