@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import signal
 import subprocess
 import sys
 import tempfile
@@ -578,6 +579,25 @@ def test_ctrl_c_while_the_command_line_is_imported_is_one_line_and_exit_130():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             timeout=120, check=False)
     assert (result.returncode, result.stderr) == (130, "interrupted\n")
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_the_script_exits_is_one_line(sig, code):
+    """After its command ended, the interpreter's exit takes a good part of a second: a
+    SIGINT or SIGTERM then killed the process without a word (exit -2 or -15).  The script
+    answers it in one line, 130 or 143; its stdout up to then is kept.  The signal is sent
+    from an atexit function, as the clean-up then runs."""
+    code_text = ("import atexit, os, sys\n"
+                 f"atexit.register(lambda: os.kill(os.getpid(), {int(sig)}))\n"
+                 "sys.argv = ['silodem', 'scenarios']\n"
+                 "from silodem.launcher import main\n"
+                 "main()\n")
+    result = subprocess.run([sys.executable, "-c", code_text], capture_output=True,
+                            text=True, timeout=120, check=False)
+    assert result.returncode == code, result.stderr
+    assert "paper-case2" in result.stdout  # the command's own output
+    assert result.stderr == (f"interrupted ({signal.Signals(sig).name}): as silodem exited, "
+                             "after the command had ended (nothing it wrote is lost)\n")
 
 
 

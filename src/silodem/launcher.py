@@ -6,14 +6,44 @@ here in the same line and exit code 130 instead of a traceback."""
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
 
 
 def main() -> None:
-    """Import :mod:`silodem.cli` under a Ctrl-C guard and run its ``main``."""
+    """Import :mod:`silodem.cli` under a Ctrl-C guard and run its ``main``; then answer a
+    signal during the interpreter's exit in one line (``exit_on_signals``)."""
     try:
         from silodem.cli import main as cli_main
     except KeyboardInterrupt:
         sys.stderr.write("interrupted\n")
         raise SystemExit(130) from None
-    cli_main()
+    try:
+        cli_main()
+    finally:
+        exit_on_signals()
+
+
+def exit_on_signals() -> None:
+    """From now on SIGINT and SIGTERM end the process at once, with one line and 130 or 143.
+
+    The command has ended (its exit code is on its way) but the interpreter's exit takes a
+    good part of a second (numba's and dask's clean-up): a signal then killed the process
+    without a word.  Only the script does this (``main``), never a process that calls
+    :func:`silodem.cli.main` itself; a signal ignored where silodem started stays ignored."""
+    def handler(signum: int, frame: object) -> None:
+        name = signal.Signals(signum).name
+        with_flush = (sys.stdout, sys.stderr)
+        for stream in with_flush:
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os.write(2, f"interrupted ({name}): as silodem exited, after the command had "
+                    "ended (nothing it wrote is lost)\n".encode())
+        os._exit(128 + signum)
+
+    for s in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            signal.signal(s, handler)
