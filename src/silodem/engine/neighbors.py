@@ -375,7 +375,8 @@ class NeighborList:
         else:
             xmin = xmax = ymin = ymax = 0.0
         if not np.isfinite(xmax - xmin + ymax - ymin):
-            raise UnstableRunError("non-finite grain position: the run is unstable")
+            raise UnstableRunError("non-finite extent of the grain positions: the run is "
+                                   "unstable")
         ncx = int((xmax - xmin) / cell_size) + 1
         ncy = int((ymax - ymin) / cell_size) + 1
         if ncx * ncy > _MAX_CELLS_PER_GRAIN * max(n, 1) + 4096:

@@ -122,7 +122,7 @@ class Simulation:
             left -= done
             if not np.isfinite(max_d2):
                 raise UnstableRunError(
-                    f"non-finite grain position at t = {self.time:.6g} s (step {self.steps}): "
+                    f"non-finite grain displacement at t = {self.time:.6g} s (step {self.steps}): "
                     "the run is unstable (a time step too large for its contacts, or extreme "
                     "values of density, gravity or speed)"
                 )
