@@ -97,6 +97,19 @@ def test_a_quoted_dotted_key_is_named_as_written(capsys, tmp_path):
                  "write settle.threshold without quotes")
 
 
+def test_a_config_files_errors_name_the_file(capsys, tmp_path):
+    """An empty file gave "missing required key 'seed' ... (+4 more)" without saying which
+    file, or that it was empty; a value out of range in a file did not name it either."""
+    empty = tmp_path / "empty.toml"
+    empty.write_text("")
+    assert refused(capsys, "show", str(empty)).endswith(f"(in {empty}, an empty file)")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(config_to_toml(load_config("paper-case2")).replace(
+        "\nseed = ", "\nseed = -", 1))
+    line = refused(capsys, "show", str(bad))
+    assert line.startswith("config error: seed:") and line.endswith(f"(in {bad})")
+
+
 def test_a_file_that_is_not_toml_at_all_is_refused(capsys, tmp_path):
     path = tmp_path / "binary.toml"
     path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00")

@@ -246,8 +246,16 @@ def load_config(source: str, sets: Iterable[str] = (), flag: str = "--set") -> C
     """
     sets = list(sets)
     data = _read_source(str(source))
+    empty = not data
     apply_sets(data, sets, flag)
-    return _validate(data, sets, flag)
+    try:
+        return _validate(data, sets, flag)
+    except InputError as exc:
+        message = str(exc)
+        if f"(from {flag} " in message or _path_kind(Path(source)) != "file":
+            raise  # a --set's value, or an embedded scenario (whose values are valid)
+        raise InputError(f"{message} (in {source}{', an empty file' if empty else ''})") \
+            from None
 
 
 # --- writing -------------------------------------------------------------------------------
