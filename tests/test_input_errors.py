@@ -230,6 +230,10 @@ def test_out_the_system_will_not_create_is_refused(capsys, tmp_path, command, wh
     name longer than a file name may be: one line naming --out, before any work."""
     out = tmp_path / ("x" * 300) if where == "name-too-long" else Path(where)
     assert_names(refused(capsys, *command, "--out", str(out)), "--out", "cannot write")
+    # the folders above it that the refusal made are gone again (an empty runs/ was left)
+    deep = tmp_path / "runs" / "of" / ("x" * 300)
+    assert_names(refused(capsys, *command, "--out", str(deep)), "--out", "cannot write")
+    assert not (tmp_path / "runs").exists()
 
 
 @pytest.mark.parametrize("command", [["plot"], ["animate"], ["run", "--resume"]])

@@ -6,6 +6,7 @@ Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> di
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
@@ -89,7 +90,16 @@ def _check_out_folder(out: Path, flag: str) -> None:
         raise InputError(f"{flag} {out} holds an unfinished run (checkpoint.h5); continue it with "
                          f"'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
                          "start afresh there")
-    out.mkdir(parents=True, exist_ok=True)
+    made: list[Path] = []  # the folders made here, removed again if a deeper one fails
+    try:
+        for folder in reversed([f for f in (out, *out.parents) if not f.exists()]):
+            folder.mkdir()
+            made.append(folder)
+    except OSError:  # (a name too long: an empty runs/ was left behind)
+        for folder in reversed(made):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
 
 
 def check_threads(threads: int | None, what: str = "threads") -> None:
