@@ -56,7 +56,8 @@ QuickOpt = Annotated[
     typer.Option(
         "--quick",
         help="Shrink the case to a small silo (cell and walls x 0.6, about a third of the "
-        "grains, shorter time limits) that runs in well under a minute: a first try.",
+        "grains, shorter time limits) that runs in well under a minute: a first try. It "
+        "applies after --set, so it shrinks the values --set gave too.",
     ),
 ]
 
