@@ -365,3 +365,34 @@ def test_the_phase_time_limits_say_how_often_they_are_checked():
 
     for section in (Settle, Discharge):
         assert f"checked every {CHECK_INTERVAL:g} s" in section.model_fields["max_time"].description
+
+
+def test_the_config_reference_page_is_the_schemas():
+    """docs/config.md lists every key of the schema with its default and bounds; it is the
+    output of silodem.config_reference, so it cannot drift from config.py.  Spot checks
+    against the schema's own numbers: every dotted key appears once, in a table row."""
+    from silodem.config_reference import reference_markdown
+    from silodem.errors import schema_keys, submodel
+
+    page = (Path(__file__).parents[1] / "docs" / "config.md").read_text(encoding="utf-8")
+    assert page == reference_markdown(), ("docs/config.md is out of date: python -m "
+                                          "silodem.config_reference > docs/config.md")
+    rows = [line for line in page.splitlines() if line.startswith("| `")]
+    keys = [k for k in schema_keys(Config) if submodel(_field(k).annotation) is None]
+    assert [row.split("`")[1] for row in rows] == keys
+    row = {r.split("`")[1]: [c.strip() for c in r.split("|")[2:5]] for r in rows}
+    assert row["material.poisson_ratio"][:2] == ["unset", "number, >= 0 and <= 0.5"]
+    assert row["time.safety"][:2] == ["0.2", "number, > 0 and <= 1"]
+    assert row["silo.kind"][:2] == ["required", '"flat", "hopper"']
+    assert row["checkpoint.every_steps"][0] == "20,000"
+
+
+def _field(dotted: str):
+    """The schema's FieldInfo of a dotted key."""
+    from silodem.errors import submodel
+
+    model = Config
+    *head, last = dotted.split(".")
+    for part in head:
+        model = submodel(model.model_fields[part].annotation)
+    return model.model_fields[last]
