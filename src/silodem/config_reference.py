@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import typing
 
-import annotated_types as at
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
 from silodem.config import Config
 from silodem.errors import one_line, submodel
 
-_BOUNDS = ((at.Gt, "gt", ">"), (at.Ge, "ge", ">="), (at.Lt, "lt", "<"), (at.Le, "le", "<="))
+# the bounds of pydantic's Field(gt=..., ...), read from its metadata by their names
+_BOUNDS = (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<="))
 
 HEAD = """# Configuration reference
 
@@ -68,10 +68,10 @@ def _allowed(field: FieldInfo) -> str:
         kind = f"list of {kinds.get(inner[0][0], 'values')}" if inner else "value"
         kind = kind.replace("number", "numbers").replace("text", "texts")
     bounds = [f"{sign} {_number(getattr(m, name))}" for m in field.metadata
-              for cls, name, sign in _BOUNDS if isinstance(m, cls)]
-    length = [m for m in field.metadata if isinstance(m, at.MinLen)]
+              for name, sign in _BOUNDS if getattr(m, name, None) is not None]
+    length = [m.min_length for m in field.metadata if getattr(m, "min_length", None)]
     if length:
-        bounds.append(f"at least {length[0].min_length} character")
+        bounds.append(f"at least {length[0]} character")
     return kind + (f", {' and '.join(bounds)}" if bounds else "")
 
 
