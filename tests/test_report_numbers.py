@@ -504,6 +504,22 @@ def test_walker_d_fit_recovers_the_d_of_an_exact_planar_profile(synth):
         assert hop["D_fit"] == pytest.approx(D_true, rel=1e-4)
 
 
+def test_a_window_cut_short_by_the_phase_is_reported_as_cut(synth):
+    """Settling began at 2.625 s and the gate opened at 3 s: the 0.5 s window 'after
+    filling' holds the settle samples from 2.65625 s only, and was reported as 2.5 - 3 s
+    without a word.  It is now the samples' span, with a key-number row that says so; the
+    discharge window, whose samples reach within one sampling interval (1/16 s) of its end,
+    stays whole."""
+    a, _ = synth
+    first = T_MEAS[FILL_K[0]]
+    assert a.windows["fill"] == (first, T_OPEN) and first > T_OPEN - WINDOW + 1 / 16
+    assert a.windows["discharge"] == (T_OPEN + DELAY, T_OPEN + DELAY + WINDOW)
+    label = ("averaging window after filling (the end of settling), cut short: settling "
+             f"lasted less than measure.window = {WINDOW:g} s")
+    assert _number(a, label) == f"{first:.3f} - {T_OPEN:.3f} ({T_OPEN - first:.3g} s)"
+    assert not [row for row in a.numbers if row[0].startswith("averaging window during")]
+
+
 def test_discharge_rate_is_the_slope_of_a_linear_mass_record(synth):
     """Discharged mass m = 64 (t - t_open - 0.25) kg, 0 before, 80 kg (empty) after: between
     15 % and 75 % of the final mass it is exactly linear, so the steady rate is its slope,

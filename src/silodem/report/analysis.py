@@ -78,8 +78,16 @@ def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[
     fill = (t >= t_open - cfg.window) & (t <= t_open) & (phase == SETTLE)
     d0 = t_open + cfg.discharge_delay
     dwin = (phase == DISCHARGE) & (t >= d0) & (t <= d0 + cfg.window)
-    return ({"fill": fill, "discharge": dwin},
-            {"fill": (t_open - cfg.window, t_open), "discharge": (d0, d0 + cfg.window)})
+    # a settling shorter than the window (settle.min_time is 0.2 s) or a discharge that ended
+    # inside it cuts the window short, which was reported whole: the first (last) sample
+    # then bounds it, when it is more than a sampling interval inside
+    f0, d1 = t_open - cfg.window, d0 + cfg.window
+    step = float(m.get("@attrs", {}).get("interval", cfg.interval))  # as the samples were taken
+    if fill.any() and t[fill].min() > f0 + step:
+        f0 = float(t[fill].min())
+    if dwin.any() and t[dwin].max() < d1 - step:
+        d1 = float(t[dwin].max())
+    return ({"fill": fill, "discharge": dwin}, {"fill": (f0, t_open), "discharge": (d0, d1)})
 
 
 def column_tops(snap: dict[str, Any] | None, width: float, d: float) -> np.ndarray:
@@ -447,6 +455,15 @@ def _numbers(a: Analysis) -> None:
             label = (f"Walker distribution factor D fitted on the hopper walls (planar), {when}, "
                      f"to {hop['D_bins']} wall bins")
             n.append((label, _fmt(hop["D_fit"], 3), "-"))
+    window = a.res.cfg.measure.window
+    for key, label in (("fill", "after filling (the end of settling)"),
+                       ("discharge", "during discharge")):
+        if key in a.windows and a.windows[key][1] - a.windows[key][0] < window:
+            start, end = a.windows[key]
+            why = ("settling lasted less than" if key == "fill" else
+                   "the discharge ended within")
+            what = f"averaging window {label}, cut short: {why} measure.window = {window:g} s"
+            n.append((what, f"{start:.3f} - {end:.3f} ({end - start:.3g} s)", "s"))
     if "window_emptied" in a.flow:  # the discharge stresses depend on it (a quick silo
         # empties by half in the same 1 s window a full one loses a tenth in)
         start, end = a.flow["window_emptied"]
