@@ -29,8 +29,9 @@ SETTLE, DISCHARGE = 1, 2
 
 @dataclass
 class EdgeProfile:
-    """Time-averaged wall stresses along the left and right edges of the silo (vertical wall +
-    hopper wall or floor), and their mean over both sides (sorted by z)."""
+    """Time-averaged wall stresses along the left and right edges of the silo (vertical wall,
+    and hopper wall in a hopper silo; a flat silo's floor is not part of it), and their mean
+    over both sides (sorted by z)."""
 
     z: np.ndarray  # bin centres [m]
     sigma_n: np.ndarray  # wall normal stress, both sides averaged [Pa]
