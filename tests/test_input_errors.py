@@ -133,12 +133,17 @@ def test_a_byte_order_mark_is_not_a_toml_error(tmp_path):
     assert load_config(str(path)) == load_config("paper-case2")
 
 
-@pytest.mark.parametrize("name", ["/tmp/elsewhere", "..", ".", "a\nb", "a\\b", ""])
+@pytest.mark.parametrize("name", ["/tmp/elsewhere", "..", ".", "a\nb", "a\\b", "", "  ",
+                                  "a" * 201, "\u00e9" * 101])
 def test_a_name_that_cannot_name_the_results_folder_is_refused(capsys, name):
     """The default results folder is runs/<name>: a name with '/' wrote anywhere, '..' into
-    the current folder."""
+    the current folder; a blank one made 'studies/  -quick'; one of more than 200 bytes
+    (a folder name may have 255) failed only when the folder was made, blamed on --out
+    (201 bytes: 201 ASCII letters or 101 e-acutes of 2 bytes each)."""
     line = refused(capsys, "show", "--set", f"name={tomli_w.dumps({'v': name})[4:].strip()}")
     assert_names(line, "name")
+    if len(name.encode()) > 200:
+        assert f"name is {len(name.encode())} bytes long; at most 200" in line
 
 
 def test_the_last_of_two_sets_of_a_key_is_blamed(capsys):

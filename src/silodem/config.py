@@ -18,6 +18,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+MAX_NAME_BYTES = 200  # a folder name's limit is 255 bytes; room for '-quick', '.tmp', ...
+
 
 def folder_name(value: str, key: str) -> str:
     """``value`` when it can name one folder (a run's default ``runs/<name>``, a study's
@@ -25,6 +27,12 @@ def folder_name(value: str, key: str) -> str:
     if value in (".", "..") or "/" in value or "\\" in value or not value.isprintable():
         raise ValueError(f"{key} {value!r} cannot name a results folder: give one without '/', "
                          "'\\' or control characters, and not '.' or '..'")
+    if not value.strip():
+        raise ValueError(f"{key} {value!r} is blank: give a name for the results folder")
+    size = len(value.encode("utf-8"))
+    if size > MAX_NAME_BYTES:  # (it failed later, blamed on --out, with a folder made)
+        raise ValueError(f"{key} is {size} bytes long; at most {MAX_NAME_BYTES}, as it names "
+                         "a results folder")
     return value
 
 
