@@ -112,10 +112,16 @@ def test_show_output_round_trips_to_an_equal_config(name, tmp_path):
 
 
 def test_scenarios_command_lists_names_and_descriptions():
+    """The scenarios, then the embedded studies (paper-study was listed nowhere)."""
+    from silodem.study.spec import list_studies
+
     result = cli("scenarios")
     assert result.returncode == 0, result.stderr
     for name, description in list_scenarios():
         assert name in result.stdout and description in result.stdout
+    studies = result.stdout.split("Studies (")[1]
+    assert list_studies() and all(f"{name}  " in studies and description in studies
+                                  for name, description in list_studies())
 
 
 def test_help_works_for_each_command():

@@ -382,9 +382,17 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
      ["silo.outlet_width", "9"]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"seed" = [1, 2]'), ["seeds"]),
     (TINY.replace('seeds = [3]\n', ''), ["missing required key 'seeds'"]),
+    # pydantic's words before: "List should have at least 1 item after validation, not 0"
+    (TINY.replace('seeds = [3]', 'seeds = []'), ["seeds is empty: give one or more"]),
+    ('base = "paper-case2"\nseeds = [1]\n[grid]\n', ["[grid] is empty: give one or more"]),
     (TINY.replace('base = "paper-case2"', 'base = "paper-case9"'),
      ["paper-case9", "did you mean 'paper-case2'"]),
     (TINY + "[grid\n", ["malformed TOML"]),
+    # 20 and 20.0 are one value (they made the same run: a message about --quick before)
+    (TINY.replace("[20.0, 30.0]", "[20, 20.0]"), ["'material.friction_deg' lists 20.0 twice"]),
+    # a key checked stripped, then set with its spaces (an 'unknown key' in the expansion)
+    (TINY.replace('"material.friction_deg"', '" material.friction_deg "'),
+     ["has spaces around its parts", "write 'material.friction_deg'"]),
     # a grid over base scenarios
     ('base = "paper-case2"\nseeds = [1]\n[grid]\nbase = ["paper-case1"]\n',
      ["'base' is both at the top and in [grid]"]),

@@ -142,13 +142,22 @@ def run(
 
 @app.command()
 def scenarios() -> None:
-    """List the ready-made scenarios shipped with silodem."""
-    items = list_scenarios()
-    width = max((len(name) for name, _ in items), default=0)
+    """List the ready-made scenarios shipped with silodem, and its parametric studies."""
+    from silodem.study.spec import list_studies
+
+    items, studies = list_scenarios(), list_studies()
+    width = max((len(name) for name, _ in items + studies), default=0)
     for name, description in items:
         typer.echo(f"{name:<{width}}  {description}")
     typer.echo("")
     typer.echo("See all values of one: silodem show NAME    Run one: silodem run NAME")
+    if studies:
+        typer.echo("")
+        typer.echo("Studies (many runs over a grid of values, docs/sweeps.md):")
+        for name, description in studies:
+            typer.echo(f"{name:<{width}}  {description}")
+        typer.echo("")
+        typer.echo("Read one: silodem show NAME    Run it: silodem sweep NAME [--quick]")
 
 
 @app.command()

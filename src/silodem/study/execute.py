@@ -493,7 +493,8 @@ def connect(scheduler: str | None, workers: int | None,
     if scheduler is None:
         n = workers or default_workers()
         cluster = local_cluster(n)
-        return Client(cluster), cluster, f"LocalCluster of {n} single-threaded workers"
+        return Client(cluster), cluster, (f"LocalCluster of {n} single-threaded "
+                                          f"worker{'s' if n != 1 else ''}")
     try:
         _probe(scheduler)
         client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")

@@ -78,9 +78,22 @@ def _flatten(table: Any, where: str) -> Any:
     return out
 
 
+def _same_value(a: Any, b: Any) -> bool:
+    """Whether two grid values are one: equal numbers whatever their kind (20 and 20.0 gave
+    the same runs), else equal values of one type (True is not 1)."""
+    numbers = (int, float)
+    if (isinstance(a, numbers) and isinstance(b, numbers)
+            and not isinstance(a, bool) and not isinstance(b, bool)):
+        return a == b
+    return type(a) is type(b) and a == b
+
+
 def check_config_key(dotted: str) -> None:
     """ValueError unless ``dotted`` is a value key (not a section) of the run Config schema."""
     parts = [p.strip() for p in dotted.split(".")]
+    if ".".join(parts) != dotted:  # (checked stripped, then set unstripped: unknown key)
+        raise ValueError(f"'{dotted}' has spaces around its parts: write "
+                         f"'{'.'.join(parts)}'")
     if parts[0] in RESERVED_KEYS and len(parts) == 1:
         raise ValueError(f"'{dotted}' cannot be set by a study: {RESERVED_KEYS[parts[0]]}")
     parent = model_at(Config, parts[:-1])
@@ -103,12 +116,11 @@ class StudySpec(BaseModel):
     base: str | None = Field(None, min_length=1, description="embedded scenario name or .toml "
                              "file of the base configuration (a relative path is taken from the "
                              "study file's folder); or a list of them as the [grid] key 'base'")
-    seeds: list[StrictInt] = Field(min_length=1,
-                                   description="seeds; every grid point runs once per seed")
+    seeds: list[StrictInt] = Field(description="seeds; every grid point runs once per seed")
     set: dict[str, Any] = Field(default_factory=dict,
                                 description="dotted config keys -> values every run gets")
-    grid: dict[str, list[Any]] = Field(min_length=1, description="dotted config keys -> lists of "
-                                       "values; the full product is run")
+    grid: dict[str, list[Any]] = Field(description="dotted config keys -> lists of values; "
+                                       "the full product is run")
 
     @model_validator(mode="before")
     @classmethod
@@ -129,6 +141,8 @@ class StudySpec(BaseModel):
     @field_validator("seeds")
     @classmethod
     def _seeds(cls, seeds: list[int]) -> list[int]:
+        if not seeds:  # (pydantic's words were "List should have at least 1 item ...")
+            raise ValueError("seeds is empty: give one or more, e.g. seeds = [1, 2]")
         if any(s < 0 for s in seeds):
             raise ValueError("seeds must be integers >= 0")
         if len(set(seeds)) != len(seeds):
@@ -145,6 +159,9 @@ class StudySpec(BaseModel):
     @field_validator("grid")
     @classmethod
     def _grid_keys(cls, table: dict[str, list[Any]]) -> dict[str, list[Any]]:
+        if not table:
+            raise ValueError("[grid] is empty: give one or more keys, each with a list of "
+                             'values, e.g. "material.friction_deg" = [20, 30]')
         for key, values in table.items():
             if key == GRID_BASE:  # base scenarios: compare cases that differ in many keys
                 if not all(isinstance(v, str) and v.strip() for v in values):
@@ -156,7 +173,7 @@ class StudySpec(BaseModel):
                 raise ValueError(f"'{key}' has no values; give a list of one or more")
             seen: list[Any] = []
             for v in values:
-                if any(type(v) is type(s) and v == s for s in seen):
+                if any(_same_value(v, s) for s in seen):
                     raise ValueError(f"'{key}' lists {v!r} twice")
                 seen.append(v)
         return table
