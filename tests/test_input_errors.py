@@ -620,6 +620,12 @@ def test_a_signal_while_the_script_exits_is_one_line(sig, code):
     assert "paper-case2" in result.stdout  # the command's own output
     assert result.stderr == (f"interrupted ({signal.Signals(sig).name}): as silodem exited, "
                              "after the command had ended (nothing it wrote is lost)\n")
+    # after a command that failed (or was interrupted), its line and code stand alone
+    failed = code_text.replace("'scenarios'", "'show', 'no-such-scenario'")
+    result = subprocess.run([sys.executable, "-c", failed], capture_output=True, text=True,
+                            timeout=120, check=False)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert result.stderr.startswith("error: unknown scenario 'no-such-scenario'")
 
 
 

@@ -19,20 +19,28 @@ def main() -> None:
     except KeyboardInterrupt:
         sys.stderr.write("interrupted\n")
         raise SystemExit(130) from None
+    code: int | str | None = 0
     try:
         cli_main()
+    except SystemExit as exc:
+        code = exc.code
+        raise
     finally:
-        exit_on_signals()
+        exit_on_signals(0 if code is None else code)
 
 
-def exit_on_signals() -> None:
-    """From now on SIGINT and SIGTERM end the process at once, with one line and 130 or 143.
+def exit_on_signals(code: int | str = 0) -> None:
+    """From now on SIGINT and SIGTERM end the process at once: with one line and 130 or 143
+    after a command that succeeded (``code`` 0), else quietly with its own exit code (a
+    second Ctrl-C after an 'interrupted' line printed a second line, and 130 for a failure).
 
     The command has ended (its exit code is on its way) but the interpreter's exit takes a
     good part of a second (numba's and dask's clean-up): a signal then killed the process
     without a word.  Only the script does this (``main``), never a process that calls
     :func:`silodem.cli.main` itself; a signal ignored where silodem started stays ignored."""
     def handler(signum: int, frame: object) -> None:
+        if code != 0:  # its line is written already
+            os._exit(code if isinstance(code, int) else 1)
         name = signal.Signals(signum).name
         with_flush = (sys.stdout, sys.stderr)
         for stream in with_flush:
