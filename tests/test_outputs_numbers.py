@@ -256,6 +256,14 @@ def test_run_table_shows_every_runs_numbers_and_regime(study):
         assert _shown_ok(cells[9], _value("discharge_rate", r, c, s), 4)
         assert cells[10] == (_pattern(r, c, s) or "n/a")
     assert regimes == {"n/a", "anisotropic", "continuum-like"}
+    # a finished run whose results.h5 could not be read: its reason, not a row of n/a
+    broken = dict(rows[0], summary_error="OSError: truncated file")
+    page = write_study_report(plan, out, [broken, *rows[1:]], failed, where="here")
+    parser = _Tables()
+    parser.feed(page.read_text("utf-8"))
+    first = next(t for t in parser.tables if t[0][0] == "run")[1]
+    why = "finished, but its results.h5 could not be read: OSError: truncated file"
+    assert first[1:] == [why]
 
 
 def test_fig8_bars_are_seed_means_with_seed_deviations(study):

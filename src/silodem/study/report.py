@@ -332,8 +332,9 @@ def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[st
         name = html.escape(run.label)
         if report.is_file():
             name = f"<a href='runs/{html.escape(run.id)}/report.html'>{name}</a>"
-        if row is None:
-            why = failed.get(run.id, "not run yet")
+        if row is None or row.get("summary_error"):  # (all n/a, without the reason)
+            why = (failed.get(run.id, "not run yet") if row is None else
+                   f"finished, but its results.h5 could not be read: {row['summary_error']}")
             body.append(f"<tr><td>{name}</td><td colspan='{len(head) - 1}' class='warn'>"
                         f"{html.escape(why)}</td></tr>")
             continue
