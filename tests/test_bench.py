@@ -72,6 +72,39 @@ def test_bench_runs_lammps_on_the_same_silo():
     assert out["lammps"]["peak_memory_bytes"] is None  # not measured, not a made-up 0
 
 
+def _fake_lmp(tmp_path, script: str) -> dict:
+    """An environment whose PATH finds a fake ``lmp`` (a shell script) first."""
+    fake = tmp_path / "bin" / "lmp"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\n" + script)
+    fake.chmod(0o755)
+    return {**os.environ, "PATH": f"{fake.parent}{os.pathsep}{os.environ['PATH']}"}
+
+
+def test_a_lammps_that_fails_is_one_line_not_a_traceback(tmp_path):
+    """A LAMMPS that exits with an error ended the bench in a 38-line RuntimeError traceback:
+    its last ERROR line now, exit code 1 (the bench ran; the reference did not)."""
+    env = _fake_lmp(tmp_path, 'echo "LAMMPS (fake)"\necho "ERROR: Lost atoms: original 400 '
+                              'current 399 (fake)"\nexit 1\n')
+    proc = subprocess.run([sys.executable, "-m", "silodem", "bench", "--n", "100", "--steps",
+                           "5", "--settle", "5", "--lammps"], check=False, capture_output=True,
+                          text=True, timeout=600, env=env)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
+    assert proc.stderr == ("error: LAMMPS failed (exit 1): ERROR: Lost atoms: original 400 "
+                           "current 399 (fake)\n")
+
+
+def test_a_missing_lammps_is_said_before_silodems_run(tmp_path, monkeypatch):
+    """--lammps without LAMMPS installed was found only after silodem's whole run."""
+    from silodem import bench
+
+    monkeypatch.setattr(bench, "lammps_executable", lambda: None)
+    monkeypatch.setattr(bench, "run_silodem", lambda *a: pytest.fail("silodem ran first"))
+    with pytest.raises(FileNotFoundError, match="LAMMPS not found"):
+        bench.bench(100, 1, 5, 5, lammps=True)
+
+
 def test_side_by_side_copies_are_alike_not_identical():
     """``--scaling`` puts copies of one silo side by side: each copy holds grains on the same
     lattice (shifted by the silo width and a gap) behind its own six walls, and no grain is a

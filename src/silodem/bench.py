@@ -229,25 +229,39 @@ def last_loop(stdout: str) -> tuple[float, int, int, int]:
     return float(seconds), int(procs), int(steps), int(atoms)
 
 
-def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchResult:
-    """Run the reference deck with Debian's `lmp` (and `mpirun -np ranks` for ranks > 1)."""
+class LammpsFailed(RuntimeError):
+    """LAMMPS ran but gave no timing (its own error, a crash): its last words, one line."""
+
+
+def lammps_command(ranks: int) -> list[str]:
+    """``lmp`` (under ``mpirun -np ranks`` for ranks > 1); FileNotFoundError (one line) when
+    either is not installed, found before any run (it was found after silodem's)."""
     lmp = lammps_executable()
     if lmp is None:
         raise FileNotFoundError(
             "LAMMPS not found: install Debian's package (apt-get install lammps)")
-    cmd = [lmp, "-in", str(deck_path()), "-var", "NX", str(nx), "-var", "NY", str(ny),
-           "-var", "STEPS", str(steps), "-var", "SETTLE", str(settle), "-log", "none"]
-    if ranks > 1:
-        mpirun = shutil.which("mpirun")
-        if mpirun is None:
-            raise FileNotFoundError("mpirun not found (Debian package openmpi-bin)")
-        cmd = [mpirun, "--allow-run-as-root", "--oversubscribe", "-np", str(ranks), *cmd]
+    if ranks == 1:
+        return [lmp]
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        raise FileNotFoundError("mpirun not found (Debian package openmpi-bin)")
+    return [mpirun, "--allow-run-as-root", "--oversubscribe", "-np", str(ranks), lmp]
+
+
+def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchResult:
+    """Run the reference deck with Debian's `lmp` (and `mpirun -np ranks` for ranks > 1)."""
+    cmd = [*lammps_command(ranks), "-in", str(deck_path()), "-var", "NX", str(nx),
+           "-var", "NY", str(ny), "-var", "STEPS", str(steps), "-var", "SETTLE", str(settle),
+           "-log", "none"]
     with tempfile.TemporaryDirectory() as tmp:
         proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, check=False,
                               env={**os.environ, "OMP_NUM_THREADS": "1"})
     if proc.returncode != 0 or len(_LOOP.findall(proc.stdout)) < 2:
-        tail = (proc.stdout + proc.stderr)[-800:]
-        raise RuntimeError(f"LAMMPS failed (exit {proc.returncode}): {tail}")
+        lines = [line.strip() for line in (proc.stdout + proc.stderr).splitlines()
+                 if line.strip()]
+        errors = [line for line in lines if line.startswith("ERROR")]
+        said = (errors or lines or ["no output"])[-1]
+        raise LammpsFailed(f"LAMMPS failed (exit {proc.returncode}): {said[:300]}")
     seconds, procs, nsteps, atoms = last_loop(proc.stdout)
     builds = _BUILDS.findall(proc.stdout)
     neigh = _NEIGH.findall(proc.stdout)
@@ -257,6 +271,8 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
 
 
 def bench(n: int, threads: int, steps: int, settle: int, lammps: bool) -> list[BenchResult]:
+    if lammps:
+        lammps_command(threads)  # installed? (before minutes of silodem's run)
     results = [run_silodem(n, threads, steps, settle)]
     if lammps:
         r = results[0]

@@ -164,13 +164,18 @@ def bench(
     """
     if n < 10 or n > 20_000_000:
         raise InputError(f"--n must be between 10 and 20000000 grains, got {n}")
-    if not (1 <= steps <= _MAX_BENCH_STEPS and 0 <= settle <= _MAX_BENCH_STEPS):
-        raise InputError(f"--steps must be from 1 and --settle from 0, each to "
-                         f"{_MAX_BENCH_STEPS:.0e}; got {steps} and {settle}")
+    if not (1 <= steps <= _MAX_BENCH_STEPS and 1 <= settle <= _MAX_BENCH_STEPS):
+        # (--settle 0 timed the kernels' compilation and the first list build)
+        raise InputError(f"--steps and --settle must each be from 1 to "
+                         f"{_MAX_BENCH_STEPS:.0e} (the kernels compile in the untimed "
+                         f"--settle steps); got {steps} and {settle}")
     check_threads(threads)
     from silodem import bench as benchmark
 
-    results = benchmark.bench(n, threads, steps, settle, lammps)
+    try:
+        results = benchmark.bench(n, threads, steps, settle, lammps)
+    except benchmark.LammpsFailed as exc:  # (a traceback before)
+        fail(f"error: {exc}", 1)
     if as_json:
         print(benchmark.as_json(results))
         return
