@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+import h5py
 import numpy as np
 import pytest
 from physics_helpers import MASS, RHO, R, pair_impact, run_until_separated
@@ -19,6 +20,7 @@ from silodem.engine.contact import GrainLaw
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.engine.walls import Walls
+from silodem.output import write_results
 from silodem.scenario_files import config_to_toml
 from silodem.silo.checks import estimate_overlap
 from silodem.silo.materials import design_overlaps
@@ -216,6 +218,22 @@ def test_walls_need_the_hertz_keys_too():
     data["walls"].update(poisson_ratio=0.3, kn=1e6)
     with pytest.raises(ValidationError, match="walls.kn belongs to the 'linear' law"):
         Config.model_validate(data)
+
+
+def test_results_give_the_hertz_walls_moduli_in_pascals(hertz_run, tmp_path):
+    """results.h5 /walls holds, under the Hertz-Mindlin law, 2 E* and 8 G* of grain and wall
+    (Johnson's formulas, above), and says so in each dataset's unit: Pa, not the linear
+    law's N/m (docs/output.md)."""
+    write_results(hertz_run, tmp_path / "results.h5", "")
+    c = hertz_run.cfg
+    e_star, g_star = textbook_moduli(c.material.young_modulus, c.material.poisson_ratio,
+                                     c.walls.young_modulus, c.walls.poisson_ratio)
+    with h5py.File(tmp_path / "results.h5") as h5:
+        walls = h5["walls"]
+        np.testing.assert_allclose(walls["kn"][()], 2 * e_star, rtol=1e-12)
+        np.testing.assert_allclose(walls["ks"][()], 8 * g_star, rtol=1e-12)
+        assert walls["kn"].attrs["unit"] == walls["ks"].attrs["unit"] == "Pa"
+        assert walls["ax"].attrs["unit"] == "m"
 
 
 def test_a_hertz_run_resumes_from_a_checkpoint_bit_identical(hertz_run, tmp_path):

@@ -788,6 +788,23 @@ def _check_frame(state: dict, tables: dict) -> None:
         assert saved_w[key] == (np.float32(fn), np.float32(fs)), key
 
 
+def test_results_walls_hold_the_geometry_and_series_stiffness_with_units(recorded):
+    """results.h5 /walls as docs/output.md has it: the segments the run had [m], and the
+    contact stiffnesses of grain and wall in series, k_g k_w / (k_g + k_w) [N/m] (PFC2D's
+    convention, written here from the config), each dataset with its unit."""
+    out, _, _, walls = recorded
+    cfg = tiny_hopper_config(report=False)
+    with h5py.File(out / "results.h5", "r") as f:
+        g = f["walls"]
+        assert [n.decode() for n in g["name"][()]] == walls["names"]
+        for key in ("ax", "ay", "bx", "by"):
+            assert np.array_equal(g[key][()], walls[key]) and g[key].attrs["unit"] == "m"
+        for key in ("kn", "ks"):
+            k_g, k_w = getattr(cfg.material, key), getattr(cfg.walls, key)
+            np.testing.assert_allclose(g[key][()], k_g * k_w / (k_g + k_w), rtol=1e-12)
+            assert g[key].attrs["unit"] == "N/m"
+
+
 def test_frames_in_results_h5_hold_the_engine_state(recorded):
     """results.h5 /frames read with h5py by the layout of docs/output.md (frame k owns rows
     offset[k]:offset[k+1]; contact indices count from the frame's first grain): one frame per

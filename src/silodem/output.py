@@ -52,8 +52,10 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
         w = run.walls
         wg = h5.create_group("walls")
         wg.create_dataset("name", data=np.array(w.names, dtype=h5py.string_dtype()))
-        for key in ("ax", "ay", "bx", "by", "kn", "ks", "mu", "active"):
-            wg.create_dataset(key, data=getattr(w, key))
+        stiffness = "Pa" if run.law.hertz else "N/m"  # Hertz-Mindlin: 2 E* and 8 G*
+        for key, unit in (("ax", "m"), ("ay", "m"), ("bx", "m"), ("by", "m"), ("kn", stiffness),
+                          ("ks", stiffness), ("mu", "-"), ("active", "-")):
+            wg.create_dataset(key, data=getattr(w, key)).attrs["unit"] = unit
         ev = h5.create_group("events")
         for key, val in run.events.items():
             ev.attrs[key] = val
