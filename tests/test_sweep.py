@@ -8,6 +8,7 @@ import csv
 import json
 import math
 import os
+import random
 import shutil
 import signal
 import socket
@@ -24,6 +25,7 @@ from silodem.cli import main
 from silodem.errors import InputError
 from silodem.study import expand, load_study, run_study
 from silodem.study.execute import local_cluster
+from silodem.study.spec import _first_repeat, _same_value
 
 # A tiny study: the paper's hopper case shrunk by --quick (about 50 grains, a 1 s discharge),
 # two grain-grain friction angles, one seed; no per-run pictures or report.
@@ -390,6 +392,16 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     (TINY + "[grid\n", ["malformed TOML"]),
     # 20 and 20.0 are one value (they made the same run: a message about --quick before)
     (TINY.replace("[20.0, 30.0]", "[20, 20.0]"), ["'material.friction_deg' lists 20.0 twice"]),
+    # a repeat found among many values (looked up by value, not compared pairwise)
+    (TINY.replace("[20.0, 30.0]", str([*range(5000), 2500.0])),
+     ["'material.friction_deg' lists 2500.0 twice"]),
+    # more runs than a study takes: refused before any is planned
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]',
+                  f'"material.friction_deg" = {list(range(400))}\n'
+                  f'"silo.outlet_width" = {[1 + k / 1000 for k in range(300)]}'),
+     ["the study has 120000 runs (1 seed x grid 400 x 300); at most 100000"]),
+    (TINY.replace("[20.0, 30.0]", str(list(range(100_001)))),
+     ["'material.friction_deg' lists 100001 values; a study runs at most 100000"]),
     # a key checked stripped, then set with its spaces (an 'unknown key' in the expansion)
     (TINY.replace('"material.friction_deg"', '" material.friction_deg "'),
      ["has spaces around its parts", "write 'material.friction_deg'"]),
@@ -411,6 +423,18 @@ def test_bad_study_files_give_one_line_and_exit_2(tmp_path, capsys, text, needle
     for needle in needles:
         assert needle in err
     assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+def test_grid_repeats_are_found_as_a_pairwise_comparison_finds_them():
+    """``_first_repeat`` (a set lookup) against the brute-force pairwise ``_same_value`` on
+    random lists of ints, floats equal to them, bools, strings and lists."""
+    rng = random.Random(7)
+    pool = [0, 1, 2, 0.0, 1.0, 2.5, True, False, "0", "a", [1], [1.0], [2]]
+    for _ in range(2000):
+        values = [rng.choice(pool) for _ in range(rng.randint(1, 6))]
+        brute = next((k for k in range(len(values))
+                      if any(_same_value(values[k], v) for v in values[:k])), None)
+        assert _first_repeat(values) == brute, values
 
 
 def test_grid_values_that_quick_makes_one_run_are_refused(tmp_path):

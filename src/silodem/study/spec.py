@@ -88,6 +88,26 @@ def _same_value(a: Any, b: Any) -> bool:
     return type(a) is type(b) and a == b
 
 
+def _first_repeat(values: list[Any]) -> int | None:
+    """Index of the first value that is one with an earlier one (``_same_value``), or None.
+    Hashable values are looked up in a set (a number's key is its value: 20 and 20.0 have
+    one hash and are equal); only unhashable ones (lists, tables) are compared pairwise."""
+    seen: set[Any] = set()
+    unhashable: list[Any] = []
+    for k, v in enumerate(values):
+        number = isinstance(v, (int, float)) and not isinstance(v, bool)
+        key = ("number", v) if number else (type(v), v)
+        try:
+            if key in seen:
+                return k
+            seen.add(key)
+        except TypeError:
+            if any(_same_value(v, u) for u in unhashable):
+                return k
+            unhashable.append(v)
+    return None
+
+
 def check_config_key(dotted: str) -> None:
     """ValueError unless ``dotted`` is a value key (not a section) of the run Config schema."""
     parts = [p.strip() for p in dotted.split(".")]
@@ -104,6 +124,11 @@ def check_config_key(dotted: str) -> None:
         example = next(iter(sub.model_fields))
         raise ValueError(f"'{dotted}' is a section, not a value; give a key inside "
                          f"it, e.g. '{dotted}.{example}'")
+
+
+# runs in one study at most: 1e5 runs of the quickest scenario are days of one core, and
+# planning them (each run's config validated and checked) already takes about a minute
+MAX_RUNS = 100_000
 
 
 class StudySpec(BaseModel):
@@ -171,11 +196,12 @@ class StudySpec(BaseModel):
                 check_config_key(key)
             if not values:
                 raise ValueError(f"'{key}' has no values; give a list of one or more")
-            seen: list[Any] = []
-            for v in values:
-                if any(_same_value(v, s) for s in seen):
-                    raise ValueError(f"'{key}' lists {v!r} twice")
-                seen.append(v)
+            if len(values) > MAX_RUNS:
+                raise ValueError(f"'{key}' lists {len(values)} values; a study runs at most "
+                                 f"{MAX_RUNS}")
+            repeat = _first_repeat(values)
+            if repeat is not None:
+                raise ValueError(f"'{key}' lists {values[repeat]!r} twice")
         return table
 
     @model_validator(mode="after")
@@ -188,6 +214,11 @@ class StudySpec(BaseModel):
                              "as [grid] base = [...])")
         if self.base is not None and GRID_BASE in self.grid:
             raise ValueError("'base' is both at the top and in [grid]; keep it in one")
+        if self.n_runs > MAX_RUNS:
+            sizes = " x ".join(str(len(v)) for v in self.grid.values())
+            seeds = f"{len(self.seeds)} seed{'s' if len(self.seeds) > 1 else ''}"
+            raise ValueError(f"the study has {self.n_runs} runs ({seeds} x grid {sizes}); at "
+                             f"most {MAX_RUNS}: split it into several studies")
         return self
 
     @property
