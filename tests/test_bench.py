@@ -51,6 +51,27 @@ def test_bench_json_reports_the_deck_lattice_and_its_throughput():
     assert isinstance(out["machine"]["cpu"], str) and out["machine"]["cpu"]
 
 
+def test_bench_rows_widens_the_deck_silo_to_n_grains():
+    """--rows NY keeps the deck's column height and widens the silo: the deck's fill region
+    0.2 <= y <= 0.352 NY - 0.4 holds the lattice rows y = 0.22 (k + 1/2), 29 of them at
+    NY = 20, so NX columns hold 29 NX grains, NX the nearest to N / 29."""
+    out = _bench("--n", "2000", "--rows", "20", "--steps", "20", "--settle", "30", "--json")
+    per_column = sum(1 for k in range(100) if 0.2 <= 0.22 * (k + 0.5) <= 0.352 * 20 - 0.4)
+    assert per_column == 29
+    assert (out["nx"], out["ny"]) == (round(2000 / 29), 20)
+    assert out["n"] == out["nx"] * per_column
+
+
+def test_bench_refuses_rows_that_leave_no_silo(capsys):
+    from silodem.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "--n", "2000", "--rows", "600"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--rows must be from 4 to --n / 4 = 500" in err
+
+
 def test_bench_text_keeps_one_record_per_line_when_piped():
     """Piped (not a terminal), rich wrapped its lines at 80 columns: the result row was split
     after its throughput's number.  Each figure's row is one line, with its unit."""

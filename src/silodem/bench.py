@@ -270,10 +270,13 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
                        float(neigh[-1]) if neigh else float("nan"))
 
 
-def bench(n: int, threads: int, steps: int, settle: int, lammps: bool) -> list[BenchResult]:
+def bench(n: int, threads: int, steps: int, settle: int, lammps: bool,
+          rows: int | None = None) -> list[BenchResult]:
+    """silodem's run, and with ``lammps`` the deck's on the same lattice (NX, NY).  ``rows``:
+    the deck's NY, the silo widened to about ``n`` grains (``run_silodem``)."""
     if lammps:
         lammps_command(threads)  # installed? (before minutes of silodem's run)
-    results = [run_silodem(n, threads, steps, settle)]
+    results = [run_silodem(n, threads, steps, settle, rows=rows)]
     if lammps:
         r = results[0]
         results.append(run_lammps(r.nx, r.ny, threads, steps, settle))

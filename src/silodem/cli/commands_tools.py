@@ -150,6 +150,11 @@ def bench(
     steps: Annotated[int, typer.Option("--steps", help="Timed steps.")] = 2000,
     settle: Annotated[int, typer.Option("--settle", help="Untimed steps first (compilation, "
                                         "fall, start of the flow), as the deck's SETTLE.")] = 10000,
+    rows: Annotated[int | None, typer.Option(
+        "--rows", help="The deck's NY (column height: 0.352 NY m) instead of NY = 2 NX; the "
+        "silo is widened to about --n grains. A tall column is still falling after --settle "
+        "steps: --rows 200 --settle 20000 times a packed, discharging 3e5-grain silo "
+        "(docs/performance.md).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     lammps: Annotated[bool, typer.Option(
         "--lammps",
@@ -169,11 +174,14 @@ def bench(
         raise InputError(f"--steps and --settle must each be from 1 to "
                          f"{_MAX_BENCH_STEPS:.0e} (the kernels compile in the untimed "
                          f"--settle steps); got {steps} and {settle}")
+    if rows is not None and not 4 <= rows <= n // 4:
+        raise InputError(f"--rows must be from 4 to --n / 4 = {n // 4} (a column at least "
+                         f"4 grains wide), got {rows}")
     check_threads(threads)
     from silodem import bench as benchmark
 
     try:
-        results = benchmark.bench(n, threads, steps, settle, lammps)
+        results = benchmark.bench(n, threads, steps, settle, lammps, rows=rows)
     except benchmark.LammpsFailed as exc:  # (a traceback before)
         fail(f"error: {exc}", 1)
     if as_json:
