@@ -675,18 +675,17 @@ def test_an_address_that_is_no_dask_scheduler_is_refused_in_time(
         capsys, tmp_path, monkeypatch, not_a_scheduler, mode):
     """An HTTP server at the address ended in a traceback (Dask read its reply as a message
     length: a MemoryError for 3 EiB), and a server that accepts and never answers hung the
-    sweep for ever (Dask's handshake read has no timeout, whatever Client's timeout says)."""
-    import time
-
+    sweep for ever (Dask's handshake read has no timeout, whatever Client's timeout says).
+    The silent server is refused by the probe's own time limit (CONNECT_TIMEOUT_S, set to
+    2 s here, which the line names); the HTTP server by its reply, before that limit."""
     from silodem.study import execute
 
     monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 2.0)
     address = not_a_scheduler(mode)
-    t0 = time.monotonic()
     line = refused(capsys, "sweep", "paper-study", "--quick", "--scheduler", address,
                    "--out", str(tmp_path / "s"))
-    assert time.monotonic() - t0 < 30
     assert_names(line, "cannot reach the Dask scheduler", address)
+    assert ("(no Dask handshake within 2 s)" in line) == (mode == "silent")
 
 
 def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_scheduler):
