@@ -117,8 +117,10 @@ class _SettledFrame(Recorder):
 
 def test_a_gaussian_run_records_the_fields_of_its_settled_packing():
     """With measure.field_kernel = 'gaussian' the recorder's settled field is the Gaussian
-    coarse-graining of the packing at the end of settling, recounted here from a frame of that
-    state; centres outside the silo are NaN, those inside finite."""
+    coarse-graining of the packing at the end of settling: the same ``gaussian_sums`` called
+    here on a frame of that state gives the same bits (this checks the recorder's wiring: the
+    frame, the moment, the width; the sums themselves are checked against analytic fields in
+    the tests above); centres outside the silo are NaN, those inside finite."""
     cfg = tiny_hopper_config()
     cfg = cfg.model_copy(update={"measure": cfg.measure.model_copy(
         update={"field_kernel": "gaussian", "field_width": 0.15})})
