@@ -177,6 +177,10 @@ def test_lattice_deck_runs_the_cache_probe_law():
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
 def test_lattice_vs_lammps_runs_both_codes_on_the_same_grains():
+    """A smoke test of the script: both codes run and report the 20 x 20 lattice's 400 grains.
+    Each builds its own lattice (``cache_probe.lattice``; ``lammps-lattice2d.in``): the same
+    0.2 m spacing and kind of grains, their radii and jitter drawn by each code's own random
+    numbers, so alike, not identical; the count is what this test checks."""
     from pathlib import Path
 
     script = Path(__file__).parents[1] / "benchmarks" / "lattice_vs_lammps.py"

@@ -184,12 +184,13 @@ def test_hertz_overlaps_stay_within_those_the_time_step_was_set_for(hertz_run):
     d_grain, d_wall = design_overlaps(cfg, estimate_overlap(cfg).contact_force)
     snap = hertz_run.snapshots["settled"]
     p, c, wc = snap.particles, snap.contacts, snap.wall_contacts
-    e_star, _ = textbook_moduli(1e9, 0.3, 1e9, 0.3)
+    grain = (cfg.material.young_modulus, cfg.material.poisson_ratio)
+    e_star, _ = textbook_moduli(*grain, *grain)
     r_eff = p["radius"][c["i"]] * p["radius"][c["j"]] / (p["radius"][c["i"]] + p["radius"][c["j"]])
     # overlaps from the contact forces by Hertz's law (static packing: F_n is elastic)
     overlap = (3 * c["fn"] / (4 * e_star * np.sqrt(r_eff))) ** (2 / 3)
     assert 0 < overlap.max() < d_grain
-    e_wall, _ = textbook_moduli(1e9, 0.3, 2e11, 0.3)
+    e_wall, _ = textbook_moduli(*grain, cfg.walls.young_modulus, cfg.walls.poisson_ratio)
     wall_overlap = (3 * wc["fn"] / (4 * e_wall * np.sqrt(p["radius"][wc["grain"]]))) ** (2 / 3)
     assert 0 < wall_overlap.max() < d_wall
     # and the time step is the stated fraction of the limit at those overlaps
