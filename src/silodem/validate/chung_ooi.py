@@ -48,11 +48,15 @@ from silodem.validate import impacts as im
 from silodem.validate.records import Record, absolute, info, rel
 
 KAPPA_DISK = 0.5  # I / (m R^2) of a disk
-TOL = 5e-3  # relative agreement with the rigid-body solution in gross sliding
+TOL = 5e-3  # relative agreement with the rigid-body solution around the stick-slip change
 PSI_TOL = 0.015  # absolute, on Psi_2 (0.5 % of the jump of 3 of a gross-sliding impact)
 STEPS = 500  # time steps per contact duration
 OVERLAP = 1e-3  # largest overlap / radius of the impacts (sets k_n)
-ENERGY_TOL = 1e-4  # elastic impact: leap-frog error O((w dt)^2) = (pi/STEPS)^2 = 4e-5
+# elastic, frictionless impact: off by O((w dt)^2) = (pi/STEPS)^2 = 4e-5 during the contact,
+# the time-reversible leap-frog returns the energy to round-off after it (1.7e-11 measured)
+ENERGY_TOL = 1e-9
+# test 4 (e = 0.98): e's own first-order error at STEPS (impacts.restitution_tol), 6e-5
+GROSS_SLIDING_TOL = im.restitution_tol(0.98, STEPS)
 
 
 def sticking_tangential_restitution(kappa: float = KAPPA_DISK) -> float:
@@ -223,18 +227,25 @@ def test4(records: list[Record]) -> dict:
         out["omega"].append(d.omega_after)
         out["rebound"].append(reb)
         if rb.sliding:
+            # in gross sliding the friction impulse is mu (1 + e) m v_n: its error is e's,
+            # first order in dt (impacts.restitution_tol), and so is the spin's it sets; the
+            # rebound angle carries the errors of v_t' and v_n' = e v_n both.  Checked as the
+            # friction's share 1 - v_t'/v_t, not v_t'/v_t, which near grazing is 1 - 1.6 %
+            # (85 deg) whatever mu.
             label = f"{case}, angle {a:g} deg (gross sliding)"
-            records.append(rel(label, "tangential restitution v_t'/v_t", rb.vt / vt, et, TOL))
-            records.append(rel(label, "spin after", rb.omega, d.omega_after, TOL, "rad/s"))
+            records.append(rel(label, "friction's share 1 - v_t'/v_t", 1.0 - rb.vt / vt,
+                               1.0 - et, GROSS_SLIDING_TOL))
+            records.append(rel(label, "spin after", rb.omega, d.omega_after, GROSS_SLIDING_TOL,
+                               "rad/s"))
             records.append(rel(label, "rebound angle", math.degrees(math.atan2(rb.vt, rb.vn)),
-                               reb, TOL, "deg"))
+                               reb, 2 * GROSS_SLIDING_TOL, "deg"))
     # the sticking limit: tan(theta) = 3 mu (1 + e)
     a_c = math.atan(sliding_limit() * mu * (1.0 + e))
     d = dem_wall_impact(v * math.cos(a_c), v * math.sin(a_c), 0.0, e_nom, mu)
     records.append(rel(f"{case}, sticking limit tan(theta) = 3 mu (1+e), "
                        f"theta = {math.degrees(a_c):.2f} deg",
                        "tangential restitution v_t'/v_t", sticking_tangential_restitution(),
-                       d.vt_after / (v * math.sin(a_c)), TOL,
+                       d.vt_after / (v * math.sin(a_c)), GROSS_SLIDING_TOL,
                        note="1/(1 + kappa) = 2/3 for a disk"))
     out["limit"] = (math.degrees(a_c), d.vt_after / (v * math.sin(a_c)))
     return out
