@@ -385,6 +385,7 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
                  "frames/frames-000000-000999.h5", "frames/.frames-001000-001001.h5.tmp",
                  ".checkpoint.h5.tmp", ".results.h5.tmp"):  # (saves a SIGKILL cut short)
         (out / name).write_bytes(b"old run")
+    (out / "config.toml").write_text("# the old run's\n")  # what makes it a run's folder
     (out / "notes.txt").write_text("mine")
     (out / "frames" / "mine.txt").write_text("mine")
     result = cli(*run_args(out))  # output.png, measure.report and VTK output are off in SETS
@@ -394,6 +395,40 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     assert left == ["config.toml", "frames/mine.txt", "notes.txt", "results.h5"]
     assert_frames_whole(out, tidy=True)  # the new run's segments, and only those
     assert list((out / "vtk").iterdir()) == []  # and the views wrote no fields into it
+
+
+@pytest.mark.parametrize("config", [False, True])
+def test_a_run_into_a_folder_of_files_no_run_wrote_is_refused_and_deletes_nothing(
+        tmp_path, capsys, config):
+    """--out . in a project folder deleted the user's own results.h5 and figures/*.png
+    without a word.  Files of those names that no silodem run wrote (no config.toml beside
+    them, or a results.h5 without silodem's attributes) are refused in one line, exit 2, and
+    kept; an earlier run's folder is replaced with a line that says so."""
+    from silodem.cli import main
+
+    out = tmp_path / "project"
+    (out / "figures").mkdir(parents=True)
+    (out / "figures" / "my_plot.png").write_bytes(b"mine")
+    (out / "results.h5").write_text("mine")
+    if config:
+        (out / "config.toml").write_text("# mine\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "paper-case2", "--quick", "--out", str(out)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds results.h5 (+1 more)" in err
+    assert "no silodem run wrote it" in err
+    assert (out / "results.h5").read_text() == "mine"
+    assert (out / "figures" / "my_plot.png").read_bytes() == b"mine"
+
+
+def test_a_run_over_an_earlier_run_says_it_replaces_it(tmp_path):
+    out = tmp_path / "run"
+    first = cli(*run_args(out))
+    assert first.returncode == 0 and "replacing" not in first.stderr
+    again = cli(*run_args(out))
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert f"silodem: replacing the earlier run's results in {out}" in again.stderr
 
 
 def test_a_completed_run_leaves_no_partial_save_behind(tmp_path):

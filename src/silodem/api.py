@@ -72,6 +72,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     """Run ``cfg`` into the folder ``out`` (default ``runs/<name>``), as ``silodem run`` does,
     and open its results."""
     from silodem.run import check_out, check_threads, run_simulation
+    from silodem.safety import check_replaceable
     from silodem.scenario_files import revalidated
     from silodem.silo.checks import check_numbers
 
@@ -87,6 +88,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
+    check_replaceable(folder)  # nor over files no silodem run wrote
     run_simulation(cfg, folder, threads=threads, progress=progress)
     return open_results(folder)
 

@@ -48,7 +48,7 @@ from silodem.checkpoint import (
     save_checkpoint,
 )
 from silodem.config import Config
-from silodem.errors import RunInterrupted, UnstableRunError, one_line
+from silodem.errors import InputError, RunInterrupted, UnstableRunError, one_line
 from silodem.silo import frame_store
 from silodem.silo.checks import law_key_names
 from silodem.silo.frames import FOLDER
@@ -67,14 +67,56 @@ _RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTI
               FAILURE_NAME, "animation.mp4", "animation.gif")  # (silodem animate's defaults)
 
 
+def _replaced_files(out: Path) -> list[Path]:
+    """The files of ``out`` that ``clear_previous_run`` removes by name (not the frames' and
+    VTK writers' own files, which they recognise)."""
+    found = [out / name for name in _RUN_FILES if (out / name).exists()]
+    figures = out / "figures"
+    if figures.is_dir():
+        found += sorted(figures.glob("*.png"))
+    return found
+
+
+def _written_by_silodem(results: Path) -> bool:
+    import h5py
+
+    try:
+        with h5py.File(results, "r") as h5:
+            return "silodem_version" in h5.attrs
+    except (OSError, ValueError):
+        return False
+
+
+def check_replaceable(out: Path, flag: str = "out") -> bool:
+    """Whether ``out`` holds an earlier run's files, which a new run there replaces; InputError
+    if it holds files of those names that no silodem run wrote (no config.toml beside them, or
+    a results.h5 without silodem's attributes): a user's own results.h5 or figures/*.png in a
+    folder given as ``--out`` were deleted without a word."""
+    found = _replaced_files(out)
+    if not found:
+        return False
+    results = out / RESULTS_NAME
+    foreign = not (out / "config.toml").is_file() or (
+        results.exists() and not _written_by_silodem(results))
+    if foreign:
+        more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
+        raise InputError(f"{flag} {out} holds {found[0].relative_to(out)}{more}, which a run "
+                         "there would replace, but no silodem run wrote it (no config.toml "
+                         "and silodem results.h5 there); give a new or empty folder, or move "
+                         "those files")
+    return True
+
+
 def clear_previous_run(out: Path) -> None:
     """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
     report, a failed run's diagnosis; only these names, ``figures/*.png``, the frames'
     segment files in ``frames/`` and the VTK writer's own files in ``vtk/``), so that a
     fresh run's folder never shows the old run's results beside the new config, even if the
-    new run is stopped before its first save or writes no VTK files."""
+    new run is stopped before its first save or writes no VTK files.  InputError, removing
+    nothing, where those files are not a silodem run's (``check_replaceable``)."""
     from silodem.viz.vtk import remove_written
 
+    check_replaceable(out)
     for name in _RUN_FILES:
         (out / name).unlink(missing_ok=True)
     remove_partial_saves(out)

@@ -133,9 +133,16 @@ def run(
 
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     check_out(out_dir)
+    from silodem.safety import check_replaceable
+
+    replacing = check_replaceable(out_dir, "--out")  # (a finished run was replaced unsaid)
 
     console = Console(soft_wrap=True)
     console.print(f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False)
+    if replacing:
+        Console(stderr=True, soft_wrap=True).print(
+            f"silodem: replacing the earlier run's results in {out_dir}", markup=False,
+            highlight=False)
     summary = run_simulation(cfg, out_dir, threads=threads, progress=True)
     _print_summary(console, summary)
 
