@@ -22,7 +22,7 @@ from silodem.safety import RunGuard, clear_previous_run
 from silodem.signals import noted_signals
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
-from silodem.silo.procedure import PHASES, Progress, SiloRun
+from silodem.silo.procedure import LOST_TOTAL, PHASES, Progress, SiloRun
 
 
 @dataclass
@@ -227,6 +227,9 @@ def _warn_new(console, live: dict) -> None:
     if run is None:
         return
     for w in run.warnings[live["warned"]:]:  # (a total rewritten in place is not repeated)
+        if w.startswith(LOST_TOTAL):  # a running total: said as such, the summary gives the end
+            console.print(f"[yellow]warning:[/] grains lost so far: {w.removeprefix(LOST_TOTAL)}")
+            continue
         console.print(f"[yellow]warning:[/] {w}")
         live["printed"].add(w)
     live["warned"] = len(run.warnings)
