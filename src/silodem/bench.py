@@ -144,7 +144,8 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
 
 
 def reenter(sim: Simulation, top: float) -> int:
-    """Grains below the periodic boundary re-enter at the top (the deck's periodic y); called
+    """Grains below the periodic boundary re-enter at the top, moved up by top - Y_BOTTOM (the
+    deck's periodic y over [Y_BOTTOM, top], ``top`` [m]); called
     right before a neighbour-list build, which then lists them at their new place.  Returns
     the number of grains moved.
 

@@ -256,14 +256,15 @@ class TimeStep(_Strict):
     """Time step.  ``dt`` unset: dt = safety * dt_crit (see physics docs)."""
 
     dt: float | None = Field(None, gt=0, description="time step [s]; must not exceed dt_crit")
-    safety: float = Field(0.2, gt=0, le=1, description="fraction of dt_crit used when dt unset")
+    safety: float = Field(0.2, gt=0, le=1, description="fraction of dt_crit used when dt unset [-]")
 
 
 class Output(_Strict):
     """What is recorded."""
 
     sample_interval: float = Field(0.02, gt=0, description="time-series sampling interval [s]")
-    png: bool = Field(True, description="draw the final state with its force network")
+    png: bool = Field(True, description="draw settled.png and final.png (the grains and "
+                      "their force network)")
     frame_interval: float = Field(
         0.1, gt=0, description="interval between the frames (grains, contacts, walls) saved to "
         "results.h5 /frames for 'silodem animate' [s]"

@@ -69,7 +69,9 @@ class Particles:
         vy: np.ndarray | float = 0.0,
         omega: np.ndarray | float = 0.0,
     ) -> np.ndarray:
-        """Append disks; return their uids.  The neighbour list must be rebuilt afterwards."""
+        """Append disks at (x, y) [m] of ``radius`` [m], ``density`` [kg/m^3] and ``thickness``
+        [m] (mass density pi r^2 thickness), with velocity (vx, vy) [m/s] and spin ``omega``
+        [rad/s]; return their uids.  The neighbour list must be rebuilt afterwards."""
         x = np.atleast_1d(np.asarray(x, dtype=float))
         k = x.shape[0]
         self._grow(self.n + k)
@@ -146,6 +148,7 @@ class Particles:
         return 0.5 * self.view("mass") * self.view("radius") ** 2
 
     def total_mass(self) -> float:
+        """Mass of the grains [kg]."""
         return float(np.sum(self.mass[: self.n]))
 
 

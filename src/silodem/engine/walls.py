@@ -186,4 +186,5 @@ class Walls:
 
     @property
     def length(self) -> np.ndarray:
+        """Length of each wall [m]."""
         return np.hypot(self.bx - self.ax, self.by - self.ay)

@@ -44,7 +44,8 @@ class WallBins:
 
 def wall_bins(ax: npt.ArrayLike, ay: npt.ArrayLike, bx: npt.ArrayLike, by: npt.ArrayLike,
               bin_len: float) -> WallBins:
-    """Cut each wall into round(L / bin_len) (at least 1) equal bins."""
+    """Cut each wall (ends A = (ax, ay), B = (bx, by) [m]) into round(L / bin_len) (at least
+    1) equal bins, ``bin_len`` [m]."""
     ax, ay, bx, by = (np.asarray(v, dtype=float) for v in (ax, ay, bx, by))
     length = np.hypot(bx - ax, by - ay)
     tangent = np.column_stack([(bx - ax) / length, (by - ay) / length])
@@ -122,7 +123,8 @@ def binned_stress(moments: np.ndarray, z: np.ndarray, mask: np.ndarray, z_edges:
 
 def peak_in_zone(z: npt.ArrayLike, values: npt.ArrayLike, z_lo: float,
                  z_hi: float) -> tuple[float, float]:
-    """(largest value, its z) among the points with z_lo <= z <= z_hi; (nan, nan) if none."""
+    """(largest value, its z [m]) among the points with z_lo <= z <= z_hi [m] (``values`` in
+    their own unit); (nan, nan) if none."""
     z = np.asarray(z, dtype=float)
     v = np.asarray(values, dtype=float)
     sel = (z >= z_lo) & (z <= z_hi) & np.isfinite(v)

@@ -83,7 +83,7 @@ def add_loads(a: Analysis, wall_top: float) -> None:
 
 def hopper_loads(a: Analysis, K: float, p_vft: float) -> dict[str, Any]:
     """EN 1991-4:2006 §6 loads on the hopper walls (a planar wedge, S = 1) by the hopper's
-    class, from p_vft = C_b p_vf, the vertical walls' p_vf at the transition with C_b = 1
+    class, from p_vft [Pa] = C_b p_vf, the vertical walls' p_vf at the transition with C_b = 1
     (action assessment class 2, no dynamic solid), K of the Janssen fit after filling,
     mu_h = tan(phi_P), and for a steep hopper's discharge factor F_e the angle of internal
     friction that EN's K = 1.1 (1 - sin phi_i) gives for that K.  "kind" alone when the rules

@@ -385,6 +385,7 @@ class SiloRun:
     # --- read-outs (never change the state) ---------------------------------------------------
     @property
     def discharged_mass(self) -> float:
+        """Mass of the grains discharged so far [kg]."""
         return self.state.discharged_mass
 
     @property

@@ -383,7 +383,8 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
     for kind, expected, got in silo_contact_durations():
         records.append(rel(f"{CASE}, {kind}, paper-case2's contact constants, undamped, "
                            f"dt=t_c/{SERIES_STEPS}", "contact duration", expected, got,
-                           duration_tol(1.0, SERIES_STEPS), "s", "pi sqrt(m_eff/k), k = k_a k_b/(k_a + k_b) "
-                           "of the configuration's body stiffnesses (series)"))
+                           duration_tol(1.0, SERIES_STEPS), "s",
+                           "pi sqrt(m_eff/k), k = k_a k_b/(k_a + k_b) of the configuration's "
+                           "body stiffnesses (series)"))
     return records, {"checked": checked, "convergence": convergence, "silo": silo_points,
                      "silo_steps": n_silo}
