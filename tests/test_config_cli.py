@@ -131,6 +131,16 @@ def test_help_works_for_each_command():
         assert "Usage" in result.stdout
 
 
+def test_version_prints_the_packages_version():
+    """A user needs the version for a study (run ids depend on it); it was only in results.h5
+    and the report.  It is the installed distribution's, as pip records it."""
+    from importlib.metadata import version
+
+    result = cli("--version")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == f"silodem {version('silodem')}\n"
+
+
 # --- quick variant -------------------------------------------------------------------------
 
 

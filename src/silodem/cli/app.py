@@ -30,6 +30,24 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
+def _print_version(asked: bool) -> None:
+    if asked:
+        from silodem import __version__
+
+        print(f"silodem {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[bool, typer.Option(
+        "--version", callback=_print_version, is_eager=True,
+        help="Print silodem's version and exit (results.h5 and the report record it; a "
+        "study's run ids depend on it).")] = False,
+) -> None:
+    pass
+
+
 SourceArg = Annotated[
     str,
     typer.Argument(
