@@ -18,7 +18,7 @@ from silodem.config import Config
 from silodem.errors import InputError, RunInterrupted, Terminated
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.safety import RunGuard, clear_previous_run
+from silodem.safety import ANIMATIONS, RunGuard, clear_previous_run
 from silodem.signals import noted_signals
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
@@ -136,6 +136,9 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     out.mkdir(parents=True, exist_ok=True)
     if resume_from is None:
         clear_previous_run(out)
+    else:  # an animation of the run so far would stay beside the finished run's results
+        for name in ANIMATIONS:
+            (out / name).unlink(missing_ok=True)
     toml_text = config_to_toml(cfg)
     write_text(out / "config.toml", toml_text)
     guard = RunGuard(out, toml_text, cfg, resume_from)

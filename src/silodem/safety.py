@@ -63,8 +63,9 @@ _STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
 
 
 # what a run and its pictures write into the folder (the VTK writer clears its own files)
+ANIMATIONS = ("animation.mp4", "animation.gif")  # silodem animate's default names
 _RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTIC_NAME,
-              FAILURE_NAME, "animation.mp4", "animation.gif")  # (silodem animate's defaults)
+              FAILURE_NAME, *ANIMATIONS)
 
 
 def _replaced_files(out: Path) -> list[Path]:
