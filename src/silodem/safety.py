@@ -118,14 +118,10 @@ def clear_previous_run(out: Path) -> None:
     from silodem.viz.vtk import remove_written
 
     check_replaceable(out)
-    for name in _RUN_FILES:
-        (out / name).unlink(missing_ok=True)
+    for path in _replaced_files(out):
+        path.unlink(missing_ok=True)
     remove_partial_saves(out)
     frame_store.clear(out / FOLDER)
-    figures = out / "figures"
-    if figures.is_dir():
-        for png in figures.glob("*.png"):
-            png.unlink()
     remove_written(out / "vtk")
 
 

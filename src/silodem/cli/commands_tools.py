@@ -18,10 +18,6 @@ from silodem.errors import InputError
 PLAN_NOTICE_RUNS = 1000  # a study this large says so before it plans (seconds of checks)
 
 
-def _workers(n: int) -> str:
-    return f"{n} single-threaded worker{'s' if n != 1 else ''}"
-
-
 @app.command()
 def sweep(
     study: Annotated[
@@ -76,7 +72,12 @@ def sweep(
     stopped by SIGINT/SIGTERM (the finished runs are kept: repeat the command to go on).
     """
     from silodem.study import expand, load_study, run_study
-    from silodem.study.execute import check_workers, default_workers, is_finished
+    from silodem.study.execute import (
+        check_workers,
+        default_workers,
+        is_finished,
+        workers_phrase,
+    )
 
     check_workers(workers, "--workers", local=scheduler is None)
     if scheduler is not None and not scheduler.strip():
@@ -94,7 +95,7 @@ def sweep(
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file, not a folder")
     where = (f"the Dask scheduler at {scheduler}" if scheduler is not None else
-             f"a local cluster of {_workers(workers or default_workers())}")
+             f"a local cluster of {workers_phrase(workers or default_workers())}")
     console = Console(soft_wrap=True)
 
     def say(text: str) -> None:

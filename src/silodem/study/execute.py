@@ -208,6 +208,11 @@ class StudyOutcome:
     where: str = ""  # the cluster used
 
 
+def workers_phrase(n: int) -> str:
+    """'N single-threaded worker(s)', as the sweep says where it runs."""
+    return f"{n} single-threaded worker{'s' if n != 1 else ''}"
+
+
 def default_workers() -> int:
     """One worker per core this process may use."""
     try:
@@ -493,8 +498,7 @@ def connect(scheduler: str | None, workers: int | None,
     if scheduler is None:
         n = workers or default_workers()
         cluster = local_cluster(n)
-        return Client(cluster), cluster, (f"LocalCluster of {n} single-threaded "
-                                          f"worker{'s' if n != 1 else ''}")
+        return Client(cluster), cluster, f"LocalCluster of {workers_phrase(n)}"
     try:
         _probe(scheduler)
         client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
