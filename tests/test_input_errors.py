@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -84,7 +85,36 @@ def test_a_section_that_is_not_a_table_is_refused(capsys, tmp_path, replacement)
     rest = rest[rest.index("\n[") :]  # drop the [material] table
     path = tmp_path / "section.toml"
     path.write_text(f"{head}{replacement}\n{rest}")
-    assert_names(refused(capsys, "show", str(path)), "material")
+    assert_names(refused(capsys, "show", str(path)), "material: a section, not a value",
+                 "[material]")
+
+
+def test_a_files_several_mistakes_are_all_named_in_its_line(capsys, tmp_path):
+    """Three mistakes in a file gave the first and "(+2 more)": the user mended them one
+    rerun at a time without knowing where the others were."""
+    text = config_to_toml(load_config("paper-case2"))
+    text = text.replace("\nfriction_deg = ", "\nmu = ", 1)  # unknown (and so one missing)
+    text = text.replace("\nseed = ", "\nsed = ", 1)  # unknown, and seed missing
+    path = tmp_path / "three.toml"
+    path.write_text(text)
+    line = refused(capsys, "show", str(path))
+    assert line.startswith("config error: unknown key"), line
+    assert_names(line, "(+3 more: ", "unknown", "seed missing", "friction_deg missing")
+    assert_names(line, *(f"{key}" for key in ("material.mu", "sed")))
+
+
+def test_a_set_of_a_whole_section_names_its_keys(capsys):
+    """`--set silo=3` gave pydantic's "Input should be a valid dictionary or instance of
+    Silo"."""
+    line = refused(capsys, "show", "paper-case2", "--set", "silo=3")
+    assert_names(line, "--set silo=3", "'silo' is a section", "cell_width", "silo.kind=")
+
+
+def test_a_set_that_breaks_a_sections_check_is_named(capsys):
+    """The check of radius_max >= radius_min belongs to [material]: the --set that broke it
+    was not named, although the message names its key."""
+    line = refused(capsys, "show", "paper-case2", "--set", "material.radius_min=0.2")
+    assert line.endswith("(from --set material.radius_min=0.2)"), line
 
 
 def test_a_quoted_dotted_key_is_named_as_written(capsys, tmp_path):
@@ -564,6 +594,17 @@ def test_a_numba_thread_count_numba_cannot_use_is_refused(capsys, monkeypatch, v
     monkeypatch.setenv("NUMBA_NUM_THREADS", value)
     line = refused(capsys, "run", "--quick", "--threads", "1")
     assert_names(line, "NUMBA_NUM_THREADS", repr(value))
+
+
+@pytest.mark.parametrize("args", [["scenarios"], ["show", "paper-case2"], ["--version"],
+                                  ["run", "--help"]])
+def test_commands_that_compute_nothing_ignore_numbas_thread_count(args):
+    """`NUMBA_NUM_THREADS=0 silodem scenarios` was refused although listing scenarios never
+    imports numba (a fresh process: here numba is imported already)."""
+    env = {**os.environ, "NUMBA_NUM_THREADS": "0"}
+    result = subprocess.run([sys.executable, "-m", "silodem", *args], capture_output=True,
+                            text=True, env=env, check=False, timeout=120)
+    assert result.returncode == 0 and result.stdout.strip(), result.stderr
 
 
 @pytest.mark.parametrize("name", ["results.h5", "config.toml", "report.html"])

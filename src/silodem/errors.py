@@ -184,10 +184,35 @@ def first_error(err: ValidationError) -> dict[str, Any]:
     return dict(min(err.errors(), key=lambda e: e["type"] != "extra_forbidden"))
 
 
+OTHERS_NAMED = 6  # the other errors' keys named after the first error, at most
+
+
+def _others(errors: list[Any], first: dict[str, Any]) -> str:
+    """`` (+N more: a.b missing, c unknown, d, ...)``: where the errors after the first are
+    (each key once, unknown keys first, at most OTHERS_NAMED of them), or "" when there is
+    one error."""
+    rest = sorted((e for e in errors if dict(e) != first),  # unknown keys first, as the
+                  key=lambda e: e["type"] != "extra_forbidden")  # first error is chosen
+    if not rest:
+        return ""
+    names: list[str] = []
+    for e in rest:
+        dotted = ".".join(str(p) for p in e["loc"]) or "(the whole config)"
+        kind = {"missing": " missing", "extra_forbidden": " unknown"}.get(e["type"], "")
+        if dotted + kind not in names:
+            names.append(dotted + kind)
+    shown = ", ".join(names[:OTHERS_NAMED])
+    if len(names) > OTHERS_NAMED:
+        shown += f", and {len(names) - OTHERS_NAMED} more key(s)"
+    return f" (+{len(rest)} more: {shown})"
+
+
 def format_validation_error(
     err: ValidationError, data: dict, *, model: type[BaseModel] | None = None
 ) -> str:
-    """One line describing the first error of ``err`` (plus ``(+N more)``).
+    """One line describing the first error of ``err``, then the keys of the others
+    (``(+N more: key missing, key unknown, key, ...)``: a file with several mistakes is not
+    mended one rerun at a time without knowing how many and where).
 
     ``data`` is the raw dict that was validated; ``model`` the validated model class (found
     by the error's title in :mod:`silodem.config` when omitted).  Unknown keys are reported
@@ -200,7 +225,7 @@ def format_validation_error(
     first = first_error(err)
     loc = list(first["loc"])
     dotted = ".".join(str(p) for p in loc)
-    more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
+    more = _others(errors, first)
 
     if first["type"] == "extra_forbidden":
         parts = [str(p) for p in loc]
@@ -216,6 +241,9 @@ def format_validation_error(
         return one_line(f"config error: missing required key '{dotted}'{desc}{more}")
 
     msg = str(first["msg"])
+    if first["type"] == "model_type":  # pydantic: "Input should be a valid dictionary or
+        msg = (f"a section, not a value: write it as a table [{dotted}] of keys"  # instance
+               if dotted else "a table of keys")                                   # of X"
     for prefix in ("Value error, ", "Assertion failed, "):
         msg = msg.removeprefix(prefix)
     if "input" in first:

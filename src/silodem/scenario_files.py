@@ -147,8 +147,9 @@ def _split_set(item: str, flag: str = "--set") -> tuple[list[str], str]:
     return [p.strip() for p in key.split(".")], value.strip()
 
 
-def _check_key(parts: list[str], item: str, flag: str = "--set") -> None:
-    """Raise InputError when ``parts`` is not a key path of the schema."""
+def _check_key(parts: list[str], item: str, flag: str = "--set") -> type[BaseModel] | None:
+    """Raise InputError when ``parts`` is not a key path of the schema; return the section
+    it names (None for a value)."""
     model: type[BaseModel] | None = Config
     for i, part in enumerate(parts):
         if model is None:
@@ -162,6 +163,7 @@ def _check_key(parts: list[str], item: str, flag: str = "--set") -> None:
                 f"{flag} {_short(item)}: {unknown_key_message(Config, parts[: i + 1])}"
             )
         model = submodel(model.model_fields[part].annotation)
+    return model
 
 
 def apply_sets(data: dict[str, Any], sets: Iterable[str],
@@ -171,7 +173,13 @@ def apply_sets(data: dict[str, Any], sets: Iterable[str],
     Python API)."""
     for item in sets:
         parts, text = _split_set(item, flag)
-        _check_key(parts, item, flag)
+        section = _check_key(parts, item, flag)
+        value = parse_value(text)
+        if section is not None and not isinstance(value, dict):  # pydantic would say "Input
+            keys = ", ".join(section.model_fields)  # should be a valid dictionary or instance"
+            raise InputError(f"{flag} {_short(item)}: '{'.'.join(parts)}' is a section, not a "
+                             f"value; set one of its keys ({keys}), e.g. {flag} "
+                             f"{'.'.join(parts)}.{next(iter(section.model_fields))}=...")
         node = data
         for i, part in enumerate(parts[:-1]):
             child = node.setdefault(part, {})
@@ -181,7 +189,7 @@ def apply_sets(data: dict[str, Any], sets: Iterable[str],
                     "not a section"
                 )
             node = child
-        node[parts[-1]] = parse_value(text)
+        node[parts[-1]] = value
     return data
 
 
@@ -209,7 +217,9 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = (), flag: str = "--set
         dotted = ".".join(str(p) for p in first["loc"])
         for item in reversed(list(sets)):  # the last --set of a key is the one in force
             key = item.partition("=")[0].strip()
-            if dotted and (key == dotted or dotted.startswith(key + ".")):
+            inside = key.startswith(dotted + ".") if dotted else True  # a section's check
+            if (dotted and (key == dotted or dotted.startswith(key + "."))) or \
+                    (inside and key in message):  # naming the key, e.g. radius_max >= min
                 message += f" (from {flag} {_short(item)})"
                 break
         raise InputError(message) from None
