@@ -76,11 +76,22 @@ def _empty_path(args: list[str]) -> str | None:
     return None
 
 
+NO_KERNEL_COMMANDS = ("scenarios", "show")  # they never import numba
+
+
+def _needs_kernels(args: list[str]) -> bool:
+    """Whether the command may import numba (which refuses a NUMBA_NUM_THREADS below 1 with
+    a traceback): not to list or show scenarios, or for --help and --version."""
+    if not args or args[0] in NO_KERNEL_COMMANDS or args[0] == "--version":
+        return False
+    return not any(arg in ("--help", "-h") for arg in args)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     args = list(sys.argv[1:] if argv is None else argv)
     numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
-    if not numba_threads.isdigit() or int(numba_threads) < 1:
+    if _needs_kernels(args) and (not numba_threads.isdigit() or int(numba_threads) < 1):
         fail(f"error: NUMBA_NUM_THREADS={numba_threads!r}: must be a whole number of threads "
              "from 1 (or unset)")
     empty = _empty_path(args)
