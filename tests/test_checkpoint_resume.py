@@ -215,11 +215,13 @@ def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_sav
     result = cli("run", "--resume", str(out))
     assert result.returncode == 0, result.stderr[-2000:]
     assert_same_as_reference(out, ref)
-    # stderr is not a terminal here: no bar until the end, so a line at each phase
+    # stderr is not a terminal here: no bar, a line at each phase (rich drew the bar's last
+    # state at the end, in bar characters, with an elapsed time that was not the run's)
     phases = [line.split()[0] for line in result.stderr.splitlines()
               if line.split()[:3][1:] == ["t", "="]]
     changes = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
     assert changes[-3:] == ["settle", "discharge", "done"], result.stderr
+    assert phases.count("done") == 1 and "\u2501" not in result.stderr, result.stderr
 
 
 def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):

@@ -152,7 +152,9 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
         console = Console(stderr=True, soft_wrap=True)
         with Bar(TextColumn("[bold]{task.fields[phase]:<9}"), BarColumn(),
                  TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
-                 transient=False) as bar:
+                 transient=False, disable=not console.is_terminal) as bar:
+            # (a log file gets the lines of show() and no bar: rich drew its last state
+            # at the end, bar characters and an elapsed time that was not the run's)
             task = bar.add_task("compiling kernels...", total=3, phase="start")
             live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "",
                           "logged": 0.0}
