@@ -345,3 +345,20 @@ def test_a_pour_cut_short_by_its_rate_says_so_not_that_there_was_no_room():
                 f"{cfg.fill.n_particles} grains placed: fill.rate = 20 grains/s pours only "
                 "about 40 in that time")
     assert [w for w in run.warnings if w.startswith("pouring stopped")] == [expected]
+
+
+def test_progress_rate_leaves_out_the_time_before_the_first_report(monkeypatch):
+    """The first progress line's rate counted the kernels' compilation (600 steps/s in a run
+    that went at 40,000): it is NaN there, and after it the steps since the first report over
+    the wall seconds since it, on a clock that ticks 1 s per reading."""
+    from silodem.silo import procedure
+
+    ticks = iter(range(1, 10**9))
+    monkeypatch.setattr(procedure, "wallclock",
+                        type("Clock", (), {"perf_counter": staticmethod(lambda: next(ticks))}))
+    seen: list = []
+    run = SiloRun(small(discharge__max_time=0.5), on_progress=seen.append)
+    run.run()
+    assert len(seen) > 3 and math.isnan(seen[0].steps_per_s)
+    for k, pr in enumerate(seen[1:], start=1):
+        assert pr.steps_per_s == (pr.steps - seen[0].steps) / k

@@ -7,6 +7,7 @@ Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> di
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import signal
 import time
@@ -160,8 +161,9 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
                           "logged": 0.0}
 
             def show(pr: Progress) -> None:
-                text = (f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  "
-                        f"{pr.steps_per_s:8.0f} steps/s  {pr.detail}")
+                rate = (f"{pr.steps_per_s:8.0f} steps/s" if math.isfinite(pr.steps_per_s)
+                        else "kernels compiled")
+                text = f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  {rate}  {pr.detail}"
                 bar.update(task, completed=PHASES.index(pr.phase), phase=pr.phase,
                            description=text)
                 now = time.perf_counter()
