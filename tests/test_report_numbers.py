@@ -1320,3 +1320,93 @@ def test_a_free_janssen_fit_above_the_coulomb_limit_is_flagged(synth):
     assert not above_coulomb(exact, 0.2)
     bound = dataclasses.replace(b.janssen_free, mu_w=1e-6, mu_w_err=4e-7)
     assert bound.mu_w_at_bound and not above_coulomb(bound, 0.0)
+
+
+MU_ROW = "mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of the Janssen fit"
+
+
+def test_a_negative_mobilised_wall_friction_is_flagged(synth):
+    """tau_down is the grains' downward shear traction on the walls (docs/measurements.md's
+    tau, turned downward): a negative sum(tau)/sum(sigma_n) is friction on the grains that
+    points down, net, so the cell walls carry none of the fill's weight (the statics check of
+    docs/validation.md met one, -0.34 of the weight, a column that sprang back).  Both rows
+    say so, in words, after the number; the synthetic run's positive friction (0.684 of tan
+    phi_P after filling) and a share of 0.8 get none of it.  The threshold is the sign."""
+    from silodem.report.eurocode import mobilisation_row
+
+    a, _ = synth
+    for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
+        assert a.mu_mobilised[key] > 0.0
+        value = _number(a, f"{MU_ROW}, {label}")
+        assert value == significant(a.mu_mobilised[key], 3)  # ordinary: the number alone
+    assert _number(a, "EN 1991-4 loads' wall friction") == "68 %"
+    b = copy.copy(a)
+    b.mu_mobilised = {"fill": -0.0312, "discharge": -0.004}
+    b.en1991_4 = {**a.en1991_4, "mobilised": -0.0312 / MU_WALL}
+    b.numbers = []
+    _numbers(b)
+    walls = ("negative: the walls' friction on the grains points down, net over these bins, so "
+             "the cell walls carry none of the fill's weight but add to the load below (the "
+             "grains hold the walls up): the reverse of the wall support Janssen assumes")
+    assert _number(b, f"{MU_ROW}, after filling") == f"-0.0312 ({walls})"
+    assert _number(b, f"{MU_ROW}, during discharge") == f"-0.004 ({walls})"
+    assert _number(b, "EN 1991-4 loads' wall friction") == (
+        "-7 %: negative: net, the walls' friction on the grains points down, so the cell walls "
+        "carry none of the fill's weight (the grains hold them up), the reverse of the wall "
+        "support these loads assume; read them as the standard's, not as a model of this silo")
+    assert mobilisation_row(0.8)[1] == "80 %"
+    assert mobilisation_row(-0.12)[1].startswith("-12 %: negative: net, the walls' friction")
+    assert "the settled silo" not in mobilisation_row(-0.12)[1]  # not the under-a-half text
+    assert mobilisation_row(0.0)[1].startswith("0 %: the settled silo does not show")
+
+
+def test_a_janssen_k_above_1_is_flagged_after_filling_and_noted_during_discharge(synth):
+    """K = sigma_h / sigma_v = 1 is the isotropic (hydrostatic) bound: a fill at rest under its
+    own weight is on the active side (Jaky: K0 = 1 - sin phi < 1), so a K above 1 by more
+    than its error after filling is flagged in words, on the fit with mu_w = tan phi_P and on
+    the free fit; during discharge, where flowing grains can go passive (Jenike's and
+    Walters' switch), the row says what it is, not that it is wrong.  An ordinary K (the
+    synthetic 0.55, and 0.5) and a K within its error of 1 get no note; a K that is also
+    poorly determined reads both in one parenthesis, and a poorly determined K that reaches
+    1 within its error only the first."""
+    from silodem.report.analysis import ABOVE_HYDROSTATIC, _janssen_K, above_hydrostatic
+
+    a, _ = synth
+    fill_row = "Janssen K fitted to the cell wall profile, after filling"
+    free_row = "Janssen free fit after filling: K, mu_w"
+    assert "above 1" not in _number(a, fill_row) and "above 1" not in _number(a, free_row)
+    j = a.janssen["fill"]
+    ordinary = dataclasses.replace(j, K=0.5, K_err=0.02)
+    assert not above_hydrostatic(ordinary) and _janssen_K(ordinary, "fill") == "0.5 +- 0.02"
+    b = copy.copy(a)
+    b.janssen = {"fill": dataclasses.replace(j, K=1.3, K_err=0.05),
+                 "discharge": dataclasses.replace(j, K=1.4, K_err=0.1)}
+    b.janssen_free = dataclasses.replace(a.janssen_free, K=1.45, K_err=0.2)
+    b.numbers = []
+    _numbers(b)
+    fill_note = ("above 1 by more than its error: as fitted, the walls are pressed harder than "
+                 "the fill's vertical stress, a passive-like state, not the K of a fill at rest "
+                 "under its own weight (Jaky: K0 = 1 - sin phi < 1)")
+    assert ABOVE_HYDROSTATIC["fill"] == fill_note
+    # the fit with mu_w = tan phi_P says where the walls mobilise less (0.684 of it here);
+    # the free fit, whose mu_w is fitted, does not
+    mob = a.mu_mobilised["fill"]
+    assert _number(b, fill_row) == (
+        f"1.3 +- 0.05 ({fill_note}; with mu_w = {significant(MU_WALL, 3)} where the walls "
+        f"mobilise {significant(mob, 3)}, the fit puts the missing friction into K)")
+    assert _number(b, free_row).startswith(f"1.45 +- 0.2 ({fill_note}), ")
+    assert _janssen_K(b.janssen["fill"], "fill", MU_WALL) == f"1.3 +- 0.05 ({fill_note})"
+    assert _number(b, "Janssen K fitted to the cell wall profile, during discharge") == (
+        "1.4 +- 0.1 (above 1 by more than its error: a passive-like state, the walls pressed "
+        "harder than the vertical stress, as flowing grains can set up (the switch of Jenike "
+        "and Walters))")
+    # within its error of 1 (the validation column's 1.05): not judged
+    assert _janssen_K(dataclasses.replace(j, K=1.05, K_err=0.1), "fill") == "1.05 +- 0.1"
+    # poorly determined: the quick hopper's 1.29 +- 0.69 reaches 1 within its error
+    poor = "poorly determined: the error is over half the value"
+    assert _janssen_K(dataclasses.replace(j, K=1.286, K_err=0.69), "fill") == (
+        f"1.29 +- 0.69 ({poor})")
+    assert _janssen_K(dataclasses.replace(j, K=3.1, K_err=1.8), "fill") == (
+        f"3.1 +- 1.8 ({poor}; {fill_note})")
+    assert _janssen_K(dataclasses.replace(j, K=3.1, K_err=NAN), "fill") == (
+        f"3.1 +- n/a ({poor})")  # no error (an exact two-bin fit): not judged

@@ -143,11 +143,23 @@ def mobilisation_row(share: float) -> tuple[str, str, str]:
     phi_P) take the wall friction fully mobilised; the share the cell walls carry after
     filling, sum(tau) / sum(sigma_n) over tan(phi_P).  Under FEW_MOBILISED the row says that
     the settled silo does not show the wall support the loads assume (its pressures are then
-    nearer hydrostatic, and K takes up the missing friction)."""
+    nearer hydrostatic, and K takes up the missing friction).  Under 0 it says more: tau is
+    the grains' shear traction on the walls, counted downward (wall_profiles' tau, along each
+    wall's tangent, turned downward in ``analysis._edge``), so a negative sum is a net upward
+    pull of the grains on the walls, the walls' friction on the grains pointing down: the
+    cell walls carry none of the fill's weight and press it onto the fill below (as in a
+    column that sprang back after settling, its wall friction reversed and locked in:
+    docs/validation.md's statics check), not a smaller share of the support the loads
+    assume."""
     label = ("EN 1991-4 loads' wall friction, mu = tan phi_P fully mobilised (as for K): the "
              "share the cell walls carry after filling")
     value = f"{significant(100 * share, 2)} %"
-    if share < FEW_MOBILISED:
+    if share < 0.0:
+        value += (": negative: net, the walls' friction on the grains points down, so the cell "
+                  "walls carry none of the fill's weight (the grains hold them up), the reverse "
+                  "of the wall support these loads assume; read them as the standard's, not as "
+                  "a model of this silo")
+    elif share < FEW_MOBILISED:
         value += (": the settled silo does not show the wall support these loads assume; "
                   "read them as the standard's, not as a model of this silo")
     return label, value, ""
