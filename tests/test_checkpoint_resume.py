@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import resource
 import shutil
 import signal
@@ -232,7 +233,11 @@ def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):
     stderr = signal_when(proc, signal.SIGTERM, lambda: time.sleep(3.0))  # waiting for it
     assert proc.returncode == 143, stderr[-2000:]
     assert "Traceback" not in stderr
-    assert stderr.strip().splitlines()[-1] == "interrupted (SIGTERM)"
+    # (the sweep's line says what is kept: nothing yet, the study folder is not even made)
+    line = ("interrupted: SIGTERM: none of the 16 runs is finished yet; repeat the command to "
+            "run them")
+    assert stderr.strip().splitlines() == [line]
+    assert not (tmp_path / "study").exists()
 
 
 def _exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
@@ -355,6 +360,76 @@ def test_a_second_signal_dropped_by_a_weakref_callback_still_stops_without_savin
             guard(None)  # the chunk hook: before any check or save of the run
     assert capsys.readouterr().err == ""
     assert not list(tmp_path.iterdir())  # nothing saved
+
+
+def _the_one_line(stderr: str) -> str:
+    """The line of a stopped run: the last on stderr, after nothing but progress lines (a log
+    line per phase when stderr is not a terminal)."""
+    *before, line = stderr.strip().splitlines()
+    assert all(re.match(r"(start|fill|settle|discharge|done) +t = ", b) for b in before), stderr
+    return line
+
+
+def _saved_at(path: Path, step_key: str) -> str:
+    with h5py.File(path) as h5:
+        return (f"at t = {float(h5.attrs['time']):.4g} s (step {int(h5.attrs[step_key])}, "
+                f"{h5.attrs['phase']})")
+
+
+@pytest.mark.parametrize("checkpoints", [True, False], ids=["checkpoint", "no-checkpoint"])
+def test_a_second_ctrl_c_names_what_is_kept_and_how_to_go_on(tmp_path, checkpoints):
+    """The first SIGINT asks the run to save at the end of its chunk and stop; a second one
+    (here while that save is written) stops it at once, without saving.  Its line said only
+    'SIGINT again: stopped at once, without saving'.  It now names the checkpoint kept, with
+    its time and step as they are on disk, and the command that continues from it; without
+    checkpoints, that there is none and what results.h5 holds.  Exit 130, one line."""
+    extra = () if checkpoints else ("checkpoint.enabled=false",)
+    kept = "checkpoint.h5" if checkpoints else "results.h5"
+    # the second signal must come after the first was handled and before the run has saved
+    # and stopped (a few tens of ms): a few tries with other gaps if it comes too late
+    for attempt, gap in enumerate((0.01, 0.005, 0.02, 0.002, 0.015, 0.01)):
+        out = tmp_path / f"run{attempt}"
+        proc = start(*run_args(out, *extra))
+
+        def first(out=out, proc=proc, gap=gap) -> None:
+            wait_for_file(out / kept, proc)
+            time.sleep(0.2)
+            proc.send_signal(signal.SIGINT)
+            time.sleep(gap)  # the first is handled: the run saves (the second goes next)
+
+        stderr = signal_when(proc, signal.SIGINT, first)
+        if "SIGINT again" in stderr:
+            break
+    else:
+        pytest.fail("the second SIGINT never came before the run had stopped")
+    assert proc.returncode == 130, stderr[-2000:]
+    assert "Traceback" not in stderr
+    line = _the_one_line(stderr)
+    said = "interrupted: SIGINT again: stopped at once, without saving; "
+    if checkpoints:
+        assert line == (f"{said}the last checkpoint, {out / 'checkpoint.h5'} "
+                        f"{_saved_at(out / 'checkpoint.h5', 'step')}, is kept; continue with: "
+                        f"silodem run --resume {out}")
+        read_checkpoint(out)  # a checkpoint the named command can resume from
+    else:
+        assert not (out / "checkpoint.h5").exists()
+        assert line == (f"{said}no checkpoint (checkpoint.enabled is false): the run cannot be "
+                        f"resumed; {out / 'results.h5'} holds the run up to its last save "
+                        f"{_saved_at(out / 'results.h5', 'steps')}")
+
+
+def test_a_second_signal_before_any_save_says_there_is_nothing_to_resume(tmp_path):
+    """A second signal before the run's first checkpoint (its step-0 save cut short) has no
+    checkpoint to name: the line says so, and what results.h5 holds if it was written."""
+    from silodem.safety import RunGuard
+
+    guard = RunGuard(tmp_path, "", quick_config())
+    none = "no checkpoint was written yet: the run cannot be resumed (start it again)"
+    assert guard.kept() == f"{none}; nothing was saved"
+    with h5py.File(tmp_path / "results.h5", "w") as h5:
+        h5.attrs.update({"time": 0.0, "steps": 0, "phase": "fill", "status": "running"})
+    assert guard.kept() == (f"{none}; {tmp_path / 'results.h5'} holds the run up to its last "
+                            "save at t = 0 s (step 0, fill)")
 
 
 def test_an_ignored_sigint_stays_ignored_during_a_run(tmp_path):

@@ -9,6 +9,7 @@ import json
 import math
 import os
 import random
+import re
 import shutil
 import signal
 import socket
@@ -216,7 +217,107 @@ def test_ctrl_c_in_a_terminal_stops_the_sweep_without_worker_tracebacks(tmp_path
             proc.communicate()
     assert proc.returncode == 130, stderr[-3000:]
     assert "Traceback" not in stderr, stderr[-3000:]
-    assert stderr.strip().splitlines()[-1] == "interrupted"
+    # (without --quick: the runs of the full-size tiny case)
+    _assert_the_stop_line(stderr, expand(load_study(str(study))), tmp_path / "study")
+
+
+def _assert_the_stop_line(stderr: str, plan, study_dir: Path, prefix: str = "") -> int:
+    """stderr of a stopped sweep is its one line, after nothing but the lines of the runs
+    that finished (progress); the line's counts are those of the finished run folders on
+    disk.  Returns how many are finished."""
+    from silodem.study.execute import is_finished
+
+    *before, line = stderr.strip().splitlines()
+    assert all(re.match(r"(computed|existing) \S+ \(\d+\.\d s on ", b) for b in before), stderr
+    runs = study_dir / "runs"
+    done = sum(is_finished(runs / r.id) for r in plan.runs)
+    total, left = len(plan.runs), len(plan.runs) - done
+    if done == 0:
+        text = f"none of the {total} runs is finished yet; repeat the command to run them"
+    elif left == 0:
+        text = (f"all {total} runs are finished and kept in {runs}; repeat the command to "
+                f"write {study_dir / 'results.csv'} and the report")
+    else:
+        text = (f"{done} of {total} runs {'is' if done == 1 else 'are'} finished and kept in "
+                f"{runs}; repeat the command to run the other "
+                f"{'one' if left == 1 else left}")
+    assert line == f"interrupted: {prefix}{text}", (line, stderr[-3000:])
+    return done
+
+
+def _live_processes_of_session(sid: int) -> list[str]:
+    """The processes of session ``sid`` still running (zombies not counted): a sweep's
+    local cluster left behind."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rpartition(")")[2].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            found.append(stat.parent.name)
+    return found
+
+
+SIX = TINY.replace('[20.0, 30.0]', '[15.0, 20.0, 25.0, 30.0, 35.0, 40.0]')
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_stopped_sweep_says_how_many_runs_are_kept_and_how_to_go_on(tmp_path, sig):
+    """Ctrl-C or SIGTERM stopped a sweep with a bare 'interrupted'.  Its one line now says how
+    many runs are finished and kept and that the command goes on: counted on disk after the
+    cluster is closed.  A second Ctrl-C while the cluster closes waits for the close (it broke
+    it off: the line came at once, then the exit waited ~10 s on distributed's clean-up; the
+    shield is tested in-process below, here that the count is right and nothing is left).
+    Ctrl-C goes to the terminal's whole process group; SIGTERM here to the sweep alone."""
+    import subprocess
+
+    from reliability_helpers import cli, command, env
+
+    from silodem.study.execute import is_finished
+
+    study = tmp_path / "six.toml"
+    study.write_text(SIX, encoding="utf-8")
+    plan = expand(load_study(str(study)), quick=True)
+    study_dir = tmp_path / "study"
+    runs = study_dir / "runs"
+    args = ("sweep", str(study), "--quick", "--workers", "2", "--out", str(study_dir))
+    proc = subprocess.Popen(command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env(), start_new_session=True,
+                            preexec_fn=lambda: signal.signal(  # noqa: PLW1509 - as a terminal
+                                signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 180
+        while not any(is_finished(runs / r.id) for r in plan.runs):  # one kept, at least
+            assert proc.poll() is None and time.monotonic() < deadline, "no run finished"
+            time.sleep(0.01)
+        if sig == signal.SIGINT:
+            os.killpg(proc.pid, sig)
+            time.sleep(0.3)  # the cluster is being closed: a second Ctrl-C
+            if proc.poll() is None:
+                os.killpg(proc.pid, sig)
+        else:
+            proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=120)
+        # a worker may still be exiting as the sweep ends; one left behind never does
+        gone_by = time.monotonic() + 30.0
+        while (left_behind := _live_processes_of_session(proc.pid)) and \
+                time.monotonic() < gone_by:
+            time.sleep(0.1)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 128 + sig, stderr[-3000:]
+    assert "Traceback" not in stderr, stderr[-3000:]
+    name = "" if sig == signal.SIGINT else "SIGTERM: "
+    done = _assert_the_stop_line(stderr, plan, study_dir, name)
+    assert not left_behind  # the cluster's nannies and workers are closed
+    if sig == signal.SIGINT and done < len(plan.runs):  # what the line says to do: the rest
+        again = cli(*args, timeout=300)
+        assert again.returncode == 0, again.stderr[-3000:]
+        assert (f"{len(plan.runs) - done} computed, {done} already finished, 0 failed"
+                in again.stdout), again.stdout
 
 
 OUTLET_STUDY = """\
@@ -900,6 +1001,58 @@ def test_signals_while_the_local_cluster_starts_are_held_not_lost():
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         signal.signal(signal.SIGTERM, before)
+
+
+def test_signals_while_a_sweep_shuts_down_wait_for_the_shutdown():
+    """A second Ctrl-C while a stopped sweep closed its cluster broke the close off midway.
+    ``shutdown_shield`` notes it and lets the close go on; the one after acts at once.  A
+    sweep being stopped drops the signals noted (the first one gives the exit code); an
+    ordinary close raises the first one again after the block, so that it still stops the
+    command."""
+    from silodem.study.execute import shutdown_shield
+
+    def kill(sig: int = signal.SIGINT) -> None:
+        os.kill(os.getpid(), sig)
+        time.sleep(0.05)  # the handlers run between bytecodes: let them
+
+    with shutdown_shield(stopping=True) as noted:
+        kill()
+        closed = True
+    assert closed and noted == [signal.SIGINT]  # noted and dropped
+    with pytest.raises(KeyboardInterrupt), shutdown_shield(stopping=True):
+        kill()
+        kill()  # the third of the stop: at once
+        raise AssertionError("not reached")
+    closed = False
+    with pytest.raises(KeyboardInterrupt), shutdown_shield(stopping=False):
+        kill()
+        closed = True
+    assert closed  # raised after the block, not inside
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_the_line_of_a_stopped_sweep_counts_the_finished_runs(serial, tmp_path):
+    """The one line of a stopped sweep counts the runs finished on disk; a run cut off
+    mid-way (its temporary folder, or a folder without summary.json) is not finished."""
+    from silodem.study.execute import stopped_sweep_text
+
+    plan, ref_dir = serial
+    study_dir = tmp_path / "study"
+    runs = study_dir / "runs"
+    a, b = (r.id for r in plan.runs)
+    assert stopped_sweep_text(plan, study_dir, signal.SIGINT) == (
+        "none of the 2 runs is finished yet; repeat the command to run them")
+    shutil.copytree(ref_dir / "runs" / a, runs / a)
+    shutil.copytree(ref_dir / "runs" / b, runs / f".{b}.tmp-0123456789ab")  # mid-way
+    assert stopped_sweep_text(plan, study_dir, signal.SIGINT) == (
+        f"1 of 2 runs is finished and kept in {runs}; repeat the command to run the other one")
+    shutil.copytree(ref_dir / "runs" / b, runs / b)
+    (runs / b / "summary.json").unlink()  # not finished
+    assert stopped_sweep_text(plan, study_dir, signal.SIGTERM).startswith("SIGTERM: 1 of 2 ")
+    shutil.copy(ref_dir / "runs" / b / "summary.json", runs / b)
+    assert stopped_sweep_text(plan, study_dir, signal.SIGINT) == (
+        f"all 2 runs are finished and kept in {runs}; repeat the command to write "
+        f"{study_dir / 'results.csv'} and the report")
 
 
 def test_a_damaged_summary_is_made_again_and_a_damaged_run_is_named(serial, tmp_path, capsys):

@@ -279,11 +279,30 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
         fh.flush()
 
 
+def _saved_at(path: Path, step_key: str) -> str:
+    """' at t = T s (step N, PHASE)' of a checkpoint.h5 (``step_key`` 'step') or results.h5
+    ('steps'), from the file's attributes; '' if they cannot be read."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as h5:
+            at, step = float(h5.attrs["time"]), int(h5.attrs[step_key])
+            phase = h5.attrs.get("phase")
+    except (OSError, KeyError, TypeError, ValueError):
+        return ""
+    phase = f", {phase.decode() if isinstance(phase, bytes) else phase}" if phase else ""
+    return f" at t = {at:.4g} s (step {step}{phase})"
+
+
 # --- the guard -----------------------------------------------------------------------------
 
 
 class _Stopped(UnstableRunError):
     """An instability already diagnosed and saved (not to be handled twice)."""
+
+
+class _HardStop(RunInterrupted):
+    """A second signal's stop, without saving; ``RunGuard.drive`` adds what is kept."""
 
 
 class RunGuard:
@@ -300,6 +319,7 @@ class RunGuard:
         self.resume_from = resume_from
         self.stop_signal: int | None = None
         self.hard_stop: int | None = None  # a second signal: stop without saving
+        self.stopping = False  # the hard stop is on its way out: further signals wait
         self.save_failed = False
         self.last_step = 0
         self.last_wall = wallclock.perf_counter()
@@ -323,14 +343,19 @@ class RunGuard:
         self.last_step = run.sim.steps
         self.last_wall = wallclock.perf_counter()
         with self.signals():
-            if self.resume_from is None:
-                self.save(run, "start")
             try:
-                run.run()
-            except _Stopped:
-                raise
-            except UnstableRunError as exc:
-                self.fail(run, blame(run, str(exc)), during_step=True)
+                if self.resume_from is None:
+                    self.save(run, "start")
+                try:
+                    run.run()
+                except _Stopped:
+                    raise
+                except UnstableRunError as exc:
+                    self.fail(run, blame(run, str(exc)), during_step=True)
+            except _HardStop as exc:  # (not the first signal's stop, which saved, although a
+                # second signal came: its raise was dropped, in a weakref callback)
+                self.stopping = True  # a third signal now waits: this line is said first
+                raise RunInterrupted(f"{exc}; {self.kept()}", exc.signum) from None
 
     def __call__(self, run: SiloRun) -> None:
         """The chunk hook: check the state, then save if a signal came or a save is due."""
@@ -399,6 +424,25 @@ class RunGuard:
                     "is false: the run cannot be resumed)")
         raise RunInterrupted(text, signum)
 
+    def kept(self) -> str:
+        """What a run stopped without saving (a second signal) leaves, read from its folder:
+        the checkpoint on disk, with its time and step, and the command that continues from
+        it; or that there is none, and what results.h5 holds.  (The second signal may have cut
+        the first one's save short: the checkpoint is then the one before, whole.)"""
+        checkpoint = self.checkpoint_path
+        if checkpoint.is_file():
+            return (f"the last checkpoint, {checkpoint}{_saved_at(checkpoint, 'step')}, is "
+                    f"kept; continue with: silodem run --resume {self.out}")
+        if self.settings.enabled:
+            none = "no checkpoint was written yet: the run cannot be resumed (start it again)"
+        else:
+            none = "no checkpoint (checkpoint.enabled is false): the run cannot be resumed"
+        results = self.results_path
+        if results.is_file():
+            return (f"{none}; {results} holds the run up to its last save"
+                    f"{_saved_at(results, 'steps')}")
+        return f"{none}; nothing was saved"
+
     def fail(self, run: SiloRun, problem: Problem, *, during_step: bool) -> None:
         """Save the state and a diagnosis of an unstable run; raise UnstableRunError (one line)."""
         notes: list[str] = []
@@ -464,12 +508,15 @@ class RunGuard:
     @contextmanager
     def signals(self) -> Iterator[None]:
         """While inside: SIGINT/SIGTERM ask the run to stop at the end of the current chunk
-        (after saving); a second one stops it at once, without saving."""
+        (after saving); a second one stops it at once, without saving (``drive`` then says
+        what is kept, ``kept``); a further one, while that is said, waits."""
         if threading.current_thread() is not threading.main_thread():
             yield
             return
 
         def handler(signum: int, frame: Any) -> None:
+            if self.stopping:  # the hard stop is saying what is kept: its line comes
+                return
             if self.stop_signal is not None:
                 self.hard_stop = signum  # (for the chunk hook, should the raise be dropped)
                 raise self._hard_stop_error()
@@ -501,4 +548,4 @@ class RunGuard:
 
     def _hard_stop_error(self) -> RunInterrupted:
         name = signal.Signals(self.hard_stop).name
-        return RunInterrupted(f"{name} again: stopped at once, without saving", self.hard_stop)
+        return _HardStop(f"{name} again: stopped at once, without saving", self.hard_stop)

@@ -69,13 +69,19 @@ def sweep(
       silodem sweep paper-study --scheduler tcp://127.0.0.1:8786
 
     Exit codes: 0 every run finished, 1 some runs failed (listed), 2 bad input, 130/143
-    stopped by SIGINT/SIGTERM (the finished runs are kept: repeat the command to go on).
+    stopped by SIGINT/SIGTERM (the finished runs are kept: repeat the command to go on; the
+    one line says how many).
     """
+    import signal
+
+    from silodem.errors import RunInterrupted, Terminated
     from silodem.study import expand, load_study, run_study
     from silodem.study.execute import (
         check_workers,
         default_workers,
         is_finished,
+        shutdown_shield,
+        stopped_sweep_text,
         workers_phrase,
     )
 
@@ -105,8 +111,15 @@ def sweep(
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
         f"-> {out_dir}; " + (f"the {todo} not finished yet run on {where}" if todo else
                              "all finished already: nothing to run"))
-    _quiet_dask_client()
-    outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
+    try:
+        _quiet_dask_client()  # (imports distributed: a good part of a second)
+        outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (errors.Terminated); the cluster is
+        # closed: count what is kept, say how to go on (a bare 'interrupted' before)
+        signum = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+        with shutdown_shield(stopping=True):
+            text = stopped_sweep_text(plan, out_dir, signum)
+        raise RunInterrupted(text, signum) from None
     say(f"{outcome.computed} computed, {outcome.skipped} already finished, "
         f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")
     say(f"table: {outcome.table_path}")

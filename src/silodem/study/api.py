@@ -14,6 +14,7 @@ from silodem.output import write_text
 from silodem.study.execute import (
     StudyOutcome,
     check_workers,
+    close_cluster,
     connect,
     is_finished,
     prepare,
@@ -101,7 +102,12 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
             bar.console.print(text, highlight=False)
             bar.update(task, advance=1, description=run.slug)
 
-        yield done
+        try:
+            yield done
+        except BaseException:  # the stop's one line is the last word, not a stale bar ('runs
+            if not console.is_terminal:  # 0/16' after a Ctrl-C); a terminal keeps it as drawn
+                console.quiet = True
+            raise
 
 
 def _stderr_line(text: str) -> None:
@@ -155,11 +161,10 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
                 outcome = run_on_client(plan, out_dir, own, on_done,
                                         say if cluster is None else None)
             outcome.where = where
-    finally:
-        if own is not None:
-            own.close()
-        if cluster is not None:
-            cluster.close()
+    except BaseException:  # a signal (or an error): the shutdown is finished before it goes on
+        close_cluster(own, cluster, stopping=True)
+        raise
+    close_cluster(own, cluster, stopping=False)
     outcome = finish_study(plan, out_dir, outcome, report=report)
     outcome.wall_s = time.perf_counter() - t0
     return outcome

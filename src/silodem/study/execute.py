@@ -383,7 +383,8 @@ def run_on_client(plan: StudyPlan, out_dir: Path, client: Client,
         with watching_workers(client, say):
             _gather(futures, by_key, outcome, on_done)
     except BaseException:
-        client.cancel(futures)
+        with shutdown_shield(stopping=True):
+            client.cancel(futures)
         raise
     clean_stale(plan, out_dir)
     outcome.wall_s = time.perf_counter() - t0
@@ -447,10 +448,104 @@ def local_cluster(workers: int) -> LocalCluster:
 
     from silodem.signals import noted_signals
 
-    with noted_signals(hold=True):
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", silence_logs=logging.CRITICAL,
-                            preload=["silodem.study.worker_setup"])
+    started = []
+    try:
+        with noted_signals(hold=True):
+            started.append(LocalCluster(n_workers=workers, threads_per_worker=1,
+                                        processes=True, dashboard_address=":0",
+                                        silence_logs=logging.CRITICAL,
+                                        preload=["silodem.study.worker_setup"]))
+    except BaseException:  # a signal held while it started: close it, not left to the exit
+        if started:
+            close_cluster(None, started[0])
+        raise
+    return started[0]
+
+
+SHUTDOWN_PATIENCE = 1  # signals a shutdown notes and lets wait; the next one acts at once
+
+
+@contextlib.contextmanager
+def shutdown_shield(*, stopping: bool) -> Iterator[list[int]]:
+    """While a sweep shuts its Dask side down (cancels its tasks, closes its client and local
+    cluster: one to a few seconds, a worker in the middle of a run being killed after
+    distributed's timeout), SIGINT and SIGTERM are noted in the list yielded and wait: a second
+    Ctrl-C broke the shutdown off midway, its 'interrupted' line came at once, and the
+    interpreter's exit then waited some 10 s on distributed's own clean-up of the cluster left
+    half closed.  Beyond ``SHUTDOWN_PATIENCE`` signals, the next acts at once through the
+    handler it had (a shutdown that hangs can still be stopped).
+
+    ``stopping``: the block runs because the sweep is being stopped (an exception is on its
+    way): the signals noted are dropped, the one that stopped it gives the exit code.  Else
+    the first signal noted is raised again, once, under its handler after the block, so that a
+    signal during an ordinary close at the end of a sweep stops it as at any other moment.
+
+    Only signals that have a Python handler are noted (SIG_DFL and SIG_IGN keep what they
+    do), and only in the main thread (elsewhere the block runs as it is)."""
+    import signal
+    import threading
+
+    from silodem.signals import NOTED
+
+    noted: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield noted
+        return
+    before = {s: h for s in NOTED if callable(h := signal.getsignal(s))}
+
+    def note(signum, frame):
+        noted.append(signum)
+        if len(noted) > SHUTDOWN_PATIENCE:
+            before[signum](signum, frame)
+
+    for s in before:
+        signal.signal(s, note)
+    try:
+        yield noted
+    finally:
+        for s, previous in before.items():
+            signal.signal(s, previous)
+    if noted and not stopping:
+        signal.raise_signal(noted[0])
+
+
+def close_cluster(client: Client | None, cluster: LocalCluster | None, *,
+                  stopping: bool = True) -> None:
+    """Close ``client``, then ``cluster`` (either may be None) under ``shutdown_shield``: a
+    signal meanwhile waits for the close to end (``stopping``: the sweep is being stopped, and
+    it is dropped)."""
+    with shutdown_shield(stopping=stopping):
+        try:
+            if client is not None:
+                client.close()
+        finally:
+            if cluster is not None:
+                cluster.close()
+
+
+def stopped_sweep_text(plan: StudyPlan, out_dir: Path, signum: int) -> str:
+    """The line of a sweep stopped by the signal ``signum`` (after its cluster was closed):
+    how many of the planned runs are finished (``is_finished``; a run cut off mid-way is not)
+    and kept in ``out_dir/runs``, and that repeating the command goes on."""
+    import signal
+
+    runs = Path(out_dir) / "runs"
+    total = len(plan.runs)
+    done = sum(is_finished(runs / r.id) for r in plan.runs)
+    left = total - done
+    if done == 0:
+        text = (f"none of the {total} runs is finished yet; repeat the command to run them"
+                if total > 1 else "the run is not finished; repeat the command to run it")
+    elif left == 0:
+        every = f"all {total} runs are" if total > 1 else "the run is"
+        text = (f"{every} finished and kept in {runs}; repeat the command to write "
+                f"{Path(out_dir) / 'results.csv'} and the report")
+    else:
+        verb = "is" if done == 1 else "are"
+        other = "the other one" if left == 1 else f"the other {left}"
+        text = (f"{done} of {total} runs {verb} finished and kept in {runs}; repeat the "
+                f"command to run {other}")
+    return text if signum == signal.SIGINT else f"{signal.Signals(signum).name}: {text}"
 
 
 def _probe(address: str) -> None:
@@ -498,7 +593,12 @@ def connect(scheduler: str | None, workers: int | None,
     if scheduler is None:
         n = workers or default_workers()
         cluster = local_cluster(n)
-        return Client(cluster), cluster, f"LocalCluster of {workers_phrase(n)}"
+        try:
+            client = Client(cluster)
+        except BaseException:
+            close_cluster(None, cluster)
+            raise
+        return client, cluster, f"LocalCluster of {workers_phrase(n)}"
     try:
         _probe(scheduler)
         client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
