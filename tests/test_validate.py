@@ -391,3 +391,21 @@ def test_run_validation_refuses_an_unknown_case_before_running_any():
     with pytest.raises(ValueError, match="unknown validation case nosuch.*statics"):
         run_validation(only=["statics", "nosuch"], progress=said.append)
     assert said == []
+
+
+def test_the_table_prints_every_unit_and_bracket_as_written():
+    """rich read ' [s]', ' [m/s]', ' [deg]' after a quantity as markup tags and printed none
+    of them: 164 of 331 records lost their unit.  Each row now shows its text as written."""
+    from rich.console import Console
+
+    from silodem.validate.runner import Validation, print_table
+
+    units = ["s", "m", "m/s", "rad/s", "deg", "N", "kg/s", "Pa"]
+    records = [Record("impact [bold]e = 0.5[/bold]", f"q{k}", 1.0, 1.0, 0.1, "rel", unit)
+               for k, unit in enumerate(units)]
+    console = Console(record=True, width=200, color_system=None)
+    print_table(Validation(records=records), console)
+    text = console.export_text()
+    for k, unit in enumerate(units):
+        assert f"q{k} [{unit}]" in text, text
+    assert text.count("impact [bold]e = 0.5[/bold]") == len(units), text

@@ -145,6 +145,7 @@ def _tol(r: Record) -> str:
 def print_table(result: Validation, console: Console) -> None:
     """The records as a rich table, then a one-line verdict."""
     from rich.table import Table
+    from rich.text import Text
 
     table = Table(title="silodem validate", show_lines=False)
     for col, kw in (("case", {"overflow": "fold", "max_width": 60}),
@@ -156,8 +157,9 @@ def print_table(result: Validation, console: Console) -> None:
         verdict = "info" if r.kind == "info" else ("yes" if r.passed else "NO")
         style = None if r.passed else "bold red"
         unit = f" [{r.unit}]" if r.unit not in ("-", "") else ""
-        table.add_row(r.case, r.quantity + unit, _fmt(r.expected), _fmt(r.got), _tol(r),
-                      verdict, style=style)
+        # (Text, not markup: rich read ' [s]', ' [m/s]' as tags and printed no unit)
+        table.add_row(Text(r.case), Text(r.quantity + unit), _fmt(r.expected), _fmt(r.got),
+                      _tol(r), verdict, style=style)
     console.print(table)
     n = len(result.records)
     checked = sum(r.kind != "info" for r in result.records)
