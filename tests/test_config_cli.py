@@ -381,6 +381,24 @@ def test_a_warning_rewritten_after_it_was_printed_is_in_the_summary():
         "warning: soft contacts", "warning: grains lost in all: 65 grain(s)"]
 
 
+def test_a_warning_with_brackets_is_printed_as_written():
+    """Warnings went to rich as markup: a '[m]' in one vanished, a '[/]' would have ended the
+    run in rich's MarkupError."""
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from silodem.run import _warn_new
+    from silodem.silo.procedure import LOST_TOTAL
+
+    texts = ["band of 0.2 [m] under [/] the top", LOST_TOTAL + "3 grain(s) [x]"]
+    console = Console(record=True, width=200, color_system=None)
+    live = {"run": SimpleNamespace(warnings=texts), "warned": 0, "printed": set()}
+    _warn_new(console, live)
+    assert console.export_text().splitlines() == [
+        "warning: band of 0.2 [m] under [/] the top", "warning: grains lost so far: 3 grain(s) [x]"]
+
+
 def test_the_phase_time_limits_say_how_often_they_are_checked():
     """A discharge.max_time of 0.01 s ended after 0.05 s: the procedure checks its phases
     every CHECK_INTERVAL of simulated time, which the keys' descriptions (shown by 'silodem

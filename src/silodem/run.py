@@ -230,14 +230,17 @@ LOG_EVERY_S = 30.0  # wall seconds between progress lines when stderr is not a t
 def _warn_new(console, live: dict) -> None:
     """Print the run's warnings not printed yet, as they come (a periodic save that failed
     on a full disk was said only in the summary, which a failed final write never printed)."""
+    from rich.markup import escape
+
     run = live["run"]
     if run is None:
         return
     for w in run.warnings[live["warned"]:]:  # (a total rewritten in place is not repeated)
         if w.startswith(LOST_TOTAL):  # a running total: said as such, the summary gives the end
-            console.print(f"[yellow]warning:[/] grains lost so far: {w.removeprefix(LOST_TOTAL)}")
+            console.print("[yellow]warning:[/] grains lost so far: "
+                          + escape(w.removeprefix(LOST_TOTAL)))
             continue
-        console.print(f"[yellow]warning:[/] {w}")
+        console.print(f"[yellow]warning:[/] {escape(w)}")  # (a '[...]' in it is no markup)
         live["printed"].add(w)
     live["warned"] = len(run.warnings)
 
