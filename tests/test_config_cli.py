@@ -192,6 +192,23 @@ def test_set_on_the_command_line_reaches_the_config():
     assert "n_particles = 77" in result.stdout and "seed = 9" in result.stdout
 
 
+def test_quick_says_which_set_values_it_changed():
+    """`--quick --set fill.n_particles=300` ran 108 grains without a word (--quick shrinks
+    the silo after --set: grains x 0.36, cell width x 0.6, discharge.max_time at most 10 s,
+    docs/scenarios.md); a value it keeps (the seed) is not named."""
+    result = cli("show", "paper-case2", "--quick", "--set", "fill.n_particles=300",
+                 "--set", "silo.cell_width=5", "--set", "discharge.max_time=60",
+                 "--set", "seed=4")
+    assert result.returncode == 0, result.stderr
+    assert "n_particles = 108" in result.stdout  # round(300 x 0.36)
+    assert result.stderr.splitlines() == [
+        ("silodem: --quick changed what --set gave: fill.n_particles 300 -> 108, "
+         "silo.cell_width 5.0 -> 3.0, discharge.max_time 60.0 -> 10.0 (it shrinks the silo "
+         "after --set)")]
+    quiet = cli("show", "paper-case2", "--quick", "--set", "seed=4")
+    assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
+
+
 @pytest.mark.parametrize(
     ("item", "needles"),
     [

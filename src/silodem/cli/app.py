@@ -91,7 +91,31 @@ def check_threads(threads: int | None) -> None:
 def read_config(source: str, sets: list[str] | None, quick: bool):
     """The validated Config of a scenario name or TOML file, with ``--set`` and ``--quick``."""
     cfg = load_config(source, sets or [])
-    return quick_variant(cfg) if quick else cfg
+    if not quick:
+        return cfg
+    small = quick_variant(cfg)
+    changed = quick_overrides(cfg, small, sets or [])
+    if changed:  # a value typed on the command line, changed without a word before
+        sys.stderr.write(one_line(f"silodem: --quick changed what --set gave: {changed} "
+                                  "(it shrinks the silo after --set)") + "\n")
+    return small
+
+
+def quick_overrides(cfg, small, sets: list[str]) -> str:
+    """'key a -> b, ...' for each key of ``sets`` whose value ``quick_variant`` changed from
+    ``cfg`` to ``small``, or ''."""
+    from silodem.errors import format_value
+
+    said = []
+    for item in sets:
+        key = item.partition("=")[0].strip()
+        before, after = cfg, small
+        for part in key.split("."):
+            before, after = getattr(before, part, None), getattr(after, part, None)
+        entry = f"{key} {format_value(before)} -> {format_value(after)}"
+        if before != after and entry not in said:
+            said.append(entry)
+    return ", ".join(said)
 
 
 def given(ctx: typer.Context, name: str) -> bool:
