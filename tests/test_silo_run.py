@@ -362,3 +362,17 @@ def test_progress_rate_leaves_out_the_time_before_the_first_report(monkeypatch):
     assert len(seen) > 3 and math.isnan(seen[0].steps_per_s)
     for k, pr in enumerate(seen[1:], start=1):
         assert pr.steps_per_s == (pr.steps - seen[0].steps) / k
+
+
+def test_every_phase_is_reported_however_short(monkeypatch):
+    """Reports come at most every 0.2 wall seconds: a settling shorter than that had no
+    progress line in a log (fill, then discharge).  A new phase is reported at once: on a
+    clock that never moves, the reports are the four phases, in order, once each."""
+    from silodem.silo import procedure
+
+    monkeypatch.setattr(procedure, "wallclock",
+                        type("Clock", (), {"perf_counter": staticmethod(lambda: 5.0)}))
+    seen: list = []
+    run = SiloRun(small(discharge__max_time=0.5), on_progress=seen.append)
+    run.run()
+    assert [pr.phase for pr in seen] == ["fill", "settle", "discharge", "done"]

@@ -125,6 +125,7 @@ class SiloRun:
         self.z_remove = -4.0 * m.radius_max  # grains below this have left the silo [m]
         self._rate_from: tuple[float, int] | None = None  # (wall s, steps) at the 1st report
         self._last_report = 0.0
+        self._reported_phase = ""
         self.overlap_estimate = estimate_overlap(cfg)
         if self.overlap_estimate.too_soft:
             self.warnings.append(self.overlap_estimate.warning())
@@ -269,9 +270,10 @@ class SiloRun:
         if self.on_progress is None:
             return
         now = wallclock.perf_counter()
-        if not force and now - self._last_report < 0.2:
+        new_phase = self.state.phase != self._reported_phase  # said at once: a log has a line
+        if not force and not new_phase and now - self._last_report < 0.2:  # for every phase
             return
-        self._last_report = now
+        self._last_report, self._reported_phase = now, self.state.phase
         if self._rate_from is None:
             self._rate_from = (now, self.sim.steps)
         wall_from, steps_from = self._rate_from
