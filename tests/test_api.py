@@ -4,14 +4,20 @@ mass conservation, and against each grain's force balance."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import h5py
 import numpy as np
 import pandas as pd
 import pytest
 from measure_helpers import tiny_hopper_config
+from reliability_helpers import env
 
 from silodem import api, study
+from silodem.api import SilodemWarning
 from silodem.errors import InputError
+from silodem.silo.checks import estimate_overlap
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +40,36 @@ def test_scenario_takes_dotted_keys_and_quick():
     assert "--set" not in str(bad.value)
     with pytest.raises(InputError, match=r"^set material.kn.x=1: 'material.kn' is a value"):
         api.scenario("paper-case2", set={"material.kn.x": 1})
+    # a Config already built: one short line, not its 1,600-character repr
+    with pytest.raises(InputError) as built:
+        api.scenario(cfg)
+    text = str(built.value)
+    assert text == ("source is a Config already built ('paper-case2'): pass it to api.run "
+                    "directly; api.scenario takes a scenario name or a TOML file")
+    assert "\n" not in text and len(text) < 200
+
+
+@pytest.mark.parametrize("call", [
+    lambda cfg, r: api.scenario(set={"material.kn": 1e7}, quick=cfg),
+    lambda cfg, r: api.scenario(set=[cfg]),
+    lambda cfg, r: api.scenario(set={("material", "kn") * 50: 1e7}),
+    lambda cfg, r: api.scenario(set={"material.kn": [cfg]}),
+    lambda cfg, r: api.run(cfg, out=cfg),
+    lambda cfg, r: api.run(cfg, r.folder / "n", threads=cfg),
+    lambda cfg, r: api.run(cfg, r.folder / "n", threads="8" * 500),
+    lambda cfg, r: api.run(cfg, r.folder / "n", progress=cfg),
+    lambda cfg, r: api.run(vars(cfg)),
+    lambda cfg, r: api.open_results(cfg),
+    lambda cfg, r: r.particles(list(range(500))),
+    lambda cfg, r: r.wall_profile("x" * 500),
+])
+def test_a_wrong_value_is_named_briefly(res, call):
+    """A wrong value is quoted in at most 60 characters (a string cut short, a long repr
+    replaced by its type's name): given a Config, the messages held its whole repr."""
+    with pytest.raises(InputError) as bad:
+        call(api.scenario("paper-case2"), res)
+    text = str(bad.value)
+    assert "\n" not in text and len(text) < 200 and "description=" not in text, text
 
 
 def test_tables_are_the_datasets_of_results_h5(res):
@@ -226,3 +262,55 @@ def test_a_run_refused_for_its_numbers_makes_no_folder_and_numpy_threads_run(res
     assert not (tmp_path / "refused").exists()
     again = api.run(cfg, tmp_path / "again", threads=np.int64(1))
     assert again.particles("final").equals(res.particles("final"))
+
+
+def test_a_runs_warnings_are_python_warnings(tmp_path, capsys):
+    """A run whose contacts are too soft (estimate_overlap: overlaps of the grains' radius)
+    says so, loses grains and does not settle: api.run issues each of its warnings as a
+    SilodemWarning from the caller's line, where a notebook shows it (only the command line
+    printed them).  Run again over it with progress: the note that the earlier results are
+    replaced comes first, and the warnings printed as they came are not issued twice."""
+    cfg = tiny_hopper_config()
+    soft = {"kn": 2e4, "ks": 2e4}
+    cfg = cfg.model_copy(update={
+        "material": cfg.material.model_copy(update=soft),
+        "walls": cfg.walls.model_copy(update=soft),
+        "settle": cfg.settle.model_copy(update={"max_time": 0.5, "min_time": 0.2}),
+        "discharge": cfg.discharge.model_copy(update={"max_time": 0.5})})
+    assert estimate_overlap(cfg).overlap_fraction > 0.5
+    folder = tmp_path / "soft"
+    with pytest.warns(SilodemWarning) as record:
+        first = api.run(cfg, folder)
+    issued = [w for w in record if w.category is SilodemWarning]  # (not another library's)
+    assert [str(w.message) for w in issued] == first.warnings
+    assert first.warnings[0].startswith("soft contacts: ")
+    assert any(w.startswith("grains lost in all: ") for w in first.warnings)
+    assert first.warnings[-1].startswith("not settled: ")
+    assert {w.filename for w in issued} == {__file__}  # stacklevel: the caller's line
+
+    with pytest.warns(SilodemWarning) as record:
+        again = api.run(cfg, str(folder), progress=True)
+    said = [str(w.message) for w in record if w.category is SilodemWarning]
+    assert said[0] == f"replacing the earlier run's results in {folder}"
+    assert again.warnings == first.warnings  # the same run
+    live = capsys.readouterr().err
+    shown = [w for w in again.warnings if f"warning: {w}" in live]
+    assert shown and "soft contacts: " in shown[0]
+    assert said[1:] == [w for w in again.warnings if w not in shown]
+    # the running total of lost grains is printed as it grows, and issued at its end
+    assert "warning: grains lost so far: " in live
+    assert any(w.startswith("grains lost in all: ") for w in said)
+
+
+def test_a_silodem_warning_is_shown_each_time_unless_filtered():
+    """Python shows a warning once per text and calling line: a notebook cell run again, or a
+    loop of runs, would hide each run's warnings after the first.  A SilodemWarning is shown
+    each time; a filter of the user's still comes first."""
+    code = ("import warnings; from silodem.api import SilodemWarning\n"
+            "for _ in range(2): warnings.warn('soft contacts', SilodemWarning)\n"
+            "warnings.filterwarnings('ignore', 'replacing', SilodemWarning)\n"
+            "warnings.warn('replacing the earlier run', SilodemWarning)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env(), check=True, timeout=120)
+    assert done.stderr.count("SilodemWarning: soft contacts") == 2, done.stderr
+    assert "replacing" not in done.stderr

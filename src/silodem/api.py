@@ -12,11 +12,14 @@ DataFrames and NumPy arrays (docs/api.md).
 
 Everything here reads; nothing changes a results folder except :func:`run`, which writes one.
 Bad input raises :class:`silodem.errors.InputError` with the same one-line message the
-command line prints.
+command line prints.  What a run has to say (soft contacts, grains lost, not settled, an
+earlier run's results replaced) comes as a :class:`SilodemWarning` through Python's
+``warnings`` module, which shows it in a notebook and filters it as any other warning.
 """
 
 from __future__ import annotations
 
+import warnings as _warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -26,6 +29,7 @@ import pandas as pd
 
 from silodem.config import Config
 from silodem.errors import InputError, check_flag
+from silodem.errors import short_repr as _got
 from silodem.report.load import Results as _Raw
 from silodem.report.load import load_results
 
@@ -37,32 +41,55 @@ SNAPSHOTS = ("settled", "discharge", "final")  # "discharge": mid-window of the 
 PHASE_NAMES = {0: "fill", 1: "settle", 2: "discharge"}  # codes of the phase columns
 
 
+class SilodemWarning(UserWarning):
+    """What a run has to say that does not stop it: each of its warnings (``RunResults.warnings``:
+    soft contacts, grains lost through a wall, not settled, ...), and the earlier run's results
+    that :func:`run` replaces in its folder.  Filter them as any warning, e.g.
+    ``warnings.filterwarnings("ignore", "replacing the earlier run", SilodemWarning)``."""
+
+
+# Shown every time, not once per calling line as Python's default does: a notebook cell run
+# again, or a loop of runs, repeats the same texts, and each run's must be seen.  Appended, so
+# that any filter of the user's (warnings.filterwarnings, -W, PYTHONWARNINGS) comes first.
+_warnings.filterwarnings("always", category=SilodemWarning, append=True)
+
+
 def scenario(source: str = "paper-case2", *, quick: bool = False,
              set: dict[str, Any] | None = None) -> Config:
     """The validated config of an embedded scenario or a TOML file, with ``set``'s dotted keys
     given new values (as ``--set``: ``{"material.kn": 2e7}``) and, with ``quick``, shrunk as
-    ``--quick`` does."""
+    ``--quick`` does.
+
+    A ``Config`` as ``source`` is refused (InputError), not returned as it is: it is already
+    what this returns, ready for :func:`run`, and ``quick`` and ``set`` would be silently left
+    out (or, applied, shrink an already quick config twice).  To change a built config, call
+    this again with its scenario name and ``set``, or ``cfg.model_copy(update=...)``, which
+    :func:`run` checks again."""
     from silodem.scenario_files import _toml_value, load_config, quick_variant
 
+    if isinstance(source, Config):
+        raise InputError(f"source is a Config already built ({_got(source.name)}): pass it to "
+                         "api.run directly; api.scenario takes a scenario name or a TOML file")
     if not isinstance(source, str | Path):
-        raise InputError(f"source must be a scenario name or a TOML file's path; got {source!r}")
+        raise InputError("source must be a scenario name or a TOML file's path; got "
+                         f"{_got(source)}")
     check_flag(quick, "quick")
     if set is not None and not isinstance(set, Mapping):
         raise InputError("set must map dotted keys to values, e.g. {'material.kn': 2e7}; got "
-                         f"{type(set).__name__}")
+                         f"{_got(set)}")
     sets = []
     for key, value in (set or {}).items():
         if isinstance(value, np.generic):  # numpy's scalars, as notebooks make them
             value = value.item()
         if isinstance(value, Mapping):
-            raise InputError(f"set {key!r}: give each value by its dotted key, not a table")
+            raise InputError(f"set {_got(key)}: give each value by its dotted key, not a table")
         if not isinstance(key, str) or "=" in key or not key.strip():
-            raise InputError(f"set {key!r}: a key is a dotted name such as 'material.kn' "
+            raise InputError(f"set {_got(key)}: a key is a dotted name such as 'material.kn' "
                              "(its value goes on the right of the colon)")
         try:
             sets.append(f"{key}={_toml_value(value)}")
         except TypeError:
-            raise InputError(f"set {key!r}: {value!r} is not a TOML value") from None
+            raise InputError(f"set {_got(key)}: {_got(value)} is not a TOML value") from None
     cfg = load_config(str(source), sets, flag="set")
     return quick_variant(cfg) if quick else cfg
 
@@ -70,17 +97,23 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
 def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = None,
         progress: bool = False) -> RunResults:
     """Run ``cfg`` into the folder ``out`` (default ``runs/<name>``), as ``silodem run`` does,
-    and open its results."""
+    and open its results.
+
+    Each of the run's warnings (``RunResults.warnings``, and a report.html that could not be
+    written) is issued as a :class:`SilodemWarning` once the run has ended, from the line
+    that called this; with ``progress`` those the progress display printed as they came are
+    not issued again (the final count of grains lost is).  A finished run's results already
+    in ``out`` are replaced, which a SilodemWarning says before the run starts."""
     from silodem.run import check_out, check_threads, run_simulation
     from silodem.safety import check_replaceable
     from silodem.scenario_files import revalidated
     from silodem.silo.checks import check_numbers
 
     if not isinstance(cfg, Config):
-        raise InputError(f"cfg must be a Config (from api.scenario); got {type(cfg).__name__}")
+        raise InputError(f"cfg must be a Config (from api.scenario); got {_got(cfg)}")
     cfg = revalidated(cfg)  # a model_copy(update=...) of it skipped the schema's checks
     if out is not None and (not isinstance(out, str | Path) or not str(out).strip()):
-        raise InputError(f"out must be a results folder's path; got {out!r}")
+        raise InputError(f"out must be a results folder's path; got {_got(out)}")
     if isinstance(threads, np.integer):  # numpy's integers, as notebooks make them
         threads = int(threads)
     check_threads(threads)
@@ -88,15 +121,21 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
-    check_replaceable(folder)  # nor over files no silodem run wrote
-    run_simulation(cfg, folder, threads=threads, progress=progress)
+    if check_replaceable(folder):  # nor over files no silodem run wrote
+        # (the command line prints the same note on stderr: cli/commands_run.py)
+        _warnings.warn(f"replacing the earlier run's results in {folder}", SilodemWarning,
+                       stacklevel=2)
+    summary = run_simulation(cfg, folder, threads=threads, progress=progress)
+    for text in summary.warnings:
+        if text not in summary.warnings_shown:  # (empty without progress)
+            _warnings.warn(text, SilodemWarning, stacklevel=2)
     return open_results(folder)
 
 
 def open_results(folder: Path | str) -> RunResults:
     """The results of the run in ``folder`` (its results.h5, read once)."""
     if not isinstance(folder, str | Path) or not str(folder).strip():
-        raise InputError(f"folder must be a results folder's path; got {folder!r}")
+        raise InputError(f"folder must be a results folder's path; got {_got(folder)}")
     return RunResults(load_results(folder))
 
 
@@ -123,7 +162,9 @@ class RunResults:
     config = property(lambda self: self._raw.cfg, doc="the run's complete Config")
     events = property(lambda self: dict(self._raw.events),
                       doc="fill time, settling, discharge end... (docs/output.md)")
-    warnings = property(lambda self: list(self._raw.warnings), doc="every warning printed")
+    warnings = property(lambda self: list(self._raw.warnings),
+                        doc="the run's warnings, as results.h5 holds them (api.run issued each "
+                            "as a SilodemWarning; the command line printed them)")
     status = property(lambda self: str(self._raw.attrs.get("status", "complete")),
                       doc="'complete', or how far an unfinished run's file goes")
     dt = property(lambda self: float(self._raw.attrs["dt"]), doc="the time step [s]")
@@ -137,7 +178,7 @@ class RunResults:
 
     def _snapshot(self, name: str) -> dict[str, Any]:
         if name not in SNAPSHOTS:
-            raise InputError(f"snapshot must be one of {', '.join(SNAPSHOTS)}; got {name!r}")
+            raise InputError(f"snapshot must be one of {', '.join(SNAPSHOTS)}; got {_got(name)}")
         snap = self._raw.snapshot(name)
         if snap is None:
             raise InputError(f"the run has no '{name}' snapshot (not reached, or not recorded)")
@@ -195,7 +236,7 @@ class RunResults:
         sides averaged), tau_down [Pa] (downward shear traction), on_vertical (bin on a vertical
         wall).  What Figs. 3a and 6 of the report draw."""
         if window not in ("fill", "discharge"):
-            raise InputError(f"window must be 'fill' or 'discharge'; got {window!r}")
+            raise InputError(f"window must be 'fill' or 'discharge'; got {_got(window)}")
         edge = self.analysis().edge.get(window)
         if edge is None:
             raise InputError(f"no wall profile for the {window} window (not reached, or no "

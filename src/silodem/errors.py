@@ -25,11 +25,24 @@ class InputError(Exception):
         super().__init__(one_line(message))
 
 
+def short_repr(value: Any, limit: int = 60) -> str:
+    """``value`` for an error's ``got ...``: its repr on one line if that is short, else a
+    string's cut to ``limit`` characters, or the type's name (a Config's repr is 1,500
+    characters)."""
+    text = one_line(repr(value))
+    if len(text) <= limit:
+        return text
+    if isinstance(value, str | bytes):
+        return text[: limit - 3] + "..."
+    name = type(value).__name__
+    return f"{'an' if name[:1].lower() in 'aeiou' else 'a'} {name}"
+
+
 def check_flag(value: Any, name: str) -> None:
     """InputError unless ``value`` is True or False (a string such as 'no' is truthy: it
     would switch the option on)."""
     if not isinstance(value, bool):
-        raise InputError(f"{name} must be True or False; got {value!r}")
+        raise InputError(f"{name} must be True or False; got {short_repr(value)}")
 
 
 def parse_toml(text: str, where: str) -> dict[str, Any]:

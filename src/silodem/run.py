@@ -16,7 +16,7 @@ from pathlib import Path
 
 from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
-from silodem.errors import InputError, RunInterrupted, Terminated
+from silodem.errors import InputError, RunInterrupted, Terminated, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
 from silodem.safety import ANIMATIONS, RunGuard, clear_previous_run
@@ -112,7 +112,7 @@ def check_threads(threads: int | None, what: str = "threads") -> None:
     top = int(numba.config.NUMBA_NUM_THREADS)
     if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= top:
         raise InputError(f"{what} must be an integer from 1 to {top} (the number of threads "
-                         f"numba may use here, NUMBA_NUM_THREADS); got {threads!r}")
+                         f"numba may use here, NUMBA_NUM_THREADS); got {short_repr(threads)}")
 
 
 def _set_threads(threads: int | None) -> None:
