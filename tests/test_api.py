@@ -47,6 +47,11 @@ def test_scenario_takes_dotted_keys_and_quick():
     assert text == ("source is a Config already built ('paper-case2'): pass it to api.run "
                     "directly; api.scenario takes a scenario name or a TOML file")
     assert "\n" not in text and len(text) < 200
+    # quick shrinks what set gave too, and says so (300 grains became 108 without a word)
+    with pytest.warns(api.SilodemWarning, match=r"^quick changed what set gave: "
+                      r"fill.n_particles 300 -> 108 \(it shrinks the silo after set\)$"):
+        small = api.scenario("paper-case2", quick=True, set={"fill.n_particles": 300})
+    assert small.fill.n_particles == round(300 * 0.36)  # docs/scenarios.md: 0.36 x the grains
 
 
 @pytest.mark.parametrize("call", [

@@ -65,7 +65,12 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
     out (or, applied, shrink an already quick config twice).  To change a built config, call
     this again with its scenario name and ``set``, or ``cfg.model_copy(update=...)``, which
     :func:`run` checks again."""
-    from silodem.scenario_files import _toml_value, load_config, quick_variant
+    from silodem.scenario_files import (
+        _toml_value,
+        load_config,
+        quick_overrides,
+        quick_variant,
+    )
 
     if isinstance(source, Config):
         raise InputError(f"source is a Config already built ({_got(source.name)}): pass it to "
@@ -91,7 +96,14 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
         except TypeError:
             raise InputError(f"set {_got(key)}: {_got(value)} is not a TOML value") from None
     cfg = load_config(str(source), sets, flag="set")
-    return quick_variant(cfg) if quick else cfg
+    if not quick:
+        return cfg
+    small = quick_variant(cfg)
+    changed = quick_overrides(cfg, small, sets)
+    if changed:  # as the command line says it: a value given, changed
+        _warnings.warn(f"quick changed what set gave: {changed} (it shrinks the silo after "
+                       "set)", SilodemWarning, stacklevel=2)
+    return small
 
 
 def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = None,

@@ -22,6 +22,7 @@ from silodem.errors import (
     did_you_mean,
     first_error,
     format_validation_error,
+    format_value,
     one_line,
     parse_toml,
     submodel,
@@ -336,3 +337,18 @@ def quick_variant(cfg: Config) -> Config:
     except ValidationError as exc:
         detail = format_validation_error(exc, data, model=Config).removeprefix("config error: ")
         raise InputError(f"--quick cannot shrink '{cfg.name}': {detail}") from None
+
+
+def quick_overrides(cfg: Config, small: Config, sets: Iterable[str]) -> str:
+    """'key a -> b, ...' for each key of ``sets`` whose value ``quick_variant`` changed from
+    ``cfg`` to ``small``, or ''."""
+    said = []
+    for item in sets:
+        key = item.partition("=")[0].strip()
+        before, after = cfg, small
+        for part in key.split("."):
+            before, after = getattr(before, part, None), getattr(after, part, None)
+        entry = f"{key} {format_value(before)} -> {format_value(after)}"
+        if before != after and entry not in said:
+            said.append(entry)
+    return ", ".join(said)

@@ -14,7 +14,7 @@ from typing import Annotated
 import typer
 
 from silodem.errors import one_line
-from silodem.scenario_files import load_config, quick_variant
+from silodem.scenario_files import load_config, quick_overrides, quick_variant
 
 app = typer.Typer(
     name="silodem",
@@ -99,23 +99,6 @@ def read_config(source: str, sets: list[str] | None, quick: bool):
         sys.stderr.write(one_line(f"silodem: --quick changed what --set gave: {changed} "
                                   "(it shrinks the silo after --set)") + "\n")
     return small
-
-
-def quick_overrides(cfg, small, sets: list[str]) -> str:
-    """'key a -> b, ...' for each key of ``sets`` whose value ``quick_variant`` changed from
-    ``cfg`` to ``small``, or ''."""
-    from silodem.errors import format_value
-
-    said = []
-    for item in sets:
-        key = item.partition("=")[0].strip()
-        before, after = cfg, small
-        for part in key.split("."):
-            before, after = getattr(before, part, None), getattr(after, part, None)
-        entry = f"{key} {format_value(before)} -> {format_value(after)}"
-        if before != after and entry not in said:
-            said.append(entry)
-    return ", ".join(said)
 
 
 def given(ctx: typer.Context, name: str) -> bool:
