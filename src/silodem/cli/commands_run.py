@@ -215,9 +215,10 @@ def plot(
     from silodem.output import write_views  # matplotlib, scipy: only when plotting
     from silodem.report import write_report
 
+    unfinished: list[str] = []  # the line saying so, for an unfinished run's results.h5
     try:
         with noted_signals(hold=False) as noted:
-            path = write_report(run_dir)
+            path = write_report(run_dir, note=unfinished.append)
             write_views(run_dir)
     except (ValueError, IndexError, KeyError, TypeError, AttributeError) as exc:
         # what numbers of the wrong shape or kind raise in the figures (LinAlgError is a
@@ -225,6 +226,8 @@ def plot(
         raise InputError(f"{run_dir}: its results.h5 could not be drawn "
                          f"({type(exc).__name__}: {one_line(exc)})") from None
     _stop_if(noted)
+    for line in unfinished:
+        Console(stderr=True).print(line, markup=False, highlight=False, soft_wrap=True)
     Console().print(f"report: {path}", markup=False, highlight=False, soft_wrap=True)
 
 

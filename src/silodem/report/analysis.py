@@ -63,10 +63,53 @@ class Analysis:
     flow: dict[str, Any] = field(default_factory=dict)
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
+    # what the windows' numbers and figures are called: "after filling", "during discharge";
+    # the fill window of a run stopped before settling ended is no settled fill (UNSETTLED)
+    labels: dict[str, str] = field(default_factory=lambda: dict(WINDOW_LABELS))
 
     @property
     def measured(self) -> bool:
         return self.res.group("measure") is not None
+
+    @property
+    def unfinished(self) -> bool:
+        """The results.h5 of a run that had not ended when it was written (:func:`unfinished`)."""
+        return unfinished(self.res)
+
+    @property
+    def settled(self) -> bool:
+        """Settling had ended (:func:`settle_end_time`)."""
+        return settle_end_time(self.res) is not None
+
+
+WINDOW_LABELS = {"fill": "after filling", "discharge": "during discharge"}
+UNSETTLED = "late in the unfinished settling"  # the fill window's name when settling had not
+# ended (the run stopped first): the last measure.window of the settling reached
+
+
+def unfinished(res: Results) -> bool:
+    """Whether ``res`` is the results.h5 of a run that had not ended when it was written: its
+    attribute ``status`` is there and is not "complete" ("running", "interrupted" or
+    "unstable", silodem.output.write_results).  (A file without it, from an older silodem,
+    is taken as it is.)"""
+    status = res.attrs.get("status")
+    return status is not None and str(status) != "complete"
+
+
+def settle_end_time(res: Results) -> float | None:
+    """The time [s] settling ended (the gate opened, in a run with discharge): the event
+    ``discharge_start_time``, else the time of the /settled snapshot, else the events
+    ``fill_time`` + ``settle_time`` (filling starts at 0); None when none of them is there (a
+    run stopped before settling ended)."""
+    ev = res.events
+    if "discharge_start_time" in ev:
+        return float(ev["discharge_start_time"])
+    settled = res.snapshot("settled")
+    if isinstance(settled, dict) and "time" in settled.get("@attrs", {}):
+        return float(settled["@attrs"]["time"])
+    if "fill_time" in ev and "settle_time" in ev:
+        return float(ev["fill_time"]) + float(ev["settle_time"])
+    return None
 
 
 def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[float, float]]]:
@@ -74,8 +117,9 @@ def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[
     cfg = res.cfg.measure
     t, phase = m["time"], m["phase"]
     settle_t = t[phase == SETTLE]
-    t_open = float(res.events.get("discharge_start_time",
-                                  settle_t.max() if settle_t.size else t.max()))
+    t_open = settle_end_time(res)  # the end of settling; in a run stopped before it, the
+    if t_open is None:             # last settling sample: the last window of settling reached
+        t_open = float(settle_t.max() if settle_t.size else t.max())
     fill = (t >= t_open - cfg.window) & (t <= t_open) & (phase == SETTLE)
     d0 = t_open + cfg.discharge_delay
     dwin = (phase == DISCHARGE) & (t >= d0) & (t <= d0 + cfg.window)
@@ -187,6 +231,8 @@ def analyse(res: Results) -> Analysis:
                "discharge": surface_height(dsnap, shape.width, d)}
     rho_b = bulk_density(settled, cfg, shape, surface["fill"])
     a = Analysis(res, geom, {}, surface, rho_b)
+    if a.unfinished and not a.settled:
+        a.labels["fill"] = UNSETTLED
     a.switch = regions.switch_zone(cfg, shape)
     if not a.measured:
         return a
@@ -207,6 +253,32 @@ def analyse(res: Results) -> Analysis:
     return a
 
 
+def no_settled_fill(a: Analysis) -> str:
+    """Why the free surface and the bulk density (of the /settled snapshot) are not numbers;
+    "" when they are."""
+    settled = a.res.snapshot("settled")
+    if settled is None:
+        if a.unfinished and not a.settled:
+            return (f"no settled snapshot: the run stopped {stopped_at(a.res)}, before "
+                    "settling ended")
+        return "results.h5 holds no /settled snapshot"
+    if np.size(settled.get("particles", {}).get("x", ())) == 0:
+        return "no grain in the settled snapshot"
+    if not np.isfinite(a.surface["fill"]):
+        return "no free surface in the settled snapshot"
+    if not np.isfinite(a.rho_b):
+        return "no area between the junction and the free surface to measure it in"
+    return ""
+
+
+def stopped_at(res: Results) -> str:
+    """Where an unfinished run had come when its results.h5 was written: "in settle at
+    t = 23.34 s" (its attributes ``phase`` and ``time``)."""
+    phase, t = res.attrs.get("phase", "?"), res.attrs.get("time")
+    when = f" at t = {float(t):.4g} s" if isinstance(t, int | float) else ""
+    return f"in {phase}{when}"
+
+
 def _fit_theory(a: Analysis, shape) -> None:
     """Janssen K per window (mu_w = tan(phi_P), the paper's assumption of fully mobilised wall
     friction), a free (K, mu_w) fit after filling, the mobilised wall friction, and, per window,
@@ -215,7 +287,9 @@ def _fit_theory(a: Analysis, shape) -> None:
     for key, e in a.edge.items():
         surface = a.surface[key]
         if not np.isfinite(surface) or not np.isfinite(a.rho_b):
-            a.janssen_missing[key] = "no free surface or bulk density measured"
+            why = no_settled_fill(a)
+            a.janssen_missing[key] = ("no free surface or bulk density measured"
+                                      + (f"; {why}" if why else ""))
             continue
         depth = surface - e.z
         cell = e.on_vertical & (e.z > a.switch[1]) & (depth > 0.5 * g["d"])
@@ -297,6 +371,8 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
         empty = [key for key in ("fill", "discharge") if not masks[key].any()]
         if empty:
             a.change_missing = f"no measurement sample in the {' and '.join(empty)} window"
+            if a.unfinished:  # not a run too short for it: one that had not got there
+                a.change_missing += f": the run stopped {stopped_at(a.res)}"
     for k, name in enumerate(c["name"]):
         row = {}
         for comp, label in ((0, "sigma_h"), (1, "sigma_v")):
@@ -346,7 +422,10 @@ def _flow(a: Analysis, shape) -> None:
     rate = dis.steady_rate(t, mass)
     a.flow.update(t=t, mass=mass, rate=rate, series=dis.flow_rate_series(t, mass))
     mass0 = float(res.events.get("initial_mass", np.nan))
-    if "discharge" in a.windows and t.size and mass0 > 0:  # how far the silo had emptied
+    window = a.windows.get("discharge")
+    reached = float(res.attrs.get("time", np.inf)) if a.unfinished else np.inf
+    if window and t.size and mass0 > 0 and reached >= window[0]:  # how far the silo had
+        # emptied (not said of a window that an unfinished run never reached)
         a.flow["window_emptied"] = tuple(float(np.interp(w - t0, t, mass)) / mass0
                                          for w in a.windows["discharge"])
     f = res.group("measure", "flow")
@@ -453,19 +532,22 @@ def _numbers(a: Analysis) -> None:
                   f"{g['alpha']:.3g}", "deg"))
     surface = ("free surface after filling (mean top of the grain columns, one diameter "
                "wide; the run's fill level is the mean top of its 5 highest grains)")
-    n.append((surface, _fmt(a.surface["fill"]), "m"))
+    why = no_settled_fill(a)  # an n/a says what is missing
+    n.append((surface, _fmt(a.surface["fill"]) if np.isfinite(a.surface["fill"]) or not why
+              else f"n/a ({why})", "m"))
     top = a.surface["fill"]
     cell = not np.isfinite(top) or density_band(g["z_j"], top, g["d"])[0] > 0.0
     where = "cell" if cell else "whole fill: under 4 grain diameters of it above the junction"
     n.append((f"bulk density rho_b ({where})",
-              _bulk_density_text(a.rho_b, a.res.cfg.material.density), "kg/m^3"))
+              _bulk_density_text(a.rho_b, a.res.cfg.material.density)
+              if np.isfinite(a.rho_b) or not why else f"n/a ({why})", "kg/m^3"))
     n.append(("switch zone", f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))
-    for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
+    for key, label in a.labels.items():
         if key in a.peaks:
             v, z = a.peaks[key]
             n.append((f"switch-zone peak of the wall normal stress, {label}",
                       f"{pascals(v)} at z = {_fmt(z, 3)} m", "Pa"))
-    for key, label in (("fill", "after filling"), ("discharge", "during discharge")):
+    for key, label in a.labels.items():
         if key in a.mu_mobilised:
             what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
                     f"the Janssen fit, {label} (tan phi_P = {_fmt(g['mu_wall'], 3)})")
@@ -502,7 +584,7 @@ def _numbers(a: Analysis) -> None:
         n.append((label, value, "-"))
     n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
     for key, hop in a.hopper.items():
-        when = "after filling" if key == "fill" else "during discharge"
+        when = a.labels[key]
         label = f"measured mean vertical stress q on the junction, {when} (hopper theory input)"
         n.append((label, pascals(hop["q"]), "Pa"))
         if "D_fit" in hop:  # (no error: a bounded 1-parameter fit, often to a few bins)
@@ -510,14 +592,26 @@ def _numbers(a: Analysis) -> None:
                      f"to {hop['D_bins']} wall bins")
             n.append((label, _fmt(hop["D_fit"], 3), "-"))
     window = a.res.cfg.measure.window
+    # an unfinished run stopped in its discharge: the stop, not the discharge's end, cut the
+    # discharge window short
+    stopped = a.unfinished and a.res.attrs.get("phase") == "discharge"
     for key, label in (("fill", "after filling (the end of settling)"),
                        ("discharge", "during discharge")):
-        if key in a.windows and a.windows[key][1] - a.windows[key][0] < window:
-            start, end = a.windows[key]
+        if key not in a.windows:
+            continue
+        start, end = a.windows[key]
+        if key == "fill" and a.labels["fill"] == UNSETTLED:  # said always: no settled fill
+            what = (f"averaging window {UNSETTLED}: the last measure.window = {window:g} s of "
+                    "the settling reached (the run stopped before settling ended)")
+            if end - start < window:
+                what += ", cut short: less settling than that was reached"
+        elif end - start < window:
             why = ("settling lasted less than" if key == "fill" else
-                   "the discharge ended within")
+                   "the run stopped within" if stopped else "the discharge ended within")
             what = f"averaging window {label}, cut short: {why} measure.window = {window:g} s"
-            n.append((what, f"{start:.3f} - {end:.3f} ({end - start:.3g} s)", "s"))
+        else:
+            continue
+        n.append((what, f"{start:.3f} - {end:.3f} ({end - start:.3g} s)", "s"))
     if "window_emptied" in a.flow:  # the discharge stresses depend on it (a quick silo
         # empties by half in the same 1 s window a full one loses a tenth in)
         start, end = a.flow["window_emptied"]

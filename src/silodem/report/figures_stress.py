@@ -143,7 +143,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
     _zone(ax, a)
     if key == "discharge" and "fill" in a.edge:
         f = a.edge["fill"]
-        ax.plot(f.sigma_n, f.z, color="0.6", lw=1, marker=".", label="wall, after filling")
+        ax.plot(f.sigma_n, f.z, color="0.6", lw=1, marker=".", label=f"wall, {a.labels['fill']}")
     for side, (z, sn) in e.sides.items():
         ax.plot(sn, z, ls="none", marker="<" if side == "left" else ">", ms=5, alpha=0.6,
                 label=f"{side} wall")
@@ -165,7 +165,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
     ax.set_ylabel("z [m]")
     ax.set_xlim(left=0)
     ax.set_ylim(0, a.geom["top"])
-    title = "after filling" if key == "fill" else "during discharge"
+    title = a.labels[key]
     t0, t1 = a.windows.get(key, (np.nan, np.nan))
     ax.set_title(f"Horizontal stress along the silo wall, {title} (t = {t0:.2f}-{t1:.2f} s)",
                  fontsize=10)
@@ -191,7 +191,7 @@ def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
     ax.set_ylabel("z [m]")
     ax.set_xlim(left=0)
     ax.set_ylim(0, a.geom["top"])
-    ax.set_title("Vertical stress along the silo wall, after filling", fontsize=10)
+    ax.set_title(f"Vertical stress along the silo wall, {a.labels['fill']}", fontsize=10)
     legend_below(fig, ax)
     return fig
 

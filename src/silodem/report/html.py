@@ -14,9 +14,10 @@ import numpy as np
 from silodem.atomic import write_atomic
 from silodem.report import figures_flow as ff
 from silodem.report import figures_stress as fs
-from silodem.report.analysis import Analysis, analyse
+from silodem.report.analysis import UNSETTLED, Analysis, analyse
 from silodem.report.draw import png_bytes
 from silodem.report.load import load_results
+from silodem.report.unfinished import banner_html, note_line
 from silodem.scenario_files import QUICK_SUFFIX
 
 
@@ -127,6 +128,7 @@ text-align:left;font-size:.92em;vertical-align:top}th{background:#f4f4f4}
 figure{margin:1.5em 0;padding:.5em;border:1px solid #eee;background:#fff}
 figure img{max-width:100%;height:auto;display:block;margin:auto}
 figcaption{font-size:.92em;color:#444;margin-top:.4em}.warn{color:#8a4b00}
+.unfinished{border:2px solid #c77700;background:#fff4e0;padding:.6em .9em;color:#5a3200}
 pre{background:#f7f7f7;padding:.8em;overflow:auto;font-size:.85em;white-space:pre-wrap;
 overflow-wrap:anywhere}
 """
@@ -179,15 +181,21 @@ _SNAPSHOT_CAPTIONS = {
 }
 
 
-def render_snapshots(folder: Path, fig_dir: Path) -> list[tuple[str, str, bytes]]:
+def render_snapshots(folder: Path, fig_dir: Path,
+                     unreadable: list[str] | None = None) -> list[tuple[str, str, bytes]]:
     """Force-network pictures of the end of filling, early and late discharge (from the
-    frames recorder, silodem.viz); written to ``fig_dir/network_<view>.png``."""
+    frames recorder, silodem.viz); written to ``fig_dir/network_<view>.png``.  Frames that
+    cannot be read (none in the file, a segment file missing or damaged: NoFramesError,
+    one line naming the file) give no pictures, and the reason is appended to
+    ``unreadable``."""
     from silodem.viz import force_network_pngs
 
     try:
         pngs = force_network_pngs(folder / "results.h5")
-    except (ValueError, OSError):  # no frames in this results file (NoFramesError)
+    except (ValueError, OSError) as exc:  # NoFramesError (a ValueError), or h5py's own
         pngs = {}
+        if unreadable is not None:
+            unreadable.append(str(exc))
     out = []
     for view, caption in _SNAPSHOT_CAPTIONS.items():
         name = _snapshot_name(view)
@@ -199,8 +207,32 @@ def render_snapshots(folder: Path, fig_dir: Path) -> list[tuple[str, str, bytes]
     return out
 
 
+def _left_out_snapshots(a: Analysis, missing: list[str], unreadable: str) -> str:
+    """Why the network snapshots ``missing`` are not on the page."""
+    text = f"Left out: {', '.join(missing)}; they are drawn from the frames saved beside " \
+        "results.h5 (frames/), "
+    if unreadable:
+        return text + f"which cannot be read: {unreadable}."
+    if a.unfinished and a.res.cfg.discharge.enabled and \
+            "discharge_start_time" not in a.res.events:
+        return text + "which hold no frame of that moment: the run stopped before its discharge."
+    return text + ("which hold no frame of that moment (a run without discharge has none of "
+                   "it).")
+
+
+def _snapshot_caption(a: Analysis, name: str, caption: str) -> str:
+    """The caption of a network snapshot; the "end of filling" of a run stopped before
+    settling ended is the last frame it saved."""
+    if name == _snapshot_name("end-of-filling") and a.labels["fill"] == UNSETTLED:
+        phase = "filling" if a.res.attrs.get("phase") == "fill" else "settling"
+        return (f"Force network at the last saved frame of the unfinished {phase} (the run "
+                "stopped before settling ended: no settled packing), from the saved frames.")
+    return caption
+
+
 def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
-               snapshots: list[tuple[str, str, bytes]] = ()) -> str:
+               snapshots: list[tuple[str, str, bytes]] = (), unreadable: str = "") -> str:
+    """The page; ``unreadable``: why the saved frames could not be read ("" if they could)."""
     res = a.res
     cfg = res.cfg
     title = f"silodem report: {cfg.name}"
@@ -217,7 +249,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle} Results: "
              f"{html.escape(str(res.folder.resolve() / 'results.h5'))}, status "
              f"{html.escape(str(res.attrs.get('status', '?')))}.</p>")
-    parts = [head, f"<h1>{html.escape(title)}</h1>",
+    parts = [head, f"<h1>{html.escape(title)}</h1>", banner_html(a),
              f"<p>{html.escape(cfg.description)}</p>", intro]
     if cfg.name.endswith(QUICK_SUFFIX):  # (scenario_files.quick_variant names it so)
         parts.append(f"<p class='warn'>{html.escape(QUICK_CAVEAT)}</p>")
@@ -254,11 +286,10 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         shown = {name for name, _, _ in snapshots}
         missing = [_snapshot_name(view) for view in _SNAPSHOT_CAPTIONS
                    if _snapshot_name(view) not in shown]
-        parts.append(f"<p class='warn'>Left out: {html.escape(', '.join(missing))}; they are "
-                     "drawn from the frames saved beside results.h5 (frames/), which are "
-                     "missing or hold no frame of that moment (a run without discharge has "
-                     "none of it).</p>")
+        parts.append(f"<p class='warn'>{html.escape(_left_out_snapshots(a, missing, unreadable))}"
+                     "</p>")
     for name, caption, png in snapshots:
+        caption = _snapshot_caption(a, name, caption)
         b64 = base64.b64encode(png).decode("ascii")
         parts.append(f"<figure id='{name}'><img alt='{html.escape(name)}' "
                      f"src='data:image/png;base64,{b64}'><figcaption>{html.escape(caption)}"
@@ -270,9 +301,14 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     return "\n".join(parts)
 
 
-def write_report(folder: Path | str) -> Path:
-    """Re-render every figure from ``folder``/results.h5 and write ``folder``/report.html."""
+def write_report(folder: Path | str, *, note: Callable[[str], None] | None = None) -> Path:
+    """Re-render every figure from ``folder``/results.h5 and write ``folder``/report.html.
+
+    The results.h5 of an unfinished run (its ``status`` not "complete") gets a box at the top
+    of the page saying so (``report.unfinished``), and, once the page is written, one line
+    to ``note`` (``silodem plot`` prints it on stderr; None: not said)."""
     folder = Path(folder)
+    unreadable: list[str] = []
     with warnings.catch_warnings():
         # a quantity with no data (no grain in a window, a field at rest) is NaN or an empty
         # arrow in its figure and says so there; numpy's and matplotlib's warnings about
@@ -280,7 +316,11 @@ def write_report(folder: Path | str) -> Path:
         warnings.simplefilter("ignore", RuntimeWarning)
         a = analyse(load_results(folder))
         figures = render_figures(a, folder / "figures")
-        snapshots = render_snapshots(folder, folder / "figures")
+        snapshots = render_snapshots(folder, folder / "figures", unreadable)
     path = folder / "report.html"
-    write_atomic(path, build_html(a, figures, snapshots).encode("utf-8"))
+    write_atomic(path, build_html(a, figures, snapshots, " ".join(unreadable))
+                 .encode("utf-8"))
+    line = note_line(a, folder)
+    if line is not None and note is not None:
+        note(line)
     return path

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from silodem.checkpoint import CHECKPOINT_NAME as CHECKPOINT
 from silodem.config import Config
 from silodem.errors import InputError
 from silodem.scenario_files import config_from_text
@@ -125,6 +126,10 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     if path.exists() and not path.is_file():
         raise InputError(f"{path} is not a file")
     if not path.is_file():
+        if (folder / CHECKPOINT).is_file():  # ('silodem run --out' refuses its folder)
+            raise InputError(f"{folder} holds no results.h5 but the {CHECKPOINT} of an "
+                             f"unfinished run: continue it with 'silodem run --resume "
+                             f"{folder}' (it writes results.h5 as it goes)")
         raise InputError(f"{folder} holds no results.h5 (run 'silodem run --out {folder}' first)")
     try:
         with h5py.File(path, "r") as h5:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -265,11 +266,14 @@ class FramesFile:
         import h5py
 
         top = 0.0
-        with h5py.File(self.path, "r") as h5:
-            column = h5["frames"][name]
-            rows, step = column.shape[0], max(1, int(BLOCK_BYTES // column.dtype.itemsize))
-            for a in range(0, rows, step):
-                top = max(top, float(column[a:min(a + step, rows)].max()))
+        try:
+            with h5py.File(self.path, "r") as h5:
+                column = h5["frames"][name]
+                rows, step = column.shape[0], max(1, int(BLOCK_BYTES // column.dtype.itemsize))
+                for a in range(0, rows, step):
+                    top = max(top, float(column[a:min(a + step, rows)].max()))
+        except (OSError, RuntimeError) as exc:  # h5py's errors: a segment file damaged
+            raise damaged(self.path, 0, len(self), exc) from None
         return top
 
     def _read(self, first: int, end: int) -> dict[str, np.ndarray]:
@@ -277,14 +281,18 @@ class FramesFile:
         import h5py
 
         out = {}
-        with h5py.File(self.path, "r") as h5:
-            g = h5["frames"]
-            for table, fields in FIELDS.items():
-                off = self.index[OFFSETS[table]]
-                a, b = int(off[first]), int(off[end])
-                for key, (dt, _) in fields.items():  # (HDF5 reads no 0 rows of a virtual set)
-                    out[f"{table}/{key}"] = (g[f"{table}/{key}"][a:b] if b > a
-                                             else np.zeros(0, dtype=dt))
+        try:
+            with h5py.File(self.path, "r") as h5:
+                g = h5["frames"]
+                for table, fields in FIELDS.items():
+                    off = self.index[OFFSETS[table]]
+                    a, b = int(off[first]), int(off[end])
+                    # (HDF5 reads no 0 rows of a virtual dataset)
+                    for key, (dt, _) in fields.items():
+                        out[f"{table}/{key}"] = (g[f"{table}/{key}"][a:b] if b > a
+                                                 else np.zeros(0, dtype=dt))
+        except (OSError, RuntimeError) as exc:  # h5py's errors: a segment file damaged
+            raise damaged(self.path, first, end, exc) from None
         return out
 
 
@@ -309,9 +317,11 @@ class Frames:
     time) or a list of frames, with the wall geometry and events."""
 
     def __init__(self, frames: list[Frame] | FramesFile, walls: WallGeometry,
-                 events: dict[str, Any], attrs: dict[str, Any], scenario: str = "") -> None:
+                 events: dict[str, Any], attrs: dict[str, Any], scenario: str = "",
+                 status: str = "") -> None:
         self.frames = frames
         self.scenario = scenario
+        self.status = status  # results.h5's: "complete", "running"...; "" when not known
         self.walls = walls
         self.events = events
         self.attrs = attrs
@@ -349,6 +359,13 @@ class Frames:
         return max((float(f.particles["radius"].max()) for f in self.frames if f.n),
                    default=0.0)
 
+    @property
+    def settled(self) -> bool:
+        """Whether :meth:`end_of_filling` is a settled packing: false only for the frames of
+        a run whose results.h5 was written before the run ended (``status``) and before its
+        settling ended (no event ``settle_time``)."""
+        return self.status in ("", "complete") or "settle_time" in self.events
+
     def end_of_filling(self) -> Frame:
         """The last frame before the gate opened (the settled packing), else the last one."""
         before = [k for k, phase in enumerate(self.phases) if phase in ("fill", "settle")]
@@ -364,8 +381,74 @@ class Frames:
 
 class NoFramesError(ValueError):
     """A results.h5 without ``/frames`` (written by an older silodem or another program), or
-    whose segment files (``DIR/frames/``) are not beside it; ``str()`` is one line naming the
-    file."""
+    whose segment files (``DIR/frames/``) are not beside it or cannot be read
+    (``DamagedFramesError``); ``str()`` is one line naming the file."""
+
+
+class DamagedFramesError(NoFramesError):
+    """A segment file of ``/frames`` (or results.h5 itself, for frames kept in it) that h5py
+    cannot read: cut short (a disk filled up, a copy broken off), overwritten.  Raised by
+    :func:`read_frames` when the file cannot be opened, and when a frame is read (``[k]``)
+    whose rows it cannot give."""
+
+
+_SEGMENT = re.compile(r"frames-(\d+)-(\d+)\.h5$")  # frame_store.segment_name(first, last)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def damaged(results: Path | str, first: int, end: int, exc: BaseException) -> NoFramesError:
+    """The error for ``exc``, raised by h5py reading frames ``first`` to ``end - 1`` of the
+    results file ``results``: a ``DamagedFramesError`` naming the first segment file of those
+    frames that h5py cannot read whole (each is opened and read again on its own), else
+    naming ``results``."""
+    import h5py
+
+    results = Path(results)
+    segments: list[str] = []
+    try:
+        with h5py.File(results, "r") as h5:
+            segments = [str(s) for s in h5["frames"].attrs.get("segments", [])]
+    except (OSError, RuntimeError, KeyError) as err:
+        return DamagedFramesError(f"'{results}' is damaged ({type(err).__name__}: "
+                                  f"{_one_line(err)}); its frames cannot be read")
+    for name in segments:
+        found = _SEGMENT.search(name)
+        if found and (int(found[2]) < first or int(found[1]) >= end):
+            continue  # (not one of the frames read)
+        why = segment_damage(results.parent / name)
+        if why:
+            return damaged_segment(results, name, why)
+    return DamagedFramesError(f"the frames of '{results}' cannot be read "
+                              f"({type(exc).__name__}: {_one_line(exc)}); damaged?")
+
+
+def damaged_segment(results: Path | str, name: str, why: str) -> DamagedFramesError:
+    """The error for the segment file ``name`` (as results.h5 lists it) of the results file
+    ``results``, which h5py cannot read (``why``)."""
+    found = _SEGMENT.search(name)
+    which = f"frames {int(found[1])} to {int(found[2])}" if found else "the frames"
+    return DamagedFramesError(f"'{Path(results).parent / name}' is damaged ({why}): {which} "
+                              f"of the run cannot be read (the rest of its results.h5 can)")
+
+
+def segment_damage(path: Path, whole: bool = True) -> str:
+    """Why h5py cannot read the segment file ``path`` (``whole``: every column of its frames;
+    else only open it): "OSError: ..." in one line; "" when it can."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as h5:
+            g = h5["frames"]
+            if whole:
+                for table, fields in FIELDS.items():
+                    for key in fields:
+                        g[f"{table}/{key}"][()]
+    except (OSError, RuntimeError, KeyError) as exc:
+        return f"{type(exc).__name__}: {_one_line(exc)}"
+    return ""
 
 
 def read_frames(path: Path | str) -> Frames:
@@ -386,6 +469,10 @@ def read_frames(path: Path | str) -> Frames:
                                 f"{Path(missing[0]).name} is not there ({len(missing)} of "
                                 f"{len(g.attrs['segments'])} files missing): copy or move a "
                                 "results folder whole, frames/ with results.h5")
+        for name in g.attrs.get("segments", []):  # each opens (a file cut short does not)
+            why = segment_damage(Path(path).parent / str(name), whole=False)
+            if why:
+                raise damaged_segment(path, str(name), why)
         index = {key: g[key][()] for key in INDEX_KEYS}
         for table, fields in FIELDS.items():  # every column there, as long as the index says
             rows = int(index[OFFSETS[table]][-1])
@@ -397,7 +484,9 @@ def read_frames(path: Path | str) -> Frames:
         events = dict(h5["events"].attrs) if "events" in h5 else {}
         attrs = dict(g.attrs)
         scenario = str(h5.attrs.get("scenario", ""))
-    return Frames(FramesFile(path, index), walls, events, attrs, scenario)
+        status = h5.attrs.get("status", "")
+    status = status.decode() if isinstance(status, bytes) else str(status)
+    return Frames(FramesFile(path, index), walls, events, attrs, scenario, status)
 
 
 def missing_segments(results: Path | str, group: h5py.Group) -> list[str]:

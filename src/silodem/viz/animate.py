@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from silodem.checkpoint import CHECKPOINT_NAME as CHECKPOINT
 from silodem.errors import InputError
 from silodem.silo.frames import Frames, NoFramesError, read_frames
 
@@ -46,6 +47,10 @@ def load_run_frames(run_dir: Path | str) -> Frames:
                          "(silodem run ... --out DIR)")
     h5 = d / "results.h5"
     if not h5.is_file():
+        if (d / CHECKPOINT).is_file():  # ('silodem run --out' refuses the folder of such a run)
+            raise InputError(f"'{d}' has no results.h5 but the {CHECKPOINT} of an unfinished "
+                             f"run: continue it with 'silodem run --resume {d}' (it writes "
+                             "results.h5 as it goes)")
         raise InputError(f"'{d}' has no results.h5; make one with: silodem run ... --out {d}")
     frames = read_run_frames(h5)
     if len(frames) == 0:
@@ -136,7 +141,17 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
 
 def render_animation(plan: AnimationPlan,
                      on_frame: Callable[[int, int], None] | None = None) -> AnimationResult:
-    """Draw every frame and encode the video; ``on_frame(done, total)`` after each frame."""
+    """Draw every frame and encode the video; ``on_frame(done, total)`` after each frame.  A
+    frame that cannot be read (a segment file damaged: ``DamagedFramesError``) is an
+    InputError (one line naming the file), and no video is left."""
+    try:
+        return _render(plan, on_frame)
+    except NoFramesError as exc:  # (read a block at a time, as the frames are drawn)
+        raise InputError(str(exc)) from None
+
+
+def _render(plan: AnimationPlan,
+            on_frame: Callable[[int, int], None] | None) -> AnimationResult:
     from silodem.viz.draw import FrameArtist
 
     t0 = time.perf_counter()

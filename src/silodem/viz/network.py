@@ -66,7 +66,7 @@ def force_network_png(results_h5: Path | str | Frames, which: str | float = "end
 
     frames = _frames(results_h5)
     frame = select_frame(frames, which)
-    return _png(FrameArtist(frames, color, height_px=height_px), frame, which)
+    return _png(FrameArtist(frames, color, height_px=height_px), frame, which, frames)
 
 
 def _frames(results_h5: Path | str | Frames) -> Frames:
@@ -87,9 +87,13 @@ def _frames(results_h5: Path | str | Frames) -> Frames:
         raise ValueError(str(exc)) from None
 
 
-def _png(artist, frame: Frame, which: str | float) -> bytes:
-    """PNG bytes of ``frame`` drawn by ``artist``, titled with the moment ``which``."""
+def _png(artist, frame: Frame, which: str | float, frames: Frames) -> bytes:
+    """PNG bytes of ``frame`` drawn by ``artist``, titled with the moment ``which`` (of
+    ``frames``: the "end of filling" of a run stopped before settling ended is its last
+    frame, and says so)."""
     label = _LABEL.get(which, "") if isinstance(which, str) else ""
+    if which in ("end-of-filling", "settled") and not frames.settled:
+        label = "last frame saved, not settled (unfinished run)"
     artist.draw(frame, title=f"{label + ', ' if label else ''}t = {frame.time:.2f} s "
                 f"({frame.n} grains)")
     return artist.png()
@@ -115,5 +119,5 @@ def force_network_pngs(results_h5: Path | str | Frames) -> dict[str, bytes]:
         if frame.step in drawn:  # (frames read from a file are new objects each time)
             continue
         drawn.add(frame.step)
-        out[view] = _png(artist, frame, view)
+        out[view] = _png(artist, frame, view, frames)
     return out
