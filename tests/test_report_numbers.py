@@ -635,14 +635,14 @@ def test_key_numbers_of_the_report(synth):
     assert _number(a, "flow pattern") == "funnel flow"
     assert float(_number(a, "dead-zone fraction")) == pytest.approx(0.15, rel=5e-3)
     assert float(_number(a, "mass flow index")) == pytest.approx(1 / 3, rel=5e-3)
-    assert _number(a, "change fill -> discharge, switch_centre") == "h n/a %, v 50 %"
+    assert _number(a, "change fill -> discharge, switch_centre") == "h n/a, v 50"  # [%]
     # the peaks lie at different heights (0.5 and 0.375 m): the row says so, and the stress
     # at the filling peak's height (6000 Pa there in discharge) is the same-place change
     peak = _number(a, "change fill -> discharge, wall peak: the switch zone's largest wall "
                    "normal stress in each window, at z = 0.5 m -> 0.375 m")
     assert float(peak) == pytest.approx(_pct(4500.0, 6500.0), rel=5e-3)
     assert _number(a, "wall normal stress at the filling peak's height z = 0.5 m") == (
-        f"4,500 -> 6,000 Pa ({significant(_pct(4500.0, 6000.0), 3)} %)")
+        f"4,500 -> 6,000 ({significant(_pct(4500.0, 6000.0), 3)} %)")  # [Pa]
     # peaks at one height: the peak-to-peak row is the same-place change, given once
     one = copy.copy(a)
     one.change = {**a.change, "wall peak": {**a.change["wall peak"], "z_discharge": 0.5}}

@@ -627,7 +627,7 @@ def _numbers(a: Analysis) -> None:
                          f"-> {_fmt(row['z_discharge'], 3)} m")
                 n.append((label, _fmt(row["sigma_h_change_pct"], 3), "%"))
                 continue
-            parts = [f"{k.split('_')[1]} {_fmt(v, 3)} %" for k, v in row.items()
+            parts = [f"{k.split('_')[1]} {_fmt(v, 3)}" for k, v in row.items()  # [%]
                      if k.endswith("change_pct")]
             n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
         same = a.wall_at_fill_peak
@@ -635,7 +635,7 @@ def _numbers(a: Analysis) -> None:
             z, f, dd, pct = same  # (at one height the peak-to-peak row says it already)
             label = (f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m, "
                      "after filling -> during discharge (the same place)")
-            n.append((label, f"{pascals(f)} -> {pascals(dd)} Pa ({_fmt(pct, 3)} %)", ""))
+            n.append((label, f"{pascals(f)} -> {pascals(dd)} ({_fmt(pct, 3)} %)", "Pa"))
     f = a.flow
     if "rate" in f:
         r = f["rate"]
