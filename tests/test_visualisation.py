@@ -742,3 +742,15 @@ def _network(path, which="final", **kwargs):
     from silodem.viz import force_network_png
 
     return force_network_png(path, which, **kwargs)
+
+
+def test_every_number_under_frames_carries_its_unit(run_dir):
+    """docs/output.md: datasets of numbers carry a ``unit`` attribute; the frames' index
+    (step, phase, the offsets) had none (counts and codes: '-')."""
+    missing = []
+    with h5py.File(run_dir / "results.h5", "r") as f:
+        f["frames"].visititems(lambda name, item: missing.append(name) if (
+            isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf"
+            and "unit" not in item.attrs) else None)
+        assert f["frames/step"].attrs["unit"] == "-" and f["frames/time"].attrs["unit"] == "s"
+    assert missing == []

@@ -206,7 +206,7 @@ def write_index(group: h5py.Group, index: dict[str, np.ndarray], interval: float
 
 
 def _write_arrays(group: h5py.Group, arrays: dict[str, np.ndarray]) -> None:
-    units = {"time": "s"}
+    units = {"time": "s"} | {k: "-" for k in INDEX_KEYS if k != "time"}  # counts, codes
     for table, fields in FIELDS.items():
         units.update({f"{table}/{k}": u for k, (_, u) in fields.items()})
     for key, arr in arrays.items():
