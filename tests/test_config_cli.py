@@ -209,6 +209,16 @@ def test_quick_says_which_set_values_it_changed():
     assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
 
 
+def test_a_refused_quick_run_says_only_why(tmp_path):
+    """The note of what --quick changed comes once the command's checks have passed: an
+    --out that is a file is still the one line on stderr."""
+    (tmp_path / "file").write_text("x")
+    result = cli("run", "paper-case2", "--quick", "--set", "fill.n_particles=300", "--out",
+                 str(tmp_path / "file"))
+    assert result.returncode == 2
+    assert_one_line_error(result, "--out", "file")
+
+
 @pytest.mark.parametrize(
     ("item", "needles"),
     [

@@ -44,13 +44,23 @@ def noted_signals(*, hold: bool) -> Iterator[list[int]]:
         if not hold:
             before[signum](signum, frame)
 
-    for s in before:
-        signal.signal(s, note)
     try:
-        yield noted
+        with handled_by(note, before):
+            yield noted
     finally:
-        for s, previous in before.items():
-            signal.signal(s, signal.SIG_DFL if previous is None else previous)
         if hold:
             for s in sorted(set(noted), reverse=True):  # SIGTERM (15) first: the stronger
                 signal.raise_signal(s)
+
+
+@contextlib.contextmanager
+def handled_by(handler, before: dict) -> Iterator[None]:
+    """The signals that are keys of ``before`` go to ``handler`` while the block runs; then
+    each gets back its handler in ``before`` (SIG_DFL for None: one set outside Python)."""
+    for s in before:
+        signal.signal(s, handler)
+    try:
+        yield
+    finally:
+        for s, previous in before.items():
+            signal.signal(s, signal.SIG_DFL if previous is None else previous)

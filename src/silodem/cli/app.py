@@ -88,16 +88,19 @@ def check_threads(threads: int | None) -> None:
     check(threads, "--threads")
 
 
-def read_config(source: str, sets: list[str] | None, quick: bool):
-    """The validated Config of a scenario name or TOML file, with ``--set`` and ``--quick``."""
+def read_config(source: str, sets: list[str] | None, quick: bool,
+                notes: list[str] | None = None):
+    """The validated Config of a scenario name or TOML file, with ``--set`` and ``--quick``;
+    ``notes`` gets the line saying which --set values --quick changed (the command prints it
+    once its checks have passed: an error stays the only line on stderr)."""
     cfg = load_config(source, sets or [])
     if not quick:
         return cfg
     small = quick_variant(cfg)
     changed = quick_overrides(cfg, small, sets or [])
-    if changed:  # a value typed on the command line, changed without a word before
-        sys.stderr.write(one_line(f"silodem: --quick changed what --set gave: {changed} "
-                                  "(it shrinks the silo after --set)") + "\n")
+    if changed and notes is not None:  # a value typed on the command line, changed unsaid
+        notes.append(f"silodem: --quick changed what --set gave: {changed} (it shrinks the "
+                     "silo after --set)")
     return small
 
 

@@ -126,7 +126,8 @@ def run(
     if study_text(source) is not None:
         raise InputError(f"{source} is a study (a grid of runs): run it with 'silodem sweep "
                          f"{source}'")
-    cfg = read_config(source, sets, quick)
+    notes: list[str] = []
+    cfg = read_config(source, sets, quick, notes)
     out_dir = out if out is not None else Path("runs") / cfg.name
     from silodem.run import run_simulation  # imports numba: only when running
     from silodem.silo.checks import check_numbers
@@ -140,9 +141,9 @@ def run(
     console = Console(soft_wrap=True)
     console.print(f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False)
     if replacing:
-        Console(stderr=True, soft_wrap=True).print(
-            f"silodem: replacing the earlier run's results in {out_dir}", markup=False,
-            highlight=False)
+        notes.append(f"silodem: replacing the earlier run's results in {out_dir}")
+    for note in notes:
+        Console(stderr=True, soft_wrap=True).print(note, markup=False, highlight=False)
     summary = run_simulation(cfg, out_dir, threads=threads, progress=True)
     _print_summary(console, summary)
 
@@ -192,8 +193,11 @@ def show(
                              "shrinks every run)")
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
         return
-    cfg = read_config(source, sets, quick)
+    notes: list[str] = []
+    cfg = read_config(source, sets, quick, notes)
     sys.stdout.write(config_to_toml(cfg))
+    for note in notes:
+        sys.stderr.write(note + "\n")
 
 
 @app.command()

@@ -485,7 +485,7 @@ def shutdown_shield(*, stopping: bool) -> Iterator[list[int]]:
     import signal
     import threading
 
-    from silodem.signals import NOTED
+    from silodem.signals import NOTED, handled_by
 
     noted: list[int] = []
     if threading.current_thread() is not threading.main_thread():
@@ -498,13 +498,8 @@ def shutdown_shield(*, stopping: bool) -> Iterator[list[int]]:
         if len(noted) > SHUTDOWN_PATIENCE:
             before[signum](signum, frame)
 
-    for s in before:
-        signal.signal(s, note)
-    try:
+    with handled_by(note, before):
         yield noted
-    finally:
-        for s, previous in before.items():
-            signal.signal(s, previous)
     if noted and not stopping:
         signal.raise_signal(noted[0])
 
