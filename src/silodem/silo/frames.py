@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from silodem.errors import one_line
 from silodem.measure.stress import contact_points_walls
 from silodem.silo.recorders import PHASE_CODES
 
@@ -396,7 +397,7 @@ _SEGMENT = re.compile(r"frames-(\d+)-(\d+)\.h5$")  # frame_store.segment_name(fi
 
 
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
+    return one_line(exc) or type(exc).__name__
 
 
 def damaged(results: Path | str, first: int, end: int, exc: BaseException) -> NoFramesError:
