@@ -63,9 +63,14 @@ class Analysis:
     flow: dict[str, Any] = field(default_factory=dict)
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
-    # what the windows' numbers and figures are called: "after filling", "during discharge";
-    # the fill window of a run stopped before settling ended is no settled fill (UNSETTLED)
-    labels: dict[str, str] = field(default_factory=lambda: dict(WINDOW_LABELS))
+
+    @property
+    def labels(self) -> dict[str, str]:
+        """What the windows' numbers and figures are called: "after filling", "during
+        discharge"; the fill window of a run stopped before settling ended is no settled
+        fill (UNSETTLED)."""
+        unsettled = self.unfinished and not self.settled
+        return {**WINDOW_LABELS, **({"fill": UNSETTLED} if unsettled else {})}
 
     @property
     def measured(self) -> bool:
@@ -231,8 +236,6 @@ def analyse(res: Results) -> Analysis:
                "discharge": surface_height(dsnap, shape.width, d)}
     rho_b = bulk_density(settled, cfg, shape, surface["fill"])
     a = Analysis(res, geom, {}, surface, rho_b)
-    if a.unfinished and not a.settled:
-        a.labels["fill"] = UNSETTLED
     a.switch = regions.switch_zone(cfg, shape)
     if not a.measured:
         return a

@@ -448,18 +448,17 @@ def local_cluster(workers: int) -> LocalCluster:
 
     from silodem.signals import noted_signals
 
-    started = []
+    cluster = None
     try:
         with noted_signals(hold=True):
-            started.append(LocalCluster(n_workers=workers, threads_per_worker=1,
-                                        processes=True, dashboard_address=":0",
-                                        silence_logs=logging.CRITICAL,
-                                        preload=["silodem.study.worker_setup"]))
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.CRITICAL,
+                                   preload=["silodem.study.worker_setup"])
     except BaseException:  # a signal held while it started: close it, not left to the exit
-        if started:
-            close_cluster(None, started[0])
+        if cluster is not None:
+            close_cluster(None, cluster)
         raise
-    return started[0]
+    return cluster
 
 
 SHUTDOWN_PATIENCE = 1  # signals a shutdown notes and lets wait; the next one acts at once
