@@ -1139,7 +1139,7 @@ def test_real_run_table_row_matches_a_recomputation(real):
     assert s["discharged_fraction"] == pytest.approx(
         raw["timeseries/discharged_mass"][-1] / float(ev["initial_mass"]), rel=REL)
     # every cell is a plain Python value (a NumPy scalar would be written 'np.float64(...)')
-    assert {type(v) for v in s.values()} <= {float, int, str}
+    assert {type(v) for v in s.values()} <= {float, int, str, bool}
     assert set(s) >= {c for c, _, _ in COLUMNS}
 
 
@@ -1170,7 +1170,7 @@ DOC_COLUMNS = [
     "wall_peak_z_discharge", "wall_peak_change_pct", "wall_at_fill_peak_change_pct",
     "coordination_fill",
     "coordination_discharge", "coordination_change_pct", "janssen_K_fill", "janssen_K_fill_err",
-    "wall_friction_mobilised_fill",
+    "janssen_K_fill_above_1", "wall_friction_mobilised_fill", "wall_friction_negative_fill",
     "en1991_4_class", "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill",
     "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",
     "window_emptied_start_pct", "window_emptied_end_pct",

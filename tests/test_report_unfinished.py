@@ -149,6 +149,28 @@ def test_an_unsettled_runs_numbers_say_what_is_missing_and_which_window(stopped,
         f"t = {f['time']:.4g} s)")
 
 
+def _captions(page: str) -> dict[str, str]:
+    """figure id -> its caption's text."""
+    found = re.findall(r"<figure id='(\w+)'>.*?<figcaption>(.*?)</figcaption>", page)
+    return {name: _text(caption) for name, caption in found}
+
+
+def test_an_unsettled_runs_figure_captions_name_its_window_as_the_titles_do(stopped, capsys):
+    """The captions of Figs. 3a and 3b name the fill window as the key numbers, the banner and
+    the figures' own titles do: the last window of the unfinished settling, not "after
+    filling" (the run stopped before settling ended: there is no settled fill)."""
+    _plot(stopped, capsys)
+    captions = _captions((stopped / "report.html").read_text(encoding="utf-8"))
+    assert captions["fig3a_horizontal_filling"].startswith(
+        "Fig. 3a equivalent. Horizontal stress along the silo wall late in the unfinished "
+        "settling (time average over the last window of the settling reached: the run "
+        "stopped before settling ended):")
+    assert captions["fig3b_vertical_filling"].startswith(
+        "Fig. 3b equivalent. Vertical stress along the silo wall late in the unfinished "
+        "settling:")
+    assert not [name for name, text in captions.items() if "after filling" in text]
+
+
 def test_a_finished_runs_report_has_no_banner_and_plot_no_note(finished, tmp_path, capsys):
     copy = tmp_path / "run"
     shutil.copytree(finished, copy)
@@ -158,6 +180,9 @@ def test_a_finished_runs_report_has_no_banner_and_plot_no_note(finished, tmp_pat
     page = (copy / "report.html").read_text(encoding="utf-8")
     assert "id='unfinished'" not in page and "unfinished settling" not in page
     assert "switch-zone peak of the wall normal stress, after filling" in _key_numbers(page)
+    assert _captions(page)["fig3a_horizontal_filling"].startswith(
+        "Fig. 3a equivalent. Horizontal stress along the silo wall after filling (time average "
+        "over the last window of settling):")
     frames = read_frames(copy / "results.h5")
     assert (frames.status, frames.settled) == ("complete", True)
 

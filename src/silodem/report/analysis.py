@@ -16,6 +16,12 @@ from silodem.measure import discharge as dis
 from silodem.measure import regions
 from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report import eurocode
+from silodem.report.flags import (
+    ABOVE_HYDROSTATIC,
+    WALLS_HELD_UP,
+    above_hydrostatic,
+    walls_held_up,
+)
 from silodem.report.load import Results
 from silodem.report.numbers import pascals, percent_change, poorly_determined, significant
 from silodem.silo.geometry import silo_shape
@@ -475,42 +481,6 @@ def _fitted(value: float, error: float, *notes: str) -> str:
     return text + (f" ({'; '.join(said)})" if said else "")
 
 
-def above_hydrostatic(fit: th.JanssenFit) -> bool:
-    """A Janssen K = sigma_h / sigma_v above 1 by more than its standard error.  K = 1 is the
-    isotropic, hydrostatic state (a fluid's); the Mohr-Coulomb states of a cohesionless fill
-    lie between the active K_a = (1 - sin phi) / (1 + sin phi) < 1, sigma_v the major stress,
-    and the passive K_p = 1 / K_a > 1, sigma_h the major stress.  A fill poured and settled
-    under its own weight is on the active side: Jaky's K0 = 1 - sin phi (Nedderman 1992,
-    "Statics and kinematics of granular materials", on Janssen's K), and EN 1991-4's estimate
-    K = 1.1 (1 - sin phi_i) (its section 4) is under 1 for any phi_i over 5.2 deg.  So 1, not
-    a tuned number, is the bound, and the fit's own error the margin: a K within its error of
-    1 (docs/validation.md's column, its wall friction mobilised by lowering the floor, fits
-    1.02-1.05, its near-wall stress tensor gives 0.99-1.12) is not judged, nor is a fit with
-    no error (two bins: exact).  After filling the fit with mu_w = tan phi_P also puts into K
-    the wall friction the walls do not mobilise (docs/theory.md): either way the number is no
-    K of a settled fill, and the report says so.  During discharge a K above 1 is no anomaly:
-    flowing grains that converge below the (effective) transition go over to the passive
-    state, the switch of Jenike and Johanson and of Walters (1973; Nedderman 1992, on the
-    stresses during discharge), which in funnel flow lies up in the cell; the report says
-    what it is there, as a note, not a warning."""
-    return math.isfinite(fit.K_err) and fit.K - fit.K_err > 1.0
-
-
-ABOVE_HYDROSTATIC = {  # what a K above 1 (above_hydrostatic) is, by window
-    "fill": ("above 1 by more than its error: as fitted, the walls are pressed harder than the "
-             "fill's vertical stress, a passive-like state, not the K of a fill at rest under "
-             "its own weight (Jaky: K0 = 1 - sin phi < 1)"),
-    "discharge": ("above 1 by more than its error: a passive-like state, the walls pressed "
-                  "harder than the vertical stress, as flowing grains can set up (the switch "
-                  "of Jenike and Walters)"),
-}
-
-WALLS_HELD_UP = (  # the mobilised wall friction sum(tau_down) / sum(sigma_n) below 0
-    "negative: the walls' friction on the grains points down, net over these bins, so the cell "
-    "walls carry none of the fill's weight but add to the load below (the grains hold the "
-    "walls up): the reverse of the wall support Janssen assumes")
-
-
 def _janssen_K(fit: th.JanssenFit, key: str, mobilised: float = float("nan")) -> str:
     """K +- its error, with what the fit's error and a K above 1 (:func:`above_hydrostatic`)
     say; after filling, a fit with mu_w given above the ``mobilised`` friction the walls
@@ -555,7 +525,8 @@ def _numbers(a: Analysis) -> None:
             what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
                     f"the Janssen fit, {label} (tan phi_P = {_fmt(g['mu_wall'], 3)})")
             mu = a.mu_mobilised[key]  # tau_down: the grains' downward traction on the wall
-            n.append((what, _fmt(mu, 3) + (f" ({WALLS_HELD_UP})" if mu < 0.0 else ""), "-"))
+            n.append((what, _fmt(mu, 3) + (f" ({WALLS_HELD_UP})" if walls_held_up(mu) else ""),
+                      "-"))
         what = f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)"
         if key in a.janssen:
             value = _janssen_K(a.janssen[key], key, a.mu_mobilised.get(key, np.nan))

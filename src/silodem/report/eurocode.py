@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem import theory as th
+from silodem.report.flags import above_hydrostatic, walls_held_up
 from silodem.report.numbers import pascals, poorly_determined, significant
 
 if TYPE_CHECKING:
@@ -35,7 +36,11 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     K of the Janssen fit after filling, mu = tan(phi_P), gamma = rho_b g, h_c from the junction
     (or floor) to the equivalent surface, and h_o measured (the equivalent surface minus
     ``wall_top`` [m], the highest wall contact, at least 0); in a hopper silo also §6 on the
-    hopper walls (:func:`hopper_loads`).  Sets ``a.en1991_4``.  Nothing for a retaining silo
+    hopper walls (:func:`hopper_loads`).  Sets ``a.en1991_4``, with the K used (``"K"``,
+    ``"K_err"``) and ``"K_above_1"``, whether it is above 1 by more than its error
+    (:func:`~silodem.report.flags.above_hydrostatic`): the loads are then still drawn from
+    it, and the key numbers and the legends say that they are the standard's formulas fed a
+    K no fill at rest has (:data:`K_ABOVE_1`).  Nothing for a retaining silo
     (§5.4, not built), nor without K (no Janssen fit after filling, or one whose error is
     over half of K: few or noisy wall bins) or where §5.3's form
     does not apply (h_o >= z_o): the class alone, with ``"missing"`` saying why.  Nothing
@@ -74,7 +79,8 @@ def add_loads(a: Analysis, wall_top: float) -> None:
     except ValueError:  # h_o >= z_o (a heap deeper than z_o): the form does not apply
         a.en1991_4["missing"] = f"the form does not apply: h_o = {h_o:.3g} m >= z_o"
         return
-    a.en1991_4.update(h_o=h_o, phi_r=phi_r, C_h=C_h, C_w=C_w, z=z, p_hf=p_hf, p_he=C_h * p_hf,
+    a.en1991_4.update(K=j.K, K_err=j.K_err, K_above_1=above_hydrostatic(j),
+                      h_o=h_o, phi_r=phi_r, C_h=C_h, C_w=C_w, z=z, p_hf=p_hf, p_he=C_h * p_hf,
                       p_wf=p_wf, p_we=C_w * p_wf,
                       mobilised=a.mu_mobilised.get("fill", np.nan) / g["mu_wall"])
     if not flat:
@@ -109,6 +115,13 @@ def hopper_loads(a: Analysis, K: float, p_vft: float) -> dict[str, Any]:
     return out
 
 
+K_ABOVE_1 = (  # the loads drawn from a K above 1 (add_loads' "K_above_1"), after its value
+    "above 1 by more than its error, which no fill at rest has (EN 1991-4's own K = 1.1 "
+    "(1 - sin phi_i) is under 1 for phi_i over 5.2 deg): these are the standard's formulas fed "
+    "this K, not its loads for this material; the larger K brings the wall pressure to its deep "
+    "value gamma A / (mu U), which K does not change, at a shallower depth")
+
+
 def key_numbers(en: dict[str, Any], measure: Measure) -> list[tuple[str, str, str]]:
     """The report's key-number rows (quantity, value, unit) of :func:`add_loads`'s dict."""
     n: list[tuple[str, str, str]] = []
@@ -116,6 +129,9 @@ def key_numbers(en: dict[str, Any], measure: Measure) -> list[tuple[str, str, st
         loads = (f"loads of §{en['section']} drawn" if "p_hf" in en
                  else f"no loads drawn (§{en['section']}): {en['missing']}" if "missing" in en
                  else f"no loads drawn (§{en['section']}, not built in silodem)")
+        if en.get("K_above_1"):
+            loads += (f" (from K = {significant(en['K'], 3)} +- {significant(en['K_err'], 2)} "
+                      f"of the Janssen fit after filling, {K_ABOVE_1})")
         value = f"{significant(en['ratio'], 3)}: {en['kind']}, {loads}"
         n.append(("EN 1991-4 slenderness h_c/d_c (junction or floor to the surface, over B)",
                   value, "-"))
@@ -154,7 +170,7 @@ def mobilisation_row(share: float) -> tuple[str, str, str]:
     label = ("EN 1991-4 loads' wall friction, mu = tan phi_P fully mobilised (as for K): the "
              "share the cell walls carry after filling")
     value = f"{significant(100 * share, 2)} %"
-    if share < 0.0:
+    if walls_held_up(share):
         value += (": negative: net, the walls' friction on the grains points down, so the cell "
                   "walls carry none of the fill's weight (the grains hold them up), the reverse "
                   "of the wall support these loads assume; read them as the standard's, not as "

@@ -20,6 +20,12 @@ from silodem.report.draw import (
     silo_axes,
     tight_layout,
 )
+from silodem.report.flags import (
+    ABOVE_HYDROSTATIC_SHORT,
+    WALLS_HELD_UP_SHORT,
+    above_hydrostatic,
+    walls_held_up,
+)
 from silodem.silo.geometry import silo_shape
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
@@ -67,7 +73,23 @@ def fig_coordination(a: Analysis) -> Figure | None:
     return fig
 
 
+def _flagged(label: str, *notes: str) -> str:
+    """``label`` with the ``notes`` that hold ("" ones left out) in one parenthesis."""
+    said = [n for n in notes if n]
+    return label + (f" ({'; '.join(said)})" if said else "")
+
+
+def janssen_label(fit: th.JanssenFit, key: str) -> str:
+    """The legend's flag on a fitted Janssen K of the window ``key``: the key numbers' (a K
+    above 1 by more than its error, :func:`~silodem.report.flags.above_hydrostatic`), short;
+    "" when there is none."""
+    return ABOVE_HYDROSTATIC_SHORT[key] if above_hydrostatic(fit) else ""
+
+
 def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
+    """Janssen's sigma_h or sigma_v (``which``: "h" or "v") with the window's fitted K, the
+    paper's K = 0.4 and, after filling, the free fit; a fitted K above 1 says so in its
+    legend, as in the key numbers."""
     g = a.geom
     surf = a.surface[key]
     if not np.isfinite(surf) or not np.isfinite(a.rho_b):
@@ -77,15 +99,19 @@ def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
     f = th.janssen_sigma_h if which == "h" else th.janssen_sigma_v
     j = a.janssen.get(key)
     if j is not None:
+        label = _flagged(f"Janssen 2D, K = {j.K:.2f} fitted, mu_w = tan phi_P",
+                         janssen_label(j, key))
         ax.plot(f(depth, a.rho_b, g["g"], g["B"], j.K, g["mu_wall"]), z, color="#1f77b4", lw=2,
-                label=f"Janssen 2D, K = {j.K:.2f} fitted, mu_w = tan phi_P")
+                label=label)
     ax.plot(f(depth, a.rho_b, g["g"], g["B"], PAPER_K, g["mu_wall"]), z, color="#1f77b4",
             lw=1.2, ls="--", label="Janssen 2D, K = 0.4 (paper)")
     if key == "fill" and a.janssen_free is not None:
         jf = a.janssen_free
+        label = _flagged(f"Janssen free fit K = {jf.K:.2f}, mu_w = {jf.mu_w:.2g}",
+                         "> tan phi_P: not Janssen" if above_coulomb(jf, g["mu_wall"]) else "",
+                         janssen_label(jf, "fill"))
         ax.plot(f(depth, a.rho_b, g["g"], g["B"], jf.K, max(jf.mu_w, 1e-9)), z, color="#17becf",
-                lw=1.2, ls="-.", label=f"Janssen free fit K = {jf.K:.2f}, mu_w = {jf.mu_w:.2g}"
-                + (" (> tan phi_P: not Janssen)" if above_coulomb(jf, g["mu_wall"]) else ""))
+                lw=1.2, ls="-.", label=label)
     if which == "v":
         ax.plot(a.rho_b * g["g"] * depth, z, color="0.5", lw=1, ls=":",
                 label="hydrostatic rho_b g depth")
@@ -110,13 +136,17 @@ def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
     are those of the full silo).  Vertical walls: the filling load p_hf after filling (only for
     §5.3: for a slender silo it is the fitted Janssen curve already drawn), the fixed
     discharge load p_he = C_h p_hf during discharge.  Hopper walls (§6): the normal pressure
-    F_f p_v after filling, F_e p_v during discharge.  The labels give the class and rule."""
+    F_f p_v after filling, F_e p_v during discharge.  The labels give the class and rule, and
+    the K of filling when it is above 1 (``en["K_above_1"]``: the loads are the standard's
+    formulas fed a K no fill at rest has, as the key numbers say)."""
     en = a.en1991_4
     if "p_hf" not in en:
         return
     if key == "discharge" or en["section"] == "5.3":
         what = "filling p_hf" if key == "fill" else f"discharge {en['C_h']:.3g} p_hf"
-        inputs = f"K of filling, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
+        K = (f"K of filling = {en['K']:.2f} ({ABOVE_HYDROSTATIC_SHORT['fill']})"
+             if en.get("K_above_1") else "K of filling")
+        inputs = f"{K}, h_c/d_c = {en['ratio']:.2f}: {en['kind']}"
         if en["section"] == "5.3":
             inputs += f", h_o = {en['h_o']:.2f} m, phi_r = {en['phi_r']:.3g} deg"
         if key == "discharge":  # the standard's discharge load is the full silo's
@@ -197,7 +227,9 @@ def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
 
 
 def fig_wall_shear(a: Analysis) -> Figure | None:
-    """Wall shear (friction) along the silo edges, with full mobilisation mu_w sigma_n."""
+    """Wall shear (friction) along the silo edges, with full mobilisation mu_w sigma_n; a
+    window whose mobilised friction on the Janssen fit's bins is negative says so in its
+    legend (:func:`~silodem.report.flags.walls_held_up`, as in the key numbers)."""
     if not a.edge:
         return None
     fig = Figure(figsize=(7.5, 6.5), dpi=100)
@@ -207,10 +239,13 @@ def fig_wall_shear(a: Analysis) -> Figure | None:
         e = a.edge.get(key)
         if e is None:
             continue
+        when = a.labels[key]
+        held_up = walls_held_up(a.mu_mobilised.get(key, np.nan))
         ax.plot(e.tau_down, e.z, color=color, marker="o", ms=4, lw=1.5,
-                label=f"downward shear on the wall, {key}")
+                label=_flagged(f"downward shear on the wall, {when}",
+                               WALLS_HELD_UP_SHORT if held_up else ""))
         ax.plot(a.geom["mu_wall"] * e.sigma_n, e.z, color=color, lw=1, ls="--",
-                label=f"tan(phi_P) sigma_n (fully mobilised), {key}")
+                label=f"tan(phi_P) sigma_n (fully mobilised), {when}")
     ax.axvline(0, color="0.4", lw=0.6)
     ax.set_xlabel("wall shear stress [Pa]")
     ax.set_ylabel("z [m]")

@@ -25,8 +25,18 @@ from silodem.scenario_files import QUICK_SUFFIX
 class FigureSpec:
     name: str  # file name without .png
     paper: str  # the paper's figure it reproduces ("" if new)
-    caption: str
+    caption: str  # with {fill}, {discharge}, {fill_window}: see caption_for
     make: Callable[[Analysis], object]
+
+    def caption_for(self, a: Analysis) -> str:
+        """The caption with the windows named as the run's numbers and figure titles name
+        them (:attr:`Analysis.labels`): "after filling", or for a run stopped before settling
+        ended "late in the unfinished settling"; {fill_window} says which time the fill
+        window averages over."""
+        unsettled = a.labels["fill"] == UNSETTLED
+        window = ("the last window of the settling reached: the run stopped before settling "
+                  "ended" if unsettled else "the last window of settling")
+        return self.caption.format(**a.labels, fill_window=window)
 
 
 FIGURES = [
@@ -37,8 +47,8 @@ FIGURES = [
                "filling, settling, discharge. Ordered packings of equal disks give 4 (square) "
                "and 6 (triangular), Table 3.", fs.fig_coordination),
     FigureSpec("fig3a_horizontal_filling", "Fig. 3a",
-               "Horizontal stress along the silo wall after filling (time average over the last "
-               "window of settling): wall normal stress per bin, near-wall Love-Weber sigma_xx, "
+               "Horizontal stress along the silo wall {fill} (time average over {fill_window}): "
+               "wall normal stress per bin, near-wall Love-Weber sigma_xx, "
                "Janssen's 2D slot solution (K fitted with mu_w = tan phi_P, and the paper's "
                "K = 0.4) in the cell, EN 1991-4's filling load for a squat or intermediate "
                "silo (§5.3) and its hopper filling load (§6) where they apply (the key "
@@ -47,7 +57,7 @@ FIGURES = [
                "the paper's conical eq. 12. The legend lists the curves drawn.",
                lambda a: fs.fig_horizontal(a, "fill")),
     FigureSpec("fig3b_vertical_filling", "Fig. 3b",
-               "Vertical stress along the silo wall after filling: Love-Weber sigma_zz near the "
+               "Vertical stress along the silo wall {fill}: Love-Weber sigma_zz near the "
                "walls and over the cross-section, Janssen's sigma_v, the hydrostatic line, and "
                "the planar and conical hopper solutions.", lambda a: fs.fig_vertical(a, "fill")),
     FigureSpec("fig4_switch_zone_network", "Fig. 4",
@@ -60,7 +70,7 @@ FIGURES = [
                ff.fig_network),
     FigureSpec("fig6_horizontal_discharge", "Fig. 6",
                "Horizontal stress along the silo wall during discharge (time average over the "
-               "discharge window), with the filling profile, Janssen's solution (K refitted), "
+               "discharge window), with the profile {fill}, Janssen's solution (K refitted), "
                "EN 1991-4's discharge loads on the vertical and hopper walls where they apply, "
                "Walker's hopper solutions with the discharge window's q and D in a hopper silo, "
                "and the switch-zone peak. The legend lists the curves drawn.",
@@ -280,7 +290,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         label = f"{spec.paper} equivalent. " if spec.paper else ""
         parts.append(f"<figure id='{spec.name}'><img alt='{html.escape(spec.name)}' "
                      f"src='data:image/png;base64,{b64}'><figcaption><b>{html.escape(label)}"
-                     f"</b>{html.escape(spec.caption)}</figcaption></figure>")
+                     f"</b>{html.escape(spec.caption_for(a))}</figcaption></figure>")
     parts.append("<h2>Force network snapshots</h2>")
     if len(snapshots) < len(_SNAPSHOT_CAPTIONS):
         shown = {name for name, _, _ in snapshots}

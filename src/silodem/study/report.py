@@ -23,6 +23,7 @@ import matplotlib
 matplotlib.use("Agg")
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from silodem import __version__
 from silodem.atomic import write_atomic
@@ -249,6 +250,28 @@ HEATMAPS = [
 ]
 # heat maps whose cells are starred where a run's fit is poorly determined: value -> its error
 FIT_ERRORS = {"janssen_K_fill": "janssen_K_fill_err"}
+# heat maps whose cells are hatched where a run's value is flagged as the run report flags it
+# (silodem.report.flags): value -> (its flag column of results.csv, the caption line)
+FLAGS = {
+    "janssen_K_fill": ("janssen_K_fill_above_1", (
+        "hatched: a run's K is above 1 by more than its error (no fill at rest)")),
+    "wall_friction_mobilised_fill": ("wall_friction_negative_fill", (
+        "hatched: a run's friction is below 0: the walls carry none of the weight")),
+}
+FLAG_HATCHES = (("//", "k"), ("\\\\", "w"))  # crossed black and white: seen on any colour
+
+
+def flag_set(value: Any) -> bool:
+    """A flag cell of a summary or of results.csv as a bool: True for true (a summary's) or
+    "true" (results.csv's text); False for anything else (false, empty, a row written before
+    the column existed)."""
+    return value is True or (isinstance(value, str) and value.strip().lower() == "true")
+
+
+def _flagged(rows_by_id: dict, runs: list[PlannedRun], column: str) -> bool:
+    """Whether any run of ``runs`` has ``column``'s flag (``FLAGS[column]``) set."""
+    flag = FLAGS[column][0]
+    return any(flag_set(rows_by_id.get(run.id, {}).get(flag)) for run in runs)
 
 
 def _poorly_fitted(rows_by_id: dict, runs: list[PlannedRun], column: str) -> bool:
@@ -267,7 +290,9 @@ def _poorly_fitted(rows_by_id: dict, runs: list[PlannedRun], column: str) -> boo
 
 def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
     """One heat map per quantity over the grid (seed means, the value written in each cell;
-    a star where a run's fitted value there is poorly determined, see ``FIT_ERRORS``)."""
+    a star where a run's fitted value there is poorly determined, see ``FIT_ERRORS``; the
+    cell hatched where a run's value there is flagged, see ``FLAGS``; each map's title says
+    what its marks mean)."""
     n = len(HEATMAPS)
     ncols = 2
     nrows = math.ceil(n / ncols)
@@ -285,16 +310,24 @@ def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | Non
             lim = float(np.max(np.abs(finite))) or 1.0
             kw = {"vmin": -lim, "vmax": lim}
         im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, aspect="auto", **kw)
-        starred = False
+        starred = hatched = False
         for (i, j), v in np.ndenumerate(grid):
+            runs = _runs_at(plan, lay, lay.rows[i], lay.cols[j])
             star = column in FIT_ERRORS and math.isfinite(v) and _poorly_fitted(
-                rows_by_id, _runs_at(plan, lay, lay.rows[i], lay.cols[j]), column)
+                rows_by_id, runs, column)
             starred |= star
+            if column in FLAGS and _flagged(rows_by_id, runs, column):
+                hatched = True
+                for hatch, color in FLAG_HATCHES:
+                    ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1.0, 1.0, fill=False, lw=0.0,
+                                           hatch=hatch, edgecolor=color))
             ax.text(j, i, significant(v) + ("*" if star else ""), ha="center",
                     va="center", fontsize=7, color="k",
                     bbox={"facecolor": "white", "alpha": 0.6, "lw": 0, "pad": 1})
         if starred:
             title += "\n*: a run's fit there is poorly determined (error over half the value)"
+        if hatched:
+            title += "\n" + FLAGS[column][1]
         ax.set_xticks(range(len(lay.cols)), [lay.col_label(c) for c in lay.cols], fontsize=7,
                       rotation=20, ha="right")
         ax.set_yticks(range(len(lay.rows)), [lay.row_label(r) for r in lay.rows], fontsize=7)

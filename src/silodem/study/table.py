@@ -59,9 +59,15 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("janssen_K_fill", "-", "Janssen K fitted to the cell walls after filling, mu_w = tan phi_P"),
     ("janssen_K_fill_err", "-", ("its standard error (over half of K: K is poorly determined, "
      "as the run report says)")),
+    ("janssen_K_fill_above_1", "", ("true where janssen_K_fill is above 1 by more than its "
+     "error, as the run report flags it: no K of a fill at rest (Jaky: K0 = 1 - sin phi < 1), "
+     "and the EN 1991-4 loads of the row come from it; false otherwise and without a fit")),
     ("wall_friction_mobilised_fill", "-", ("mobilised wall friction sum(tau)/sum(sigma_n) on the "
      "cell-wall bins of the Janssen fit after filling (tan phi_P when fully mobilised, as "
      "Janssen and EN 1991-4 assume)")),
+    ("wall_friction_negative_fill", "", ("true where wall_friction_mobilised_fill is below 0, as "
+     "the run report flags it: the walls' friction on the grains points down, the cell walls "
+     "carry none of the fill's weight; false otherwise and without it")),
     ("en1991_4_class", "", "EN 1991-4 slenderness class: slender, intermediate, squat, retaining"),
     ("en1991_4_hopper_class", "", "EN 1991-4 hopper class: steep, shallow or flat"),
     ("en1991_4_hopper_p_n_fill", "Pa", ("EN 1991-4 hopper normal pressure at the transition, "
@@ -175,13 +181,15 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # finished runs are summarised again (execute.read_summary) instead of keeping stale numbers:
 # 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved);
 # the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*;
-# 4: wall_at_fill_peak_change_pct, wall_friction_mobilised_fill.
-ANALYSIS_VERSION = 4
+# 4: wall_at_fill_peak_change_pct, wall_friction_mobilised_fill; 5: the flags
+# janssen_K_fill_above_1, wall_friction_negative_fill.
+ANALYSIS_VERSION = 5
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
     """The per-run quantities of :data:`COLUMNS` (and per-circle ones) from a results folder."""
     from silodem.report.analysis import analyse, window_mean
+    from silodem.report.flags import above_hydrostatic, walls_held_up
     from silodem.report.load import load_results
     from silodem.report.numbers import percent_change
 
@@ -195,12 +203,15 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
                discharged_fraction=as_float(ev.get("discharged_fraction")),
                discharge_end_reason=str(ev.get("discharge_end_reason", "")),
                steps=int(res.attrs.get("steps", 0)), dt=as_float(res.attrs.get("dt")),
-               flow_pattern="", en1991_4_class="", en1991_4_hopper_class="")
+               flow_pattern="", en1991_4_class="", en1991_4_hopper_class="",
+               janssen_K_fill_above_1=False, wall_friction_negative_fill=False)
     if "fill" in a.mu_mobilised:
         out["wall_friction_mobilised_fill"] = as_float(a.mu_mobilised["fill"])
+        out["wall_friction_negative_fill"] = bool(walls_held_up(a.mu_mobilised["fill"]))
     if "fill" in a.janssen:
         out["janssen_K_fill"] = as_float(a.janssen["fill"].K)
         out["janssen_K_fill_err"] = as_float(a.janssen["fill"].K_err)
+        out["janssen_K_fill_above_1"] = bool(above_hydrostatic(a.janssen["fill"]))
     en = a.en1991_4
     out["en1991_4_class"] = str(en.get("kind", ""))
     hopper = en.get("hopper", {})
