@@ -4,6 +4,8 @@ mass conservation, and against each grain's force balance."""
 
 from __future__ import annotations
 
+import dataclasses
+import shutil
 import subprocess
 import sys
 
@@ -23,6 +25,61 @@ from silodem.silo.checks import estimate_overlap
 @pytest.fixture(scope="module")
 def res(tmp_path_factory):
     return api.run(tiny_hopper_config(), tmp_path_factory.mktemp("api") / "run")
+
+
+def test_timeseries_phase_and_counts_are_integers(res):
+    """/timeseries wrote the phase code and the counts as float64 where the other groups hold
+    integers; its phase_codes said fill=0,settle=1,discharge=2 by hand (docs/output.md)."""
+    with h5py.File(res.folder / "results.h5", "r") as h5:
+        ts = h5["timeseries"]
+        assert ts["phase"].dtype == np.int8 and h5["measure/phase"].dtype == np.int8
+        for key in ("n_particles", "n_contacts", "n_wall_contacts"):
+            assert ts[key].dtype == np.int64, key
+        for key in ("time", "kinetic_energy", "discharged_mass", "force_ratio"):
+            assert ts[key].dtype == np.float64, key
+        codes = "fill=0,settle=1,discharge=2"  # docs/output.md
+        assert ts.attrs["phase_codes"] == h5["frames"].attrs["phase_codes"] == codes
+        assert h5["measure/phase"].attrs["codes"] == codes
+        phase = ts["phase"][()]
+        assert set(phase) == {0, 1, 2} and np.all(np.diff(phase) >= 0)
+        # every grain poured is counted while the silo fills (none has left yet)
+        poured = ts["n_particles"][phase == 0]
+        assert poured.max() == h5["events"].attrs["n_poured"] == 150
+        # the last sample of the settling holds the grains of the settled snapshot
+        assert ts["n_particles"][phase == 1][-1] == h5["settled/particles/x"].shape[0]
+
+
+def _write_as_float(folder, keys=("phase", "n_particles", "n_contacts", "n_wall_contacts")):
+    """Rewrite ``keys`` of folder/results.h5's /timeseries as float64, as silodem did before."""
+    with h5py.File(folder / "results.h5", "r+") as h5:
+        ts = h5["timeseries"]
+        for key in keys:
+            data, unit = ts[key][()].astype(np.float64), ts[key].attrs["unit"]
+            del ts[key]
+            ts.create_dataset(key, data=data).attrs["unit"] = unit
+
+
+def test_an_older_results_file_with_float_columns_reads_the_same(res, tmp_path):
+    """A results.h5 of an earlier version (phase and counts float64) gives the same tables,
+    phase names, report numbers and flow as the integer columns."""
+    old = tmp_path / "old"
+    shutil.copytree(res.folder, old)
+    _write_as_float(old)
+    with h5py.File(old / "results.h5", "r") as h5:
+        assert h5["timeseries/phase"].dtype == np.float64
+    before = api.open_results(old)
+    now = res.timeseries()
+    then = before.timeseries()
+    pd.testing.assert_frame_equal(then, now, check_dtype=False)
+    assert list(then["phase_name"]) == list(now["phase_name"])
+    assert set(then["phase_name"]) == {"fill", "settle", "discharge"}
+    pd.testing.assert_frame_equal(before.numbers(), res.numbers())
+    flow_then, flow_now = before.analysis().flow, res.analysis().flow
+    for key in ("t", "mass"):  # the discharge samples, chosen by phase == 2
+        np.testing.assert_array_equal(flow_then[key], flow_now[key])
+    assert flow_now["t"].size > 10
+    np.testing.assert_array_equal(dataclasses.astuple(flow_then["rate"]),
+                                  dataclasses.astuple(flow_now["rate"]))
 
 
 def test_scenario_takes_dotted_keys_and_quick():
@@ -62,6 +119,7 @@ def test_scenario_takes_dotted_keys_and_quick():
     lambda cfg, r: api.run(cfg, out=cfg),
     lambda cfg, r: api.run(cfg, r.folder / "n", threads=cfg),
     lambda cfg, r: api.run(cfg, r.folder / "n", threads="8" * 500),
+    lambda cfg, r: api.run(cfg, r.folder / "n", threads=10**5000),
     lambda cfg, r: api.run(cfg, r.folder / "n", progress=cfg),
     lambda cfg, r: api.run(vars(cfg)),
     lambda cfg, r: api.open_results(cfg),
@@ -254,6 +312,42 @@ def _unfinished(parent):
 def test_bad_requests_are_one_line_input_errors(res, call, needle):
     with pytest.raises(InputError, match=needle):
         call(res)
+
+
+HUGE = 10**5000  # more digits than Python writes in decimal (sys.get_int_max_str_digits)
+
+
+@pytest.mark.parametrize("call, needle", [
+    (lambda r: api.run(r.config, r.folder / "n", threads=HUGE), "threads must be"),
+    (lambda r: api.run(r.config, r.folder / "n", threads=-HUGE), "threads must be"),
+    (lambda r: api.run(r.config.model_copy(update={"seed": HUGE}), r.folder / "n"), "seed:"),
+    (lambda r: api.run(r.config.model_copy(update={"fill": r.config.fill.model_copy(
+        update={"n_particles": HUGE})}), r.folder / "n"), "fill.n_particles:"),
+    (lambda r: api.scenario(set={"seed": HUGE}), "set 'seed': .* is not a TOML value"),
+    (lambda r: api.scenario(set={HUGE: 1}), "a key is a dotted name"),
+    (lambda r: api.run(r.config, out=HUGE), "out must be"),
+    (lambda r: api.run(r.config, r.folder / "n", progress=HUGE), "progress must be"),
+    (lambda r: study.load_study(HUGE), "source must be a study's name"),
+    (lambda r: study.run_study(_plan(), r.folder / "s", workers=HUGE), "workers must be"),
+])
+def test_an_integer_too_long_to_print_is_named_by_its_digits(res, call, needle):
+    """threads=10**5000 (and seed, n_particles, workers...) ended in Python's ValueError
+    "Exceeds the limit (4300 digits) for integer string conversion" while the error message
+    was being made: now the one-line InputError says how long the integer is."""
+    with pytest.raises(InputError, match=needle) as bad:
+        call(res)
+    text = str(bad.value)
+    limit = sys.get_int_max_str_digits()
+    assert f"an integer of more than {limit} digits" in text, text
+    assert "\n" not in text and len(text) < 200, text
+
+
+def test_an_integer_of_many_digits_is_named_by_their_count(res):
+    """One Python can write but too long to quote: its count of digits, not its first 57
+    (another number)."""
+    with pytest.raises(InputError, match="got an integer of 100 digits") as bad:
+        api.run(res.config, res.folder / "n", threads=int("9" * 100))
+    assert "999" not in str(bad.value)
 
 
 def test_a_run_refused_for_its_numbers_makes_no_folder_and_numpy_threads_run(res, tmp_path):

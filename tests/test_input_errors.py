@@ -596,6 +596,84 @@ def test_a_numba_thread_count_numba_cannot_use_is_refused(capsys, monkeypatch, v
     assert_names(line, "NUMBA_NUM_THREADS", repr(value))
 
 
+@pytest.mark.parametrize("value", ["9" * 50, "9" * 5000, str(2**31), "\u00b2"])
+def test_a_numba_thread_count_beyond_a_c_int_is_refused(capsys, monkeypatch, value):
+    """NUMBA_NUM_THREADS of 5000 digits ended in Python's "Exceeds the limit (4300 digits)"
+    ValueError, '²' (a digit to str.isdigit) in int()'s ValueError, and 50 nines ran until
+    numba's C int wrapped to 0 threads ("Invalid number of threads ... a bug in Numba")."""
+    monkeypatch.setenv("NUMBA_NUM_THREADS", value)
+    line = refused(capsys, "run", "--quick", "--threads", "1")
+    assert_names(line, "NUMBA_NUM_THREADS", str(2**31 - 1))  # the largest C int
+    assert len(line) < 200, line
+
+
+D4000 = "9" * 4000  # an integer Python writes, too long to quote
+D5000 = "9" * 5000  # more digits than Python reads (sys.get_int_max_str_digits: 4300)
+
+
+@pytest.mark.parametrize("args, name", [
+    (["run", "--quick", "--threads", D4000], "--threads"),
+    (["bench", "--n", D4000], "--n"),
+    (["bench", "--n", "100", "--steps", D4000], "--steps"),
+    (["bench", "--n", "100", "--rows", D4000], "--rows"),
+    (["animate", "DIR", "--fps", D4000], "--fps"),
+    (["sweep", "paper-study", "--quick", "--workers", D4000, "--out", "DIR/s"], "--workers"),
+    (["show", "paper-case2", "--set", f"seed={D4000}"], "seed"),
+    (["show", "paper-case2", "--set", f"fill.n_particles={D4000}"], "fill.n_particles"),
+])
+def test_an_integer_option_too_long_to_quote_is_named_by_its_digits(capsys, tmp_path, args,
+                                                                    name):
+    """A 4000-digit --n, --steps, --rows, --fps or --workers was quoted whole: a line of 4000
+    characters."""
+    line = refused(capsys, *(a.replace("DIR", str(tmp_path)) for a in args))
+    assert_names(line, name, "an integer of 4000 digits")
+    assert len(line) < 200, line
+
+
+@pytest.mark.parametrize("args", [["run", "--quick", "--threads", D5000],
+                                  ["bench", "--n", D5000], ["bench", "--steps", D5000],
+                                  ["animate", "DIR", "--fps", D5000]])
+def test_an_integer_option_beyond_pythons_digits_is_one_line(capsys, tmp_path, args):
+    line = refused(capsys, *(a.replace("DIR", str(tmp_path)) for a in args))
+    assert_names(line, args[-2], "integer")
+    assert len(line) < 200, line
+
+
+LONG = "x" * 5000  # a key 5,000 characters long: quoted cut to 60 (docs/reliability.md)
+
+
+@pytest.mark.parametrize("item, needles", [
+    (f"fill.{LONG}=1", [f"unknown key 'fill.{'x' * 52}...'", "allowed in [fill]: method"]),
+    (f"{LONG}=1", [f"unknown key '{'x' * 57}...'", "allowed at the top level: name"]),
+    (f"seed.{LONG}=1", ["'seed' is a value, not a section",
+                        f"'seed.{'x' * 52}...' does not exist"]),
+])
+def test_a_long_unknown_set_key_is_quoted_cut_short(capsys, item, needles):
+    """`--set fill.<5000 x>=1` echoed the key whole: a line of 5,000 characters."""
+    line = refused(capsys, "show", "paper-case2", "--set", item)
+    assert_names(line, *needles)
+    assert len(line) < 300, line
+
+
+def test_long_unknown_keys_in_a_file_are_quoted_cut_short(capsys, tmp_path):
+    """Three 5,000-character unknown keys in a file made a line of 15,000 characters."""
+    text = config_to_toml(load_config("paper-case2"))
+    text = text.replace("[fill]\n", f"[fill]\n{LONG} = 1\n{LONG}y = 2\n", 1)
+    path = tmp_path / "long.toml"
+    path.write_text(f"{LONG}z = 3\n" + text)
+    line = refused(capsys, "show", str(path))
+    assert_names(line, "config error: unknown key '", "(+2 more: ", f"{'x' * 52}...")
+    assert len(line) < 500, line
+
+
+def test_a_long_unknown_key_in_a_study_is_quoted_cut_short(capsys, tmp_path):
+    path = tmp_path / "study.toml"
+    path.write_text(f'base = "paper-case2"\nseeds = [1]\n[grid]\n"fill.{LONG}" = [1, 2]\n')
+    line = refused(capsys, "sweep", str(path), "--out", str(tmp_path / "s"))
+    assert_names(line, f"unknown key 'fill.{'x' * 52}...'")
+    assert len(line) < 300, line
+
+
 @pytest.mark.parametrize("args", [["scenarios"], ["show", "paper-case2"], ["--version"],
                                   ["run", "--help"]])
 def test_commands_that_compute_nothing_ignore_numbas_thread_count(args):

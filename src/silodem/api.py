@@ -32,13 +32,14 @@ from silodem.errors import InputError, check_flag
 from silodem.errors import short_repr as _got
 from silodem.report.load import Results as _Raw
 from silodem.report.load import load_results
+from silodem.silo.recorders import PHASE_CODES
 
 if TYPE_CHECKING:
     from silodem.report.analysis import Analysis
     from silodem.silo.frames import Frames
 
 SNAPSHOTS = ("settled", "discharge", "final")  # "discharge": mid-window of the discharge
-PHASE_NAMES = {0: "fill", 1: "settle", 2: "discharge"}  # codes of the phase columns
+PHASE_NAMES = {code: name for name, code in PHASE_CODES.items()}  # of the phase columns
 
 
 class SilodemWarning(UserWarning):
@@ -93,7 +94,7 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
                              "(its value goes on the right of the colon)")
         try:
             sets.append(f"{key}={_toml_value(value)}")
-        except TypeError:
+        except (TypeError, ValueError):  # ValueError: an int of more than 4300 digits
             raise InputError(f"set {_got(key)}: {_got(value)} is not a TOML value") from None
     cfg = load_config(str(source), sets, flag="set")
     if not quick:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import json
 import re
+import sys
 import types
 import typing
 from collections.abc import Iterable, Sequence
@@ -27,15 +28,34 @@ class InputError(Exception):
 
 def short_repr(value: Any, limit: int = 60) -> str:
     """``value`` for an error's ``got ...``: its repr on one line if that is short, else a
-    string's cut to ``limit`` characters, or the type's name (a Config's repr is 1,500
-    characters)."""
-    text = one_line(repr(value))
-    if len(text) <= limit:
+    string's cut to ``limit`` characters, an integer's count of digits, or the type's name (a
+    Config's repr is 1,500 characters).
+
+    Never raises: Python refuses to write an integer of more than 4300 digits
+    (``sys.get_int_max_str_digits``) in decimal, and an error's message must still be made
+    (``threads=10**5000`` ended in that ValueError)."""
+    try:
+        text: str | None = one_line(repr(value))
+    except ValueError:  # "Exceeds the limit (4300 digits) for integer string conversion"
+        text = None
+    if text is not None and len(text) <= limit:
         return text
-    if isinstance(value, str | bytes):
-        return text[: limit - 3] + "..."
+    if isinstance(value, str | bytes) and text is not None:
+        return shorten(text, limit)
+    if isinstance(value, int) and not isinstance(value, bool):
+        digits = (str(len(text.lstrip("-"))) if text is not None
+                  else f"more than {sys.get_int_max_str_digits()}")
+        return f"an integer of {digits} digits"
     name = type(value).__name__
     return f"{'an' if name[:1].lower() in 'aeiou' else 'a'} {name}"
+
+
+def shorten(text: str, limit: int = 60) -> str:
+    """``text`` on one line, cut to ``limit`` characters (its end written ``...``) when longer:
+    a name or key the user gave, quoted in an error (a 5,000-character unknown key made a
+    5,000-character message)."""
+    text = one_line(text)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def check_flag(value: Any, name: str) -> None:
@@ -143,8 +163,9 @@ def _toml_key(parts: Sequence[str]) -> str:
 
 
 def unknown_key_message(root: type[BaseModel], parts: Sequence[str]) -> str:
-    """``unknown key 'a.b' (did you mean 'a.c'?)``, or the keys allowed at that level."""
-    dotted = _toml_key(parts)
+    """``unknown key 'a.b' (did you mean 'a.c'?)``, or the keys allowed at that level; a key
+    longer than 60 characters cut short (:func:`shorten`)."""
+    dotted = shorten(_toml_key(parts))
     hint = suggest_key(root, parts)
     if hint is not None and hint == ".".join(parts):  # '"settle.threshold" = 1' at the top
         return f"unknown key '{dotted}': a quoted key is one name; write {hint} without quotes"
@@ -166,10 +187,11 @@ def format_value(value: Any, limit: int = 60) -> str:
         text = "true" if value else "false"
     elif isinstance(value, str):
         text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    elif isinstance(value, int):  # a long one by its digits (not its first 57: another number)
+        return short_repr(value, limit)
     else:
         text = repr(value)
-    text = one_line(text)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    return shorten(text, limit)
 
 
 def _lookup(data: Any, loc: Sequence[Any]) -> tuple[bool, Any]:
@@ -202,17 +224,17 @@ OTHERS_NAMED = 6  # the other errors' keys named after the first error, at most
 
 def _others(errors: list[Any], first: dict[str, Any]) -> str:
     """`` (+N more: a.b missing, c unknown, d, ...)``: where the errors after the first are
-    (each key once, unknown keys first, at most OTHERS_NAMED of them), or "" when there is
-    one error."""
+    (each key once, unknown keys first, at most OTHERS_NAMED of them, each cut to 60
+    characters), or "" when there is one error."""
     rest = sorted((e for e in errors if dict(e) != first),  # unknown keys first, as the
                   key=lambda e: e["type"] != "extra_forbidden")  # first error is chosen
     if not rest:
         return ""
     names: list[str] = []
     for e in rest:
-        dotted = ".".join(str(p) for p in e["loc"]) or "(the whole config)"
+        dotted = shorten(".".join(str(p) for p in e["loc"])) or "(the whole config)"
         kind = {"missing": " missing", "extra_forbidden": " unknown"}.get(e["type"], "")
-        if dotted + kind not in names:
+        if dotted + kind not in names:  # (two long keys cut to the same text: named once)
             names.append(dotted + kind)
     shown = ", ".join(names[:OTHERS_NAMED])
     if len(names) > OTHERS_NAMED:
@@ -242,7 +264,8 @@ def format_validation_error(
 
     if first["type"] == "extra_forbidden":
         parts = [str(p) for p in loc]
-        text = unknown_key_message(root, parts) if root is not None else f"unknown key '{dotted}'"
+        text = (unknown_key_message(root, parts) if root is not None
+                else f"unknown key '{shorten(dotted)}'")
         return one_line(f"config error: {text}{more}")
 
     if first["type"] == "missing":

@@ -25,6 +25,7 @@ from silodem.errors import (
     format_value,
     one_line,
     parse_toml,
+    shorten,
     submodel,
     unknown_key_message,
 )
@@ -112,7 +113,7 @@ def _read_source(source: str) -> dict[str, Any]:
     hint = did_you_mean(source, files)
     hint_text = f" (did you mean '{hint}'?)" if hint else ""
     raise InputError(
-        f"unknown scenario '{_short(source)}'{hint_text}; embedded scenarios: {names}; "
+        f"unknown scenario '{shorten(source)}'{hint_text}; embedded scenarios: {names}; "
         f"or give a path to a .toml file"
     )
 
@@ -133,17 +134,12 @@ def parse_value(text: str) -> Any:
     return table["v"] if table.keys() == {"v"} else text
 
 
-def _short(item: str, limit: int = 60) -> str:
-    item = one_line(item)
-    return item if len(item) <= limit else item[: limit - 3] + "..."
-
-
 def _split_set(item: str, flag: str = "--set") -> tuple[list[str], str]:
     key, sep, value = item.partition("=")
     key = key.strip()
     if not sep or not key:
         raise InputError(
-            f"{flag} '{_short(item)}': expected dotted.key=value, e.g. {flag} material.kn=2e7"
+            f"{flag} '{shorten(item)}': expected dotted.key=value, e.g. {flag} material.kn=2e7"
         )
     return [p.strip() for p in key.split(".")], value.strip()
 
@@ -156,12 +152,12 @@ def _check_key(parts: list[str], item: str, flag: str = "--set") -> type[BaseMod
         if model is None:
             section = ".".join(parts[:i])
             raise InputError(
-                f"{flag} {_short(item)}: '{section}' is a value, not a section, so "
-                f"'{'.'.join(parts)}' does not exist"
+                f"{flag} {shorten(item)}: '{section}' is a value, not a section, so "
+                f"'{shorten('.'.join(parts))}' does not exist"
             )
         if part not in model.model_fields:
             raise InputError(
-                f"{flag} {_short(item)}: {unknown_key_message(Config, parts[: i + 1])}"
+                f"{flag} {shorten(item)}: {unknown_key_message(Config, parts[: i + 1])}"
             )
         model = submodel(model.model_fields[part].annotation)
     return model
@@ -178,7 +174,7 @@ def apply_sets(data: dict[str, Any], sets: Iterable[str],
         value = parse_value(text)
         if section is not None and not isinstance(value, dict):  # pydantic would say "Input
             keys = ", ".join(section.model_fields)  # should be a valid dictionary or instance"
-            raise InputError(f"{flag} {_short(item)}: '{'.'.join(parts)}' is a section, not a "
+            raise InputError(f"{flag} {shorten(item)}: '{'.'.join(parts)}' is a section, not a "
                              f"value; set one of its keys ({keys}), e.g. {flag} "
                              f"{'.'.join(parts)}.{next(iter(section.model_fields))}=...")
         node = data
@@ -186,7 +182,7 @@ def apply_sets(data: dict[str, Any], sets: Iterable[str],
             child = node.setdefault(part, {})
             if not isinstance(child, dict):
                 raise InputError(
-                    f"{flag} {_short(item)}: '{'.'.join(parts[: i + 1])}' holds a value, "
+                    f"{flag} {shorten(item)}: '{'.'.join(parts[: i + 1])}' holds a value, "
                     "not a section"
                 )
             node = child
@@ -221,7 +217,7 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = (), flag: str = "--set
             inside = key.startswith(dotted + ".") if dotted else True  # a section's check
             if (dotted and (key == dotted or dotted.startswith(key + "."))) or \
                     (inside and key in message):  # naming the key, e.g. radius_max >= min
-                message += f" (from {flag} {_short(item)})"
+                message += f" (from {flag} {shorten(item)})"
                 break
         raise InputError(message) from None
 

@@ -13,7 +13,7 @@ import typer
 from rich.console import Console
 
 from silodem.cli.app import app, check_out, check_threads, fail
-from silodem.errors import InputError
+from silodem.errors import InputError, short_repr
 
 PLAN_NOTICE_RUNS = 1000  # a study this large says so before it plans (seconds of checks)
 
@@ -182,15 +182,15 @@ def bench(
       silodem bench --n 30000 --threads 1 --lammps
     """
     if n < 10 or n > 20_000_000:
-        raise InputError(f"--n must be between 10 and 20000000 grains, got {n}")
+        raise InputError(f"--n must be between 10 and 20000000 grains, got {short_repr(n)}")
     if not (1 <= steps <= _MAX_BENCH_STEPS and 1 <= settle <= _MAX_BENCH_STEPS):
         # (--settle 0 timed the kernels' compilation and the first list build)
         raise InputError(f"--steps and --settle must each be from 1 to "
                          f"{_MAX_BENCH_STEPS:.0e} (the kernels compile in the untimed "
-                         f"--settle steps); got {steps} and {settle}")
+                         f"--settle steps); got {short_repr(steps)} and {short_repr(settle)}")
     if rows is not None and not 4 <= rows <= n // 4:
         raise InputError(f"--rows must be from 4 to --n / 4 = {n // 4} (a column at least "
-                         f"4 grains wide), got {rows}")
+                         f"4 grains wide), got {short_repr(rows)}")
     check_threads(threads)
     from silodem import bench as benchmark
 

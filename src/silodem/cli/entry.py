@@ -13,7 +13,7 @@ import threading
 import typer
 
 from silodem.cli.app import app, fail
-from silodem.errors import InputError, RunInterrupted, Terminated, UnstableRunError
+from silodem.errors import InputError, RunInterrupted, Terminated, UnstableRunError, short_repr
 
 
 def _click_types(name: str) -> tuple[type[BaseException], ...]:
@@ -78,6 +78,18 @@ def _empty_path(args: list[str]) -> str | None:
 
 NO_KERNEL_COMMANDS = ("scenarios", "show")  # they never import numba
 
+MAX_NUMBA_THREADS = 2**31 - 1
+"""The largest NUMBA_NUM_THREADS: numba hands the count to its threading layer as a C int, so
+a larger one wraps (10**50 became 0 threads, and the first parallel kernel failed)."""
+
+
+def _numba_threads_ok(text: str) -> bool:
+    """Whether ``text`` (NUMBA_NUM_THREADS, stripped) is a whole number from 1 to
+    MAX_NUMBA_THREADS, written in ASCII digits (``str.isdigit`` also takes '²', which
+    ``int`` refuses; and ``int`` refuses more than 4300 digits)."""
+    return (text.isascii() and text.isdigit() and len(text) <= len(str(MAX_NUMBA_THREADS))
+            and 1 <= int(text) <= MAX_NUMBA_THREADS)
+
 
 def _needs_kernels(args: list[str]) -> bool:
     """Whether the command may import numba (which refuses a NUMBA_NUM_THREADS below 1 with
@@ -91,9 +103,9 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     args = list(sys.argv[1:] if argv is None else argv)
     numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
-    if _needs_kernels(args) and (not numba_threads.isdigit() or int(numba_threads) < 1):
-        fail(f"error: NUMBA_NUM_THREADS={numba_threads!r}: must be a whole number of threads "
-             "from 1 (or unset)")
+    if _needs_kernels(args) and not _numba_threads_ok(numba_threads):
+        fail(f"error: NUMBA_NUM_THREADS={short_repr(numba_threads)}: must be a whole number of "
+             f"threads from 1 to {MAX_NUMBA_THREADS} (or unset)")
     empty = _empty_path(args)
     if empty is not None:
         fail(f"error: {empty}: an empty path (give a folder or file name; '.' for this one)")

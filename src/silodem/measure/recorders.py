@@ -32,7 +32,14 @@ from silodem.measure.reading import Reading, read_simulation
 from silodem.measure.stress import circle_measure, region_stress
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
 from silodem.silo.geometry import build_walls, silo_shape
-from silodem.silo.recorders import PHASE_CODES, Recorder, Snapshot, take_snapshot, write_snapshot
+from silodem.silo.recorders import (
+    PHASE_CODES,
+    PHASE_CODES_TEXT,
+    Recorder,
+    Snapshot,
+    take_snapshot,
+    write_snapshot,
+)
 
 if TYPE_CHECKING:
     import h5py
@@ -375,7 +382,7 @@ class MeasureRecorder(Recorder):
         _dataset(group, "time", rows[:, 0], "s")
         _dataset(group, "step", rows[:, 1].astype(np.int64), "-")
         _dataset(group, "phase", rows[:, 2].astype(np.int8), "-",
-                 codes="fill=0,settle=1,discharge=2")
+                 codes=PHASE_CODES_TEXT)
         group.attrs["interval"] = self.interval
         self.circles.write(group)
         self.profiles.write(group)

@@ -31,7 +31,7 @@ import numpy as np
 
 from silodem.errors import one_line
 from silodem.measure.stress import contact_points_walls
-from silodem.silo.recorders import PHASE_CODES
+from silodem.silo.recorders import PHASE_CODES, PHASE_CODES_TEXT
 
 if TYPE_CHECKING:
     import h5py
@@ -202,7 +202,7 @@ def write_index(group: h5py.Group, index: dict[str, np.ndarray], interval: float
         "wall_contact_offset[k]:wall_contact_offset[k+1] of wall_contacts/*; contact i, j and "
         "wall_contacts grain index the frame's own grains; wall indexes /walls"
     )
-    group.attrs["phase_codes"] = "fill=0,settle=1,discharge=2"
+    group.attrs["phase_codes"] = PHASE_CODES_TEXT
     _write_arrays(group, {k: index[k] for k in INDEX_KEYS})
 
 

@@ -61,16 +61,27 @@ class Recorder:
         """Inverse of ``state``."""
 
 
-PHASE_CODES = {"fill": 0, "settle": 1, "discharge": 2, "done": 3}
+PHASE_CODES = {"fill": 0, "settle": 1, "discharge": 2}
+"""The code of each phase in the ``phase`` columns of results.h5 (/timeseries, /measure,
+/frames).  Recorders sample only while a phase runs: the procedure's last state, "done", is
+never sampled (its frame is the end of the discharge), so it has no code."""
+
+PHASE_CODES_TEXT = ",".join(f"{name}={code}" for name, code in PHASE_CODES.items())
+"""``fill=0,settle=1,discharge=2``: the ``phase_codes`` attributes of results.h5."""
 
 
 class TimeSeries(Recorder):
-    """Time, phase, kinetic energy, grains in the silo, discharged mass, contacts, force ratio."""
+    """Time, phase, kinetic energy, grains in the silo, discharged mass, contacts, force ratio.
+
+    The rows are kept (and checkpointed) as floats; the phase code (``PHASE_CODES``) and the
+    counts are integers in ``as_arrays`` and results.h5, as in its other groups."""
 
     name = "timeseries"
     columns = ("time", "phase", "kinetic_energy", "n_particles", "discharged_mass", "n_contacts",
                "n_wall_contacts", "force_ratio")
     units = ("s", "-", "J", "-", "kg", "-", "-", "-")
+    dtypes = (np.float64, np.int8, np.float64, np.int64, np.float64, np.int64, np.int64,
+              np.float64)
 
     def __init__(self, interval: float) -> None:
         super().__init__(interval)
@@ -85,14 +96,17 @@ class TimeSeries(Recorder):
                           ratio if math.isfinite(ratio) else np.nan))
 
     def as_arrays(self) -> dict[str, np.ndarray]:
+        """One array per column, of the column's dtype (the float rows hold whole numbers
+        exactly: counts far below 2^53)."""
         data = np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
-        return {name: data[:, k] for k, name in enumerate(self.columns)}
+        return {name: data[:, k].astype(dtype)
+                for k, (name, dtype) in enumerate(zip(self.columns, self.dtypes, strict=True))}
 
     def write(self, group: h5py.Group) -> None:
-        for (key, arr), unit in zip(self.as_arrays().items(), self.units):
+        for (key, arr), unit in zip(self.as_arrays().items(), self.units, strict=True):
             ds = group.create_dataset(key, data=arr)
             ds.attrs["unit"] = unit
-        group.attrs["phase_codes"] = "fill=0,settle=1,discharge=2"
+        group.attrs["phase_codes"] = PHASE_CODES_TEXT
 
     def state(self) -> dict[str, Any]:
         return {"rows": np.array(self.rows, dtype=float).reshape(-1, len(self.columns))}

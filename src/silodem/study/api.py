@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from silodem.errors import InputError, check_flag
+from silodem.errors import InputError, check_flag, short_repr
 from silodem.output import write_text
 from silodem.study.execute import (
     StudyOutcome,
@@ -128,11 +128,11 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
         raise InputError(f"run_study takes a plan from expand(load_study(...)); got a "
                          f"{type(plan).__name__}")
     if not isinstance(out_dir, str | Path) or not str(out_dir).strip():
-        raise InputError(f"out_dir must be the study's folder path; got {out_dir!r}")
+        raise InputError(f"out_dir must be the study's folder path; got {short_repr(out_dir)}")
     for flag, name in ((serial, "serial"), (progress, "progress"), (report, "report")):
         check_flag(flag, name)
     if client is not None and not callable(getattr(client, "submit", None)):
-        raise InputError(f"client must be a dask.distributed Client; got {client!r} (an "
+        raise InputError(f"client must be a dask.distributed Client; got {short_repr(client)} (an "
                          "address goes in scheduler=...)")
     check_workers(workers, local=scheduler is None and client is None and not serial)
     say = _stderr_line if progress else None

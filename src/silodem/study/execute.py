@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from silodem.errors import InputError, one_line
+from silodem.errors import InputError, one_line, short_repr
 from silodem.output import write_text
 from silodem.study.plan import PlannedRun, StudyPlan
 
@@ -234,7 +234,8 @@ def check_workers(workers: int | None, what: str = "workers", *, local: bool = F
     for a ``local`` cluster from 1 to LOCAL_WORKERS_PER_CORE per core this process may use."""
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or not 1 <= workers <= MAX_WORKERS):
-        raise InputError(f"{what} must be an integer from 1 to {MAX_WORKERS}, got {workers!r}")
+        raise InputError(f"{what} must be an integer from 1 to {MAX_WORKERS}, got "
+                         f"{short_repr(workers)}")
     cores = default_workers() if local and workers is not None else 0
     if cores and workers > LOCAL_WORKERS_PER_CORE * cores:
         raise InputError(

@@ -46,6 +46,8 @@ from silodem.errors import (
     model_at,
     one_line,
     parse_toml,
+    short_repr,
+    shorten,
     submodel,
     unknown_key_message,
 )
@@ -67,11 +69,11 @@ def _flatten(table: Any, where: str) -> Any:
             dotted = f"{prefix}{key}"
             if isinstance(value, dict):
                 if not value:
-                    raise ValueError(f"[{where}] '{dotted}' is an empty table")
+                    raise ValueError(f"[{where}] '{shorten(dotted)}' is an empty table")
                 walk(value, dotted + ".")
             else:
                 if dotted in out:
-                    raise ValueError(f"[{where}] gives '{dotted}' twice")
+                    raise ValueError(f"[{where}] gives '{shorten(dotted)}' twice")
                 out[dotted] = value
 
     walk(table, "")
@@ -112,8 +114,8 @@ def check_config_key(dotted: str) -> None:
     """ValueError unless ``dotted`` is a value key (not a section) of the run Config schema."""
     parts = [p.strip() for p in dotted.split(".")]
     if ".".join(parts) != dotted:  # (checked stripped, then set unstripped: unknown key)
-        raise ValueError(f"'{dotted}' has spaces around its parts: write "
-                         f"'{'.'.join(parts)}'")
+        raise ValueError(f"'{shorten(dotted)}' has spaces around its parts: write "
+                         f"'{shorten('.'.join(parts))}'")
     if parts[0] in RESERVED_KEYS and len(parts) == 1:
         raise ValueError(f"'{dotted}' cannot be set by a study: {RESERVED_KEYS[parts[0]]}")
     parent = model_at(Config, parts[:-1])
@@ -330,7 +332,8 @@ class LoadedStudy(BaseModel):
 def load_study(source: str) -> LoadedStudy:
     """Read and validate an embedded study or a study file; InputError (one line) if bad."""
     if not isinstance(source, str | Path):
-        raise InputError(f"source must be a study's name or a TOML file's path; got {source!r}")
+        raise InputError(f"source must be a study's name or a TOML file's path; got "
+                         f"{short_repr(source)}")
     text, default_name, folder = _read(str(source))
     where = f"study {source}"
     data = parse_toml(text, where)

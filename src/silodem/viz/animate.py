@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from silodem.checkpoint import CHECKPOINT_NAME as CHECKPOINT
-from silodem.errors import InputError
+from silodem.errors import InputError, short_repr
 from silodem.silo.frames import Frames, NoFramesError, read_frames
 
 FORMATS = ("mp4", "gif")
@@ -115,7 +115,7 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
     if color not in ANIMATION_COLORS:
         raise InputError(f"--color must be one of {', '.join(ANIMATION_COLORS)}; got '{color}'")
     if isinstance(fps, bool) or not isinstance(fps, int) or not 1 <= fps <= 60:
-        raise InputError(f"--fps must be an integer from 1 to 60; got {fps}")
+        raise InputError(f"--fps must be an integer from 1 to 60; got {short_repr(fps)}")
     out_path = Path(out) if out is not None else None
     fmt = _choose_format(out_path, fmt)
     if out_path is not None and out_path.name and not out_path.suffix \
