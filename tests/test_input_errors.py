@@ -249,6 +249,23 @@ def test_a_folder_given_as_the_config_file_is_refused(capsys, tmp_path):
     assert_names(refused(capsys, "run", str(tmp_path)), str(tmp_path), "is not a file")
 
 
+def test_a_folder_named_like_a_scenario_or_study_does_not_hide_it(tmp_path, monkeypatch):
+    """`silodem run` makes runs/paper-case2; from inside runs/ that folder stood in the way of
+    the scenario's name ('paper-case2 is not a file'). A folder is never a config, so the
+    name is the embedded one's; a file of that name is still read first."""
+    from silodem import scenario_files
+    from silodem.study.spec import load_study
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "paper-case2").mkdir()
+    (tmp_path / "paper-study").mkdir()
+    embedded = Path(scenario_files.__file__).parent / "scenarios" / "paper-case2.toml"
+    assert load_config("paper-case2") == load_config(str(embedded))
+    assert load_study("paper-study").name == "paper-study"
+    (tmp_path / "paper-case1").write_text(config_to_toml(load_config("paper-case2")))
+    assert load_config("paper-case1").silo == load_config("paper-case2").silo
+
+
 @pytest.mark.parametrize("name", ["", "   ", "x" * 5000])
 def test_empty_or_impossible_scenario_names_are_refused(capsys, name):
     line = refused(capsys, "show", name)

@@ -98,7 +98,9 @@ def _read_source(source: str) -> dict[str, Any]:
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"cannot read {source}: {exc}") from None
         return parse_toml(text, str(source))
-    if kind == "other":
+    # a folder is never a config: one named like a scenario (`silodem run` makes
+    # runs/paper-case2, and `cd runs` puts it in the way) leaves the name to the scenario
+    if kind == "other" and source not in files:
         raise InputError(f"{source} is not a file (give a .toml file or one of: {names})")
     if source in files:
         return parse_toml(files[source].read_text(encoding="utf-8"), f"scenario {source}")

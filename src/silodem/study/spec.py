@@ -280,7 +280,7 @@ def _read(source: str) -> tuple[str, str, Path | None]:
             return path.read_text(encoding="utf-8"), path.stem, path.resolve().parent
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"cannot read study file {source}: {exc}") from None
-    if exists:
+    if exists and source not in files:  # a folder named like a study leaves the name to it
         raise InputError(f"{source} is not a file (give a study .toml file or one of: {names})")
     if source in files:
         return files[source].read_text(encoding="utf-8"), source, None
