@@ -9,18 +9,17 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from silodem.checkpoint import LoadedCheckpoint, read_checkpoint
 from silodem.config import Config
-from silodem.errors import InputError, RunInterrupted, Terminated, short_repr
+from silodem.errors import InputError, RunInterrupted, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
 from silodem.safety import ANIMATIONS, RunGuard, clear_previous_run
-from silodem.signals import noted_signals
+from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
 from silodem.silo.procedure import LOST_TOTAL, PHASES, Progress, SiloRun
@@ -145,83 +144,117 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     guard = RunGuard(out, toml_text, cfg, resume_from)
     recorders = [FramesRecorder.from_config(cfg, out), *recorders_for(cfg)]
     t0 = time.perf_counter()
-    if progress:
-        from rich.console import Console
-        from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
-        from rich.progress import Progress as Bar
+    live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "", "logged": 0.0}
+    try:
+        if progress:
+            run = _run_with_bar(cfg, guard, recorders, live)
+        else:
+            run = SiloRun(cfg, recorders=recorders)
+            guard.drive(run)
+    except KeyboardInterrupt as exc:
+        if not guard.ended:  # before the run started: the command's own 'interrupted'
+            raise
+        # just after the run's handlers were put back: the run is done, as with a signal in
+        # its last chunk (its complete results are written, then it stops)
+        guard.stop_signal = guard.stop_signal or signal_of(exc)
+        run = live["run"] if progress else run
+    return _finish(cfg, guard, run, toml_text, t0, frozenset(live["printed"]))
 
-        console = Console(stderr=True, soft_wrap=True)
-        with Bar(TextColumn("[bold]{task.fields[phase]:<9}"), BarColumn(),
-                 TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
-                 transient=False, disable=not console.is_terminal) as bar:
-            # (a log file gets the lines of show() and no bar: rich drew its last state
-            # at the end, bar characters and an elapsed time that was not the run's)
-            task = bar.add_task("compiling kernels...", total=3, phase="start")
-            live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "",
-                          "logged": 0.0}
 
-            def show(pr: Progress) -> None:
-                rate = (f"{pr.steps_per_s:8.0f} steps/s" if math.isfinite(pr.steps_per_s)
-                        else "kernels compiled")
-                text = f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  {rate}  {pr.detail}"
-                bar.update(task, completed=PHASES.index(pr.phase), phase=pr.phase,
-                           description=text)
-                now = time.perf_counter()
-                if not console.is_terminal and (pr.phase != live["phase"]
-                                                or now - live["logged"] >= LOG_EVERY_S):
-                    # a log file gets no bar until the end: a line now and then instead
-                    console.print(f"{pr.phase:<9} {text}".rstrip(), markup=False, highlight=False)
-                    live["phase"], live["logged"] = pr.phase, now
-                _warn_new(console, live)
+def _run_with_bar(cfg: Config, guard: RunGuard, recorders: list, live: dict) -> SiloRun:
+    """Make the run and drive it to its end under a progress bar on stderr; the bar is closed
+    while the run's signal handlers still answer (``RunGuard.running``): a signal then is the
+    run's (noted: its results are written, then it stops), not a bare KeyboardInterrupt."""
+    from rich.console import Console
+    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import Progress as Bar
 
-            try:
-                run = SiloRun(cfg, on_progress=show, recorders=recorders)
-                live["run"] = run
-                _warn_new(console, live)
+    console = Console(stderr=True, soft_wrap=True)
+    with contextlib.ExitStack() as closing:
+        bar = closing.enter_context(
+            Bar(TextColumn("[bold]{task.fields[phase]:<9}"), BarColumn(),
+                TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
+                transient=False, disable=not console.is_terminal))
+        # (a log file gets the lines of show() and no bar: rich drew its last state
+        # at the end, bar characters and an elapsed time that was not the run's)
+        task = bar.add_task("compiling kernels...", total=3, phase="start")
+
+        def show(pr: Progress) -> None:
+            rate = (f"{pr.steps_per_s:8.0f} steps/s" if math.isfinite(pr.steps_per_s)
+                    else "kernels compiled")
+            text = f"t = {pr.time:7.3f} s  grains {pr.particles:6d}  {rate}  {pr.detail}"
+            bar.update(task, completed=PHASES.index(pr.phase), phase=pr.phase,
+                       description=text)
+            now = time.perf_counter()
+            if not console.is_terminal and (pr.phase != live["phase"]
+                                            or now - live["logged"] >= LOG_EVERY_S):
+                # a log file gets no bar until the end: a line now and then instead
+                console.print(f"{pr.phase:<9} {text}".rstrip(), markup=False, highlight=False)
+                live["phase"], live["logged"] = pr.phase, now
+            _warn_new(console, live)
+
+        try:
+            run = SiloRun(cfg, on_progress=show, recorders=recorders)
+            live["run"] = run
+            _warn_new(console, live)
+            with guard.running():
                 guard.drive(run)
-            except BaseException:  # the error's one line is the last word, not a stale bar
-                if not console.is_terminal:  # (a terminal shows the bar as it was drawn)
-                    console.quiet = True
-                raise
-            bar.update(task, completed=3)
-        shown = frozenset(live["printed"])
-    else:
-        shown = frozenset()
-        run = SiloRun(cfg, recorders=recorders)
-        guard.drive(run)
-    if guard.checkpoint_path.exists() and guard.last_checkpoint is not None:
-        step, at = guard.last_checkpoint
-        kept = (f"the last checkpoint, at t = {at:.4g} s (step {step}), is kept: once the cause "
-                f"is mended, 'silodem run --resume {out}' goes on from there")
-    else:
-        kept = f"{out / 'results.h5'} holds the run up to its last save"
+                bar.update(task, completed=3)
+                closing.close()  # the bar's last state (its with block then closes nothing)
+        except BaseException:  # the error's one line is the last word, not a stale bar
+            if not console.is_terminal:  # (a terminal shows the bar as it was drawn)
+                console.quiet = True
+            raise
+    return run
+
+
+def _finish(cfg: Config, guard: RunGuard, run: SiloRun, toml_text: str, t0: float,
+            shown: frozenset[str]) -> RunSummary:
+    """Write the ended run's final results.h5, remove its checkpoint, draw its pictures and
+    report; a signal on the way ends it with a line that says what is kept."""
+    out = guard.out
+    written = False  # the complete results.h5
+    noted: list[int] = []  # signals while the pictures were drawn
     try:
         write_results(run, out / "results.h5", toml_text)
-    except KeyboardInterrupt as exc:  # results.h5 is the last save's (atomic write)
-        raise RunInterrupted(f"while the run's final results were written; {kept}",
-                             _signal_of(exc)) from None
-    except OSError as exc:  # a full disk: say what is kept and how to go on
-        where = f" ({exc.filename})" if exc.filename else ""
-        raise OSError(exc.errno, f"{exc.strerror or exc}{where} while the run's final results "
-                      f"were written to {out / 'results.h5'}; {kept}") from None
-    guard.completed(run)
-    if guard.stop_signal is not None:  # it came in the last chunk: the run is complete
-        raise RunInterrupted(f"as the run ended; its complete results are in {out / 'results.h5'}"
-                             f" ('silodem plot {out}' draws its pictures and report.html)",
-                             guard.stop_signal)
-    after = (f"after the run's results were written to {out / 'results.h5'}; "
-             f"'silodem plot {out}' draws its pictures and report.html")
-    try:
+        written = True
+        with noted_signals(hold=True):  # (a checkpoint left beside complete results would
+            guard.completed(run)        # block a new run there, and resume an ended one)
+        if guard.stop_signal is not None:  # it came in the last chunk: the run is complete
+            raise RunInterrupted(f"as the run ended; its complete results are in "
+                                 f"{out / 'results.h5'} ('silodem plot {out}' draws its "
+                                 "pictures and report.html)", guard.stop_signal)
         with noted_signals(hold=False) as noted:
             write_views(out)
             if cfg.measure.report:
                 _write_report(out, run.warnings)
+        if noted:  # its KeyboardInterrupt was raised in a callback that dropped it (a weakref's)
+            raise KeyboardInterrupt
+        return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
+                          dict(run.events), list(run.warnings), shown)
     except KeyboardInterrupt as exc:
-        raise RunInterrupted(after, _signal_of(exc)) from None
-    if noted:  # its KeyboardInterrupt was raised in a callback that dropped it (a weakref's)
-        raise RunInterrupted(after, noted[0])
-    return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
-                      dict(run.events), list(run.warnings), shown)
+        signum = noted[0] if written and noted else signal_of(exc)
+        if not written:  # results.h5 is the last save's (atomic write)
+            raise RunInterrupted(f"while the run's final results were written; "
+                                 f"{_kept(guard)}", signum) from None
+        raise RunInterrupted(f"after the run's results were written to {out / 'results.h5'}; "
+                             f"'silodem plot {out}' draws its pictures and report.html",
+                             signum) from None
+    except OSError as exc:
+        if written:  # a picture's or the report's: as it was
+            raise
+        where = f" ({exc.filename})" if exc.filename else ""  # a full disk: say what is kept
+        raise OSError(exc.errno, f"{exc.strerror or exc}{where} while the run's final results "
+                      f"were written to {out / 'results.h5'}; {_kept(guard)}") from None
+
+
+def _kept(guard: RunGuard) -> str:
+    """What an ended run whose final results.h5 was not written keeps."""
+    if guard.checkpoint_path.exists() and guard.last_checkpoint is not None:
+        step, at = guard.last_checkpoint
+        return (f"the last checkpoint, at t = {at:.4g} s (step {step}), is kept: once the cause "
+                f"is mended, 'silodem run --resume {guard.out}' goes on from there")
+    return f"{guard.out / 'results.h5'} holds the run up to its last save"
 
 
 LOG_EVERY_S = 30.0  # wall seconds between progress lines when stderr is not a terminal
@@ -243,11 +276,6 @@ def _warn_new(console, live: dict) -> None:
         console.print(f"[yellow]warning:[/] {escape(w)}")  # (a '[...]' in it is no markup)
         live["printed"].add(w)
     live["warned"] = len(run.warnings)
-
-
-def _signal_of(exc: KeyboardInterrupt) -> int:
-    """The signal behind a KeyboardInterrupt: SIGTERM for ``errors.Terminated``, else SIGINT."""
-    return signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
 
 
 def _write_report(out: Path, warnings: list[str]) -> None:

@@ -320,6 +320,10 @@ class RunGuard:
         self.stop_signal: int | None = None
         self.hard_stop: int | None = None  # a second signal: stop without saving
         self.stopping = False  # the hard stop is on its way out: further signals wait
+        self.ended = False  # the run has come to its end (its final results are written next)
+        self.failure: str | None = None  # the instability found, while its state is saved
+        self.failure_saved: list[Path] = []  # what of that state is written so far
+        self._running = False  # inside ``running``
         self.save_failed = False
         self.last_step = 0
         self.last_wall = wallclock.perf_counter()
@@ -342,25 +346,48 @@ class RunGuard:
         run.chunk_hooks.append(self)
         self.last_step = run.sim.steps
         self.last_wall = wallclock.perf_counter()
-        with self.signals():
+        with self.running():
+            if self.resume_from is None:
+                self.save(run, "start")
             try:
-                if self.resume_from is None:
-                    self.save(run, "start")
+                run.run()
+            except _Stopped:
+                raise
+            except UnstableRunError as exc:
+                self.failure = one_line(exc)  # (a second signal from here on: ``running``)
+                self.fail(run, blame(run, str(exc)), during_step=True)
+            self.ended = True
+
+    @contextmanager
+    def running(self) -> Iterator[None]:
+        """``signals``, and the one line of a second signal's stop (a RunInterrupted naming
+        what is kept, ``kept``; of an unstable run whose failure state was being saved, an
+        UnstableRunError, ``_cut_short``).  ``drive`` runs in one; a caller may put ``drive``
+        in one of its own, and the run's handlers then last until that one ends (``silodem
+        run`` closes its progress bar in it: a signal then is the run's, noted, or its hard
+        stop, never a bare KeyboardInterrupt)."""
+        if self._running:  # the outer one answers
+            yield
+            return
+        self._running = True
+        try:
+            with self.signals():
                 try:
-                    run.run()
-                except _Stopped:
-                    raise
-                except UnstableRunError as exc:
-                    self.fail(run, blame(run, str(exc)), during_step=True)
-            except _HardStop as exc:  # (not the first signal's stop, which saved, although a
-                # second signal came: its raise was dropped, in a weakref callback)
-                self.stopping = True  # a third signal now waits: this line is said first
-                raise RunInterrupted(f"{exc}; {self.kept()}", exc.signum) from None
+                    yield
+                    self._stop_if_hard()  # (one dropped as the bar closed, say)
+                except _HardStop as exc:  # (not the first signal's stop, which saved,
+                    # although a second signal came: its raise was dropped, in a weakref
+                    # callback)
+                    self.stopping = True  # a third signal now waits: this line is said first
+                    if self.failure is not None:
+                        raise _Stopped(self._cut_short(exc)) from None
+                    raise RunInterrupted(f"{exc}; {self.kept()}", exc.signum) from None
+        finally:
+            self._running = False
 
     def __call__(self, run: SiloRun) -> None:
         """The chunk hook: check the state, then save if a signal came or a save is due."""
-        if self.hard_stop is not None:  # its raise was dropped (``signals``)
-            raise self._hard_stop_error()
+        self._stop_if_hard()
         problem = find_problem(run)
         if problem is not None:
             self.fail(run, problem, during_step=False)
@@ -424,15 +451,19 @@ class RunGuard:
                     "is false: the run cannot be resumed)")
         raise RunInterrupted(text, signum)
 
-    def kept(self) -> str:
+    def kept(self, *, unstable: bool = False) -> str:
         """What a run stopped without saving (a second signal) leaves, read from its folder:
         the checkpoint on disk, with its time and step, and the command that continues from
         it; or that there is none, and what results.h5 holds.  (The second signal may have cut
-        the first one's save short: the checkpoint is then the one before, whole.)"""
+        the first one's save short: the checkpoint is then the one before, whole.)
+        ``unstable``: the run had become unstable, and a resume comes to the same failure."""
         checkpoint = self.checkpoint_path
         if checkpoint.is_file():
+            go_on = (f"'silodem run --resume {self.out}' repeats the run from it to the same "
+                     "failure, and saves its state" if unstable else
+                     f"continue with: silodem run --resume {self.out}")
             return (f"the last checkpoint, {checkpoint}{_saved_at(checkpoint, 'step')}, is "
-                    f"kept; continue with: silodem run --resume {self.out}")
+                    f"kept; {go_on}")
         if self.settings.enabled:
             none = "no checkpoint was written yet: the run cannot be resumed (start it again)"
         else:
@@ -443,8 +474,32 @@ class RunGuard:
                     f"{_saved_at(results, 'steps')}")
         return f"{none}; nothing was saved"
 
+    def _cut_short(self, exc: RunInterrupted) -> str:
+        """The line of an unstable run whose failure state's save a second signal stopped:
+        the instability, what of its state was written, what is kept."""
+        saving = [self.out / FAILURE_NAME] if self.settings.enabled else []
+        saving += [self.results_path, self.out / DIAGNOSTIC_NAME]
+        missing = [p.name for p in saving if p not in self.failure_saved]
+        if not self.failure_saved:
+            written = "before any of it was written"
+        else:
+            written = f"after writing {', '.join(str(p) for p in self.failure_saved)}"
+            if missing:
+                written += f" (not {' and '.join(missing)})"
+        name = signal.Signals(exc.signum).name
+        return (f"{self.failure}; {name} again: stopped at once while saving the failure "
+                f"state, {written}; {self.kept(unstable=True)}")
+
     def fail(self, run: SiloRun, problem: Problem, *, during_step: bool) -> None:
-        """Save the state and a diagnosis of an unstable run; raise UnstableRunError (one line)."""
+        """Save the state and a diagnosis of an unstable run; raise UnstableRunError (one line).
+
+        A first signal meanwhile lets the saves finish (the line then says it came); a second
+        one stops them at once, as it stops a run's save (``running`` then gives the
+        instability, what of its state was written and what is kept, ``_cut_short``)."""
+        self.failure = one_line(problem.message)
+        grain = grain_record(run, problem.index) if problem.index is not None else None
+        if grain is not None and problem.kind == "engine":
+            self.failure = one_line(f"{problem.message}; {_where(grain)}")
         notes: list[str] = []
         failure = self.out / FAILURE_NAME
         failure_written = False
@@ -453,13 +508,20 @@ class RunGuard:
                 save_checkpoint(run, failure, config_toml=self.config_toml, reason="unstable",
                                 attrs={"during_step": during_step})
                 failure_written = True
+                self.failure_saved.append(failure)
+            except RunInterrupted:  # a second signal: not a failed save (``running``)
+                raise
             except Exception as exc:  # noqa: BLE001 - the diagnosis matters more
                 notes.append(f"{FAILURE_NAME} not written: {one_line(exc)}")
+            self._stop_if_hard()
         try:
             self._write_results(run, "unstable")
+            self.failure_saved.append(self.results_path)
+        except RunInterrupted:
+            raise
         except Exception as exc:  # noqa: BLE001
             notes.append(f"{RESULTS_NAME} not updated: {one_line(exc)}")
-        grain = grain_record(run, problem.index) if problem.index is not None else None
+        self._stop_if_hard()
         p = run.sim.particles
         cfg = run.cfg
         diag = {
@@ -492,24 +554,37 @@ class RunGuard:
             ],
         }
         path = self.out / DIAGNOSTIC_NAME
-        text = problem.message
-        if grain is not None and problem.kind == "engine":
-            text += f"; {_where(grain)}"
+        text = self.failure
         try:
             write_json(path, diag)
+            self.failure_saved.append(path)
             text += f"; diagnosis in {path}"
+        except RunInterrupted:
+            raise
         except Exception as exc:  # noqa: BLE001
             text += f"; {DIAGNOSTIC_NAME} not written: {exc}"
+        self.stopping = True  # saved: a signal from now on waits for this line
         if failure_written:
             text += f", state in {failure}"
+        came = self.hard_stop or self.stop_signal  # (a hard stop dropped in the last save)
+        if came is not None:
+            text += (f"; {signal.Signals(came).name} received: the run stopped here, once its "
+                     "failure state was saved")
         raise _Stopped(one_line(text)) from None
+
+    def _stop_if_hard(self) -> None:
+        """Raise the hard stop of a second signal whose raise was dropped (``signals``)."""
+        if self.hard_stop is not None:
+            raise self._hard_stop_error()
 
     # --- signals -----------------------------------------------------------------------------
     @contextmanager
     def signals(self) -> Iterator[None]:
         """While inside: SIGINT/SIGTERM ask the run to stop at the end of the current chunk
-        (after saving); a second one stops it at once, without saving (``drive`` then says
-        what is kept, ``kept``); a further one, while that is said, waits."""
+        (after saving; an unstable run's failure state is saved all the same, and a run that
+        has ended writes its results); a second one stops it at once, without saving
+        (``running`` then says what is kept, ``kept``); a further one, while that is said,
+        waits."""
         if threading.current_thread() is not threading.main_thread():
             yield
             return
@@ -522,8 +597,11 @@ class RunGuard:
                 raise self._hard_stop_error()
             self.stop_signal = signum
             if sys.stderr.isatty():
-                sys.stderr.write(f"\nsilodem: {signal.Signals(signum).name}: saving at the end "
-                                 "of the current chunk; send it again to stop at once\n")
+                doing = ("saving the unstable run's failure state" if self.failure is not None
+                         else "the run has ended: writing its results" if self.ended
+                         else "saving at the end of the current chunk")
+                sys.stderr.write(f"\nsilodem: {signal.Signals(signum).name}: {doing}; send it "
+                                 "again to stop at once\n")
 
         def unraisable(info: Any) -> None:
             """Python drops an exception raised inside a weakref callback or __del__ (a second

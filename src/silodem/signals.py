@@ -2,7 +2,7 @@
 the sweep's cluster start-up, where a signal must wait, and the drawing of a run, of
 'silodem plot' and of 'silodem animate', where a signal's KeyboardInterrupt may be dropped by
 the code it interrupts.  (A run's own stop at the end of a chunk is
-``safety.RunGuard.signals``.)"""
+``safety.RunGuard.signals``.)  ``signal_of``: the signal behind a KeyboardInterrupt."""
 
 from __future__ import annotations
 
@@ -11,7 +11,15 @@ import signal
 import threading
 from collections.abc import Iterator
 
+from silodem.errors import Terminated
+
 NOTED = (signal.SIGINT, signal.SIGTERM)
+
+
+def signal_of(exc: KeyboardInterrupt) -> int:
+    """The signal behind a KeyboardInterrupt: SIGTERM for ``errors.Terminated`` (the command
+    line's SIGTERM), else SIGINT."""
+    return signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
 
 
 @contextlib.contextmanager

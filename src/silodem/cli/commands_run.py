@@ -21,9 +21,9 @@ from silodem.cli.app import (
     given,
     read_config,
 )
-from silodem.errors import InputError, one_line
+from silodem.errors import InputError, RunInterrupted, one_line
 from silodem.scenario_files import DEFAULT_SCENARIO, config_to_toml, list_scenarios
-from silodem.signals import noted_signals
+from silodem.signals import noted_signals, signal_of
 
 
 def _stop_if(noted: list[int]) -> None:
@@ -45,6 +45,23 @@ def _print_summary(console: Console, summary) -> None:
         console.print(line, markup=False, highlight=False)
 
 
+def _run_and_print(console: Console, start) -> None:
+    """Run (``start()`` returns its RunSummary) and print the summary.  A signal once the run
+    has ended, while the summary is printed, ends the command with a line that says so and
+    where the complete results are (130 or 143), not the bare 'interrupted' of a signal
+    before the run."""
+    summary = None
+    try:
+        summary = start()
+        _print_summary(console, summary)
+    except KeyboardInterrupt as exc:
+        if summary is None:  # not from the run, which ends in its own line
+            raise
+        raise RunInterrupted(f"after the run had ended, while its summary was printed; nothing "
+                             f"is lost: its results are complete in {summary.out_dir}",
+                             signal_of(exc)) from None
+
+
 def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
     extra = [flag for name, flag in (("source", "SCENARIO|FILE"), ("sets", "--set"),
                                      ("quick", "--quick"), ("out", "--out"))
@@ -59,8 +76,8 @@ def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
     checkpoint = read_checkpoint(folder)  # a one-line error before anything is announced
     console = Console(soft_wrap=True)
     console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False)
-    summary = resume_simulation(folder, threads=threads, progress=True, checkpoint=checkpoint)
-    _print_summary(console, summary)
+    _run_and_print(console, lambda: resume_simulation(folder, threads=threads, progress=True,
+                                                      checkpoint=checkpoint))
 
 
 @app.command()
@@ -144,8 +161,7 @@ def run(
         notes.append(f"silodem: replacing the earlier run's results in {out_dir}")
     for note in notes:
         Console(stderr=True, soft_wrap=True).print(note, markup=False, highlight=False)
-    summary = run_simulation(cfg, out_dir, threads=threads, progress=True)
-    _print_summary(console, summary)
+    _run_and_print(console, lambda: run_simulation(cfg, out_dir, threads=threads, progress=True))
 
 
 @app.command()

@@ -1,0 +1,320 @@
+"""Signals at the edges of a run: as it ends (its progress bar closing, its checkpoint removed,
+its summary printed) and while an unstable run's failure state is saved.
+
+Each signal is sent in this process from a hook at the moment it is about (a patched step of
+the run calls ``signal.raise_signal``, whose handler runs before it returns), never by timing.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+
+import h5py
+import pytest
+from reliability_helpers import quick_config, run_args
+
+from silodem.checkpoint import read_checkpoint
+from silodem.cli import main
+from silodem.errors import RunInterrupted
+from silodem.silo.procedure import SiloRun
+
+SIGNALS = pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM],
+                                  ids=["SIGINT", "SIGTERM"])
+
+
+def _exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
+    """Run the command line in this process: its exit code and the last line on stderr."""
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    return exc.value.code, err.strip().splitlines()[-1]
+
+
+def _status(out) -> str:
+    with h5py.File(out / "results.h5") as h5:
+        return str(h5.attrs["status"])
+
+
+def _saved_at(path, step_key: str) -> str:
+    with h5py.File(path) as h5:
+        return (f"at t = {float(h5.attrs['time']):.4g} s (step {int(h5.attrs[step_key])}, "
+                f"{h5.attrs['phase']})")
+
+
+def _complete(out) -> str:
+    """The line of a run that a signal stopped as it ended, its complete results written."""
+    return (f"interrupted: as the run ended; its complete results are in {out / 'results.h5'} "
+            f"('silodem plot {out}' draws its pictures and report.html)")
+
+
+# --- as the run ends --------------------------------------------------------------------------
+
+
+@SIGNALS
+def test_a_signal_as_the_progress_bar_closes_is_the_runs_and_loses_nothing(
+        sig, tmp_path, monkeypatch, capsys):
+    """The bar was closed after the run's handlers had been put back: a signal then gave a
+    bare 'interrupted' (exit 130, or 143 and 'interrupted (SIGTERM)') and the finished run's
+    final results were never written.  The handlers now last until the bar is closed: the
+    signal is the run's, which writes its complete results and says so."""
+    from rich.progress import Progress
+
+    stop = Progress.stop
+    sent: list[int] = []
+
+    def stop_with_a_signal(self) -> None:
+        if not sent:
+            sent.append(sig)
+            signal.raise_signal(sig)
+        stop(self)
+
+    monkeypatch.setattr(Progress, "stop", stop_with_a_signal)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert sent == [sig]
+    assert (code, last) == (128 + sig, _complete(out))
+    assert _status(out) == "complete"
+    assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
+
+
+def test_a_second_signal_as_the_progress_bar_closes_stops_at_once_and_names_the_checkpoint(
+        tmp_path, monkeypatch, capsys):
+    """A second SIGINT there is the run's hard stop: no final results, the last checkpoint
+    named with the command that finishes the run, which then ends complete."""
+    from rich.progress import Progress
+
+    stop = Progress.stop
+    sent: list[int] = []
+
+    def stop_with_two_signals(self) -> None:
+        if not sent:
+            sent.append(signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)  # noted: the run's results are written next
+            signal.raise_signal(signal.SIGINT)  # again: stop at once, here
+        stop(self)
+
+    monkeypatch.setattr(Progress, "stop", stop_with_two_signals)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    checkpoint = out / "checkpoint.h5"
+    assert code == 130
+    assert last == (f"interrupted: SIGINT again: stopped at once, without saving; the last "
+                    f"checkpoint, {checkpoint} {_saved_at(checkpoint, 'step')}, is kept; "
+                    f"continue with: silodem run --resume {out}")
+    assert _status(out) == "running"  # the last periodic save's
+    monkeypatch.setattr(Progress, "stop", stop)
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", str(out)])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip().splitlines()[-1] == f"results: {out}"
+    assert _status(out) == "complete" and not checkpoint.exists()
+
+
+def test_a_signal_just_after_the_runs_handlers_are_put_back_still_writes_its_results(
+        tmp_path, monkeypatch):
+    """Without a progress bar (the API, a sweep's run) nothing is left to close: a signal
+    just after the handlers were put back, before the final results are written, raised a
+    bare KeyboardInterrupt.  It is now taken as a signal in the run's last chunk."""
+    import silodem.run
+
+    drive = silodem.run.RunGuard.drive
+
+    def drive_then_signal(self, run) -> None:
+        drive(self, run)
+        signal.raise_signal(signal.SIGINT)  # Python's handler again: a KeyboardInterrupt
+
+    monkeypatch.setattr(silodem.run.RunGuard, "drive", drive_then_signal)
+    out = tmp_path / "run"
+    with pytest.raises(RunInterrupted) as info:
+        try:
+            silodem.run.run_simulation(quick_config(), out, progress=False)
+        except KeyboardInterrupt:  # (not let through: it would end the whole test session)
+            pytest.fail("a bare KeyboardInterrupt came out of the run")
+    assert info.value.exit_code == 130
+    assert f"interrupted: {info.value}" == _complete(out)
+    assert _status(out) == "complete" and not (out / "checkpoint.h5").exists()
+
+
+def test_a_signal_while_the_checkpoint_is_removed_keeps_the_folder_whole(
+        tmp_path, monkeypatch, capsys):
+    """Once the complete results.h5 is written, the run removes its checkpoint: a signal in
+    the middle left it beside the complete results (a new run there was refused, a resume ran
+    the end again) and said a bare 'interrupted'.  The removal now finishes first, and the
+    line says where the results are."""
+    import silodem.run
+
+    completed = silodem.run.RunGuard.completed
+
+    def completed_with_a_signal(self, run) -> None:
+        signal.raise_signal(signal.SIGINT)
+        completed(self, run)
+
+    monkeypatch.setattr(silodem.run.RunGuard, "completed", completed_with_a_signal)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert code == 130
+    assert last == (f"interrupted: after the run's results were written to "
+                    f"{out / 'results.h5'}; 'silodem plot {out}' draws its pictures and "
+                    "report.html")
+    assert _status(out) == "complete"
+    assert not (out / "checkpoint.h5").exists()
+    assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+@SIGNALS
+def test_a_signal_while_the_summary_is_printed_says_the_run_is_complete(
+        sig, tmp_path, monkeypatch, capsys):
+    """The summary is printed after everything is written: a signal then ended the command
+    with a bare 'interrupted' (or 'interrupted (SIGTERM)'), as if the run had been cut."""
+    from silodem.cli import commands_run
+
+    def print_with_a_signal(console, summary) -> None:
+        signal.raise_signal(sig)
+
+    monkeypatch.setattr(commands_run, "_print_summary", print_with_a_signal)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert code == 128 + sig
+    assert last == (f"interrupted: after the run had ended, while its summary was printed; "
+                    f"nothing is lost: its results are complete in {out}")
+    assert _status(out) == "complete" and not (out / "checkpoint.h5").exists()
+
+
+# --- an unstable run's failure save -----------------------------------------------------------
+
+NAN_AT_CHUNK = 14  # settling: checkpoints are behind
+
+
+def _nan_after_chunk(monkeypatch) -> dict:
+    """A NaN velocity put into one grain after chunk NAN_AT_CHUNK; its uid, once put."""
+    advance = SiloRun.advance_chunk
+    done: dict = {}
+    count = [0]
+
+    def patched(self: SiloRun) -> None:
+        advance(self)
+        count[0] += 1
+        if count[0] == NAN_AT_CHUNK:
+            k = self.sim.particles.n // 2
+            self.sim.particles.vx[k] = math.nan
+            done["uid"] = int(self.sim.particles.uid[k])
+
+    monkeypatch.setattr(SiloRun, "advance_chunk", patched)
+    return done
+
+
+def _signals_in_the_failure_save(monkeypatch, where: str, count: int) -> list[int]:
+    """Send ``count`` SIGINTs as the failure state's ``where`` (failure.h5 or results.h5)
+    is about to be written."""
+    import silodem.safety
+
+    sent: list[int] = []
+
+    def send() -> None:
+        for _ in range(count - len(sent)):
+            sent.append(signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)
+
+    if where == "failure.h5":
+        save_checkpoint = silodem.safety.save_checkpoint
+
+        def save(run, path, **kwargs):
+            if kwargs.get("reason") == "unstable":
+                send()
+            return save_checkpoint(run, path, **kwargs)
+
+        monkeypatch.setattr(silodem.safety, "save_checkpoint", save)
+    else:
+        write = silodem.safety.RunGuard._write_results
+
+        def write_results(self, run, status):
+            if status == "unstable":
+                send()
+            return write(self, run, status)
+
+        monkeypatch.setattr(silodem.safety.RunGuard, "_write_results", write_results)
+    return sent
+
+
+@pytest.mark.parametrize("where", ["failure.h5", "results.h5"])
+def test_a_second_signal_while_an_unstable_runs_state_is_saved_stops_it_and_says_so(
+        where, tmp_path, monkeypatch, capsys):
+    """A second Ctrl-C while the diverged run's state was saved was swallowed (taken for a
+    failed write of failure.h5, or let through as a plain 'SIGINT again' that hid the
+    instability): the run ended with exit 3 as if nothing had come.  It now stops the save at
+    once, as it stops any save of a run; the run still ends as unstable (exit 3), in one line
+    that gives the diagnosis, says the signal cut the save short and what was written, and
+    names the checkpoint kept."""
+    done = _nan_after_chunk(monkeypatch)
+    sent = _signals_in_the_failure_save(monkeypatch, where, 2)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert sent == [signal.SIGINT, signal.SIGINT]
+    assert code == 3
+    checkpoint = out / "checkpoint.h5"
+    assert last.startswith(f"run stopped: non-finite vx of grain uid {done['uid']} "), last
+    if where == "failure.h5":
+        written = "before any of it was written"
+        assert not (out / "failure.h5").exists() and _status(out) == "running"
+    else:
+        written = (f"after writing {out / 'failure.h5'} (not results.h5 and "
+                   "diagnostic.json)")
+        with h5py.File(out / "failure.h5") as h5:
+            assert h5.attrs["reason"] == "unstable"
+        assert _status(out) == "running"  # the last periodic save's
+    assert not (out / "diagnostic.json").exists()
+    assert last.endswith(
+        f"; SIGINT again: stopped at once while saving the failure state, {written}; the last "
+        f"checkpoint, {checkpoint} {_saved_at(checkpoint, 'step')}, is kept; 'silodem run "
+        f"--resume {out}' repeats the run from it to the same failure, and saves its state"), last
+    read_checkpoint(out)  # whole, as named
+
+
+def test_a_first_signal_while_an_unstable_runs_state_is_saved_lets_the_save_finish(
+        tmp_path, monkeypatch, capsys):
+    """One signal while the failure state is saved changes nothing of it (the run is stopping
+    anyway): every file is written, exit 3, and the line says the signal came."""
+    _nan_after_chunk(monkeypatch)
+    sent = _signals_in_the_failure_save(monkeypatch, "failure.h5", 1)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert sent == [signal.SIGINT] and code == 3
+    assert last.startswith("run stopped: non-finite vx")
+    assert last.endswith(f"; diagnosis in {out / 'diagnostic.json'}, state in "
+                         f"{out / 'failure.h5'}; SIGINT received: the run stopped here, once "
+                         "its failure state was saved"), last
+    assert _status(out) == "unstable"
+    with h5py.File(out / "failure.h5") as h5:
+        assert h5.attrs["reason"] == "unstable"
+
+
+def test_the_checkpoint_named_after_a_cut_short_failure_save_repeats_the_failure(
+        tmp_path, monkeypatch, capsys):
+    """What the line of a cut-short failure save promises: a real blow-up (a time step 8 x
+    the stability limit, its refusal bypassed), stopped by a second signal while its state
+    was saved; the resume named comes to the same failure, and saves its state this time."""
+    from silodem.silo import procedure
+
+    stable = procedure.choose_time_step
+
+    def too_large(*args):
+        _, dt_crit = stable(*args)
+        return 8.0 * dt_crit, dt_crit
+
+    monkeypatch.setattr(procedure, "choose_time_step", too_large)
+    sent = _signals_in_the_failure_save(monkeypatch, "results.h5", 2)
+    out = tmp_path / "run"
+    code, cut = _exit_and_last_line(run_args(out), capsys)
+    assert code == 3 and len(sent) == 2 and "SIGINT again" in cut, cut
+    assert not (out / "diagnostic.json").exists()
+    sent.clear()
+    monkeypatch.undo()
+    monkeypatch.setattr(procedure, "choose_time_step", too_large)  # (the checkpoint has dt)
+    code, last = _exit_and_last_line(["run", "--resume", str(out)], capsys)
+    assert code == 3
+    diagnosis = cut.split("; SIGINT again")[0]
+    assert last.startswith(diagnosis), (cut, last)
+    assert (out / "diagnostic.json").is_file() and (out / "failure.h5").is_file()
+    assert _status(out) == "unstable"
