@@ -8,6 +8,7 @@ any phase gives back every engine array and continues to the same bits.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import random
@@ -15,8 +16,10 @@ import re
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -226,11 +229,28 @@ def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_sav
 
 
 def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):
-    """SIGTERM while no run's handlers are installed (here a sweep waiting 10 s for a
-    scheduler that is not there) killed the process without a word before."""
-    proc = start("sweep", "paper-study", "--quick", "--scheduler", "tcp://127.0.0.1:1",
-                 "--out", str(tmp_path / "study"))
-    stderr = signal_when(proc, signal.SIGTERM, lambda: time.sleep(3.0))  # waiting for it
+    """SIGTERM while no run's handlers are installed (here a sweep waiting up to 10 s for the
+    handshake of a scheduler that never answers) killed the process without a word before.
+    The signal goes once the sweep has connected (a fixed sleep was too short on a loaded
+    machine: the signal came before the sweep's handlers)."""
+    server = socket.create_server(("127.0.0.1", 0))
+    connected = threading.Event()
+    held: list[socket.socket] = []
+
+    def accept() -> None:
+        with contextlib.suppress(OSError):  # (closed at the end of the test)
+            held.append(server.accept()[0])
+            connected.set()
+
+    threading.Thread(target=accept, daemon=True).start()
+    proc = start("sweep", "paper-study", "--quick", "--scheduler",
+                 f"tcp://127.0.0.1:{server.getsockname()[1]}", "--out", str(tmp_path / "study"))
+    try:
+        stderr = signal_when(proc, signal.SIGTERM, lambda: connected.wait(120))
+    finally:
+        for conn in (*held, server):
+            conn.close()
+    assert connected.is_set(), "the sweep never connected to the scheduler's address"
     assert proc.returncode == 143, stderr[-2000:]
     assert "Traceback" not in stderr
     # (the sweep's line says what is kept: nothing yet, the study folder is not even made)
