@@ -249,6 +249,19 @@ def test_a_folder_given_as_the_config_file_is_refused(capsys, tmp_path):
     assert_names(refused(capsys, "run", str(tmp_path)), str(tmp_path), "is not a file")
 
 
+def test_a_quoted_key_among_the_other_mistakes_is_named_as_toml_writes_it(capsys, tmp_path):
+    """'silo."outlet.width"' (one name with a dot) was listed as silo.outlet.width, a path of
+    three names that is not in the file."""
+    text = config_to_toml(load_config("paper-case2"))
+    text = text.replace("[material]\n", "[material]\nzz = 1\n", 1)
+    text = text.replace("[silo]\n", '[silo]\n"outlet.width" = 1\n', 1)
+    path = tmp_path / "quoted.toml"
+    path.write_text(text)
+    line = refused(capsys, "show", str(path))
+    assert line.startswith("config error: unknown key 'material.zz'"), line
+    assert_names(line, '(+1 more: silo."outlet.width" unknown)')
+
+
 def test_a_folder_named_like_a_scenario_or_study_does_not_hide_it(tmp_path, monkeypatch):
     """`silodem run` makes runs/paper-case2; from inside runs/ that folder stood in the way of
     the scenario's name ('paper-case2 is not a file'). A folder is never a config, so the

@@ -496,6 +496,10 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     # a repeat found among many values (looked up by value, not compared pairwise)
     (TINY.replace("[20.0, 30.0]", str([*range(5000), 2500.0])),
      ["'material.friction_deg' lists 2500.0 twice"]),
+    # a long repeated value quoted cut short (it was echoed whole: 10,000 characters)
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]',
+                  f'"material.contact_model" = ["{"x" * 5000}", "{"x" * 5000}"]'),
+     ["'material.contact_model' lists 'xxxxxxxx", "xxx... twice"]),
     # more runs than a study takes: refused before any is planned
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]',
                   f'"material.friction_deg" = {list(range(400))}\n'

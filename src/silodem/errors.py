@@ -232,7 +232,8 @@ def _others(errors: list[Any], first: dict[str, Any]) -> str:
         return ""
     names: list[str] = []
     for e in rest:
-        dotted = shorten(".".join(str(p) for p in e["loc"])) or "(the whole config)"
+        dotted = shorten(_toml_key([str(p) for p in e["loc"]])) if e["loc"] else \
+            "(the whole config)"
         kind = {"missing": " missing", "extra_forbidden": " unknown"}.get(e["type"], "")
         if dotted + kind not in names:  # (two long keys cut to the same text: named once)
             names.append(dotted + kind)

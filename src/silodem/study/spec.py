@@ -203,7 +203,7 @@ class StudySpec(BaseModel):
                                  f"{MAX_RUNS}")
             repeat = _first_repeat(values)
             if repeat is not None:
-                raise ValueError(f"'{key}' lists {values[repeat]!r} twice")
+                raise ValueError(f"'{key}' lists {short_repr(values[repeat])} twice")
         return table
 
     @model_validator(mode="after")
