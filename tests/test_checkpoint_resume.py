@@ -269,10 +269,13 @@ def _exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
     return exc.value.code, capsys.readouterr().err.strip().splitlines()[-1]
 
 
-def test_ctrl_c_while_the_final_results_are_written_names_the_resume(tmp_path, monkeypatch,
-                                                                     capsys):
-    """The final write of results.h5 interrupted: the file is the last save's (atomic), the
-    checkpoint stays, and the line says how to finish the run (a bare 'interrupted' before)."""
+def test_a_keyboard_interrupt_out_of_the_final_write_is_a_hard_stop_that_names_the_resume(
+        tmp_path, monkeypatch, capsys):
+    """The final write of results.h5 stopped at once (here by a KeyboardInterrupt that the
+    write itself raises, not through the run's handlers: a first signal there is noted and the
+    write finishes, tests/test_signals_end_of_run.py): the file is the last save's (atomic),
+    the checkpoint stays, and the line says how to finish the run (a bare 'interrupted'
+    before)."""
     import silodem.run
     from silodem.cli import main
 
@@ -284,9 +287,12 @@ def test_ctrl_c_while_the_final_results_are_written_names_the_resume(tmp_path, m
     monkeypatch.setattr(silodem.run, "write_results", interrupted_final_write)
     out = tmp_path / "run"
     code, last = _exit_and_last_line(run_args(out), capsys)
+    checkpoint = read_checkpoint(out)
     assert code == 130
-    assert last.startswith("interrupted: while the run's final results were written")
-    assert f"silodem run --resume {out}" in last
+    assert last.startswith("interrupted: SIGINT: stopped at once, without writing its final "
+                           f"results; the last checkpoint, {out / 'checkpoint.h5'} at t = "
+                           f"{checkpoint.time:.4g} s (step {checkpoint.step}, "), last
+    assert last.endswith(f", is kept; continue with: silodem run --resume {out}"), last
     with h5py.File(out / "results.h5") as h5:
         assert h5.attrs["status"] == "running"  # the last periodic save
     monkeypatch.setattr(silodem.run, "write_results", write_results)

@@ -1,5 +1,6 @@
-"""Signals at the edges of a run: as it ends (its progress bar closing, its checkpoint removed,
-its summary printed) and while an unstable run's failure state is saved.
+"""Signals at the edges of a run: as it ends (its progress bar closing, its final results.h5
+written, its checkpoint removed, its summary printed) and while an unstable run's failure state
+is saved.
 
 Each signal is sent in this process from a hook at the moment it is about (a patched step of
 the run calls ``signal.raise_signal``, whose handler runs before it returns), never by timing.
@@ -112,20 +113,38 @@ def test_a_second_signal_as_the_progress_bar_closes_stops_at_once_and_names_the_
     assert _status(out) == "complete" and not checkpoint.exists()
 
 
-def test_a_signal_just_after_the_runs_handlers_are_put_back_still_writes_its_results(
-        tmp_path, monkeypatch):
+@pytest.mark.parametrize("when", ["after the last chunk", "after the final write"])
+def test_a_signal_as_the_run_ends_without_a_progress_bar_still_writes_its_results(
+        when, tmp_path, monkeypatch):
     """Without a progress bar (the API, a sweep's run) nothing is left to close: a signal
-    just after the handlers were put back, before the final results are written, raised a
-    bare KeyboardInterrupt.  It is now taken as a signal in the run's last chunk."""
+    just after the handlers were put back, before the final results were written, raised a
+    bare KeyboardInterrupt.  The run's handlers now last until its final results.h5 is
+    written: a signal after its last chunk is the run's; one in the moment after the write,
+    once they are put back (Python's handler again: a KeyboardInterrupt), finds the results
+    complete.  Either ends as a signal in the run's last chunk."""
+    from contextlib import contextmanager
+
     import silodem.run
 
-    drive = silodem.run.RunGuard.drive
+    if when == "after the last chunk":
+        drive = silodem.run.RunGuard.drive
 
-    def drive_then_signal(self, run) -> None:
-        drive(self, run)
-        signal.raise_signal(signal.SIGINT)  # Python's handler again: a KeyboardInterrupt
+        def drive_then_signal(self, run) -> None:
+            drive(self, run)
+            signal.raise_signal(signal.SIGINT)
 
-    monkeypatch.setattr(silodem.run.RunGuard, "drive", drive_then_signal)
+        monkeypatch.setattr(silodem.run.RunGuard, "drive", drive_then_signal)
+    else:
+        handlers = silodem.run.RunGuard.signals
+
+        @contextmanager
+        def handlers_then_signal(self):
+            with handlers(self):
+                yield
+            if self.final_write:  # put back once the final results are written
+                signal.raise_signal(signal.SIGINT)
+
+        monkeypatch.setattr(silodem.run.RunGuard, "signals", handlers_then_signal)
     out = tmp_path / "run"
     with pytest.raises(RunInterrupted) as info:
         try:
@@ -161,6 +180,116 @@ def test_a_signal_while_the_checkpoint_is_removed_keeps_the_folder_whole(
     assert _status(out) == "complete"
     assert not (out / "checkpoint.h5").exists()
     assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+def _signals_in_the_final_write(monkeypatch, signals: list[int]) -> list[int]:
+    """Send ``signals`` from inside the ended run's final write of results.h5, in the middle
+    of it (as its /final snapshot goes into the file being built); the list of those sent."""
+    import silodem.output
+    import silodem.run
+
+    sent: list[int] = []
+    final = {"inside": False}
+    write_results, write_snapshot = silodem.run.write_results, silodem.output.write_snapshot
+
+    def final_write(*args, **kwargs):
+        final["inside"] = True
+        try:
+            return write_results(*args, **kwargs)
+        finally:
+            final["inside"] = False
+
+    def snapshot_with_signals(group, snap):
+        if final["inside"] and not sent:
+            for sig in signals:
+                sent.append(sig)
+                signal.raise_signal(sig)  # (its handler runs before this returns)
+        return write_snapshot(group, snap)
+
+    monkeypatch.setattr(silodem.run, "write_results", final_write)
+    monkeypatch.setattr(silodem.output, "write_snapshot", snapshot_with_signals)
+    return sent
+
+
+def _no_partial_save(out) -> None:
+    assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+@SIGNALS
+def test_a_signal_while_the_final_results_are_written_lets_the_write_finish(
+        sig, tmp_path, monkeypatch, capsys):
+    """A first signal while the ended run's final results.h5 was written aborted the write:
+    results.h5 stayed the last periodic save's and the line sent the user to resume a run that
+    had ended.  The run has ended: the signal is noted, the write finishes and the run ends as
+    after a signal in its last chunk (complete results, no checkpoint left, 130 or 143)."""
+    sent = _signals_in_the_final_write(monkeypatch, [sig])
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert sent == [sig]
+    assert (code, last) == (128 + sig, _complete(out))
+    assert _status(out) == "complete"
+    assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
+    _no_partial_save(out)
+
+
+@pytest.mark.parametrize("first", ["in the final write", "after the last chunk"])
+def test_a_second_signal_while_the_final_results_are_written_stops_at_once(
+        first, tmp_path, monkeypatch, capsys):
+    """A second signal there (the first in the same write, or after the run's last chunk)
+    stops the write at once: results.h5 stays the last save's (the write is atomic), and the
+    line names the checkpoint kept and the resume that finishes the run, which then ends
+    complete."""
+    import silodem.run
+
+    if first == "after the last chunk":
+        drive = silodem.run.RunGuard.drive
+
+        def drive_then_signal(self, run) -> None:
+            drive(self, run)
+            signal.raise_signal(signal.SIGINT)  # noted: the final results are written next
+
+        monkeypatch.setattr(silodem.run.RunGuard, "drive", drive_then_signal)
+    sent = _signals_in_the_final_write(
+        monkeypatch, [signal.SIGINT] * (2 if first == "in the final write" else 1))
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    checkpoint = out / "checkpoint.h5"
+    assert sent and code == 130
+    assert last == (f"interrupted: SIGINT again: stopped at once, without writing its final "
+                    f"results; the last checkpoint, {checkpoint} {_saved_at(checkpoint, 'step')}"
+                    f", is kept; continue with: silodem run --resume {out}")
+    assert _status(out) == "running"  # the last periodic save's
+    _no_partial_save(out)
+    monkeypatch.undo()
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", str(out)])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip().splitlines()[-1] == f"results: {out}"
+    assert _status(out) == "complete" and not checkpoint.exists()
+
+
+def test_a_full_disk_during_the_final_write_names_the_checkpoint_kept(
+        tmp_path, monkeypatch, capsys):
+    """A final write that finds no room (an OSError, not a signal) ends the run with one line
+    (exit 2) naming what failed, the checkpoint kept and the resume that goes on once the
+    cause is mended; results.h5 stays the last save's."""
+    import errno
+
+    import silodem.run
+
+    def no_room(run, path, config_toml, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(silodem.run, "write_results", no_room)
+    out = tmp_path / "run"
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    kept = read_checkpoint(out)
+    assert code == 2
+    assert last == (f"error: No space left on device ({out / 'results.h5'}) while the run's "
+                    f"final results were written to {out / 'results.h5'}; the last "
+                    f"checkpoint, at t = {kept.time:.4g} s (step {kept.step}), is kept: once "
+                    f"the cause is mended, 'silodem run --resume {out}' goes on from there")
+    assert _status(out) == "running"
 
 
 @SIGNALS

@@ -211,3 +211,75 @@ def test_a_discharged_grain_far_below_the_outlet_is_not_an_escape():
     p.x[0] = domain_of(run).xmax + 1.0  # and far to the side: out of the domain
     problem = find_problem(run)
     assert problem is not None and problem.kind == "outside_domain"
+
+
+def _unstable_run(monkeypatch, capsys, out) -> None:
+    """A run stopped as unstable in ``out`` (a NaN put into a grain while it settles): its
+    folder holds failure.h5, diagnostic.json, results.h5 ("unstable") and checkpoint.h5."""
+    _inject(monkeypatch, "after", "vx", math.nan)
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(out))
+    assert exit_info.value.code == 3
+    capsys.readouterr()
+    monkeypatch.undo()  # mended
+    for name in ("failure.h5", "diagnostic.json", "checkpoint.h5"):
+        assert (out / name).is_file(), name
+
+
+def test_a_new_run_into_an_unstable_runs_folder_replaces_it_checkpoint_included(
+        monkeypatch, capsys, tmp_path):
+    """The run mended (a smaller time step, say) and started again into the same folder was
+    refused as over 'an unfinished run (checkpoint.h5)', with 'silodem run --resume DIR' as
+    the way on: a resume is bit-identical and only comes to the same failure.  The unstable
+    run's folder is now replaced like any earlier run's, its checkpoint with its diagnosis
+    and failure state, and a line says so."""
+    out = tmp_path / "run"
+    _unstable_run(monkeypatch, capsys, out)
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(out))
+    assert exit_info.value.code == 0
+    err = capsys.readouterr().err
+    assert (f"silodem: replacing the earlier unstable run in {out}, its checkpoint.h5 "
+            "included (a resume of it only comes to the same failure)") in err.splitlines(), err
+    assert "replacing the earlier run's results" not in err
+    for name in ("failure.h5", "diagnostic.json", "checkpoint.h5"):
+        assert not (out / name).exists(), name
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "complete"
+
+
+def test_a_new_run_stopped_at_once_leaves_no_unstable_checkpoint_to_resume(
+        monkeypatch, capsys, tmp_path):
+    """The new run removes the unstable run's checkpoint before it starts (with the rest of
+    that run's files): a new run stopped before its first save leaves its own config and no
+    checkpoint of the old config beside it, which '--resume' would have run."""
+    from silodem.run import check_out
+    from silodem.safety import check_replaceable, clear_previous_run
+
+    out = tmp_path / "run"
+    _unstable_run(monkeypatch, capsys, out)
+    check_out(out)  # not refused
+    assert check_replaceable(out)
+    clear_previous_run(out)
+    left = sorted(p.name for p in out.iterdir() if p.is_file())
+    assert left == ["config.toml"]
+
+
+@pytest.mark.parametrize("status", ["interrupted", "running"])
+def test_a_folder_whose_checkpoint_is_not_an_unstable_runs_is_still_refused(
+        status, monkeypatch, capsys, tmp_path):
+    """Only the checkpoint of a run whose results.h5 says "unstable" is replaced: once a
+    resume of it has saved (results.h5 "running" or "interrupted"), the folder holds an
+    unfinished run again, refused with the way to continue it (exit 2)."""
+    out = tmp_path / "run"
+    _unstable_run(monkeypatch, capsys, out)
+    with h5py.File(out / "results.h5", "a") as h5:
+        h5.attrs["status"] = status
+    with pytest.raises(SystemExit) as exit_info:
+        main(run_args(out))
+    assert exit_info.value.code == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert line == (f"error: --out {out} holds an unfinished run (checkpoint.h5); continue it "
+                    f"with 'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
+                    "start afresh there")
+    assert (out / "checkpoint.h5").is_file() and (out / "failure.h5").is_file()

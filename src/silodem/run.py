@@ -18,7 +18,7 @@ from silodem.config import Config
 from silodem.errors import InputError, RunInterrupted, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.safety import ANIMATIONS, RunGuard, clear_previous_run
+from silodem.safety import ANIMATIONS, RunGuard, clear_previous_run, ended_unstable
 from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
@@ -65,8 +65,9 @@ class RunSummary:
 
 def check_out(out: Path, flag: str = "out") -> None:
     """Refuse (InputError) an output folder that is a file, lies under a file, cannot be
-    created or written, or holds an unfinished run; create it.  ``flag`` names it in the
-    message (``--out`` on the command line)."""
+    created or written, or holds an unfinished run (a checkpoint.h5, unless the run was stopped
+    as unstable: a new run replaces that one, ``safety.ended_unstable``); create it.  ``flag``
+    names it in the message (``--out`` on the command line)."""
     try:
         _check_out_folder(Path(out), flag)
     except OSError as exc:  # a name too long, a system folder (/proc, /sys), ...
@@ -86,7 +87,8 @@ def _check_out_folder(out: Path, flag: str) -> None:
             if not os.access(folder, os.W_OK | os.X_OK):
                 raise InputError(f"{flag} {out}: no permission to write in {folder}")
             break
-    if (out / "checkpoint.h5").exists():
+    if (out / "checkpoint.h5").exists() and not ended_unstable(out):  # (an unstable run's is
+        # replaced: a resume is bit-identical, it only comes to the same failure again)
         raise InputError(f"{flag} {out} holds an unfinished run (checkpoint.h5); continue it with "
                          f"'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
                          "start afresh there")
@@ -145,26 +147,59 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     recorders = [FramesRecorder.from_config(cfg, out), *recorders_for(cfg)]
     t0 = time.perf_counter()
     live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "", "logged": 0.0}
+    written = False  # the ended run's complete results.h5
     try:
-        if progress:
-            run = _run_with_bar(cfg, guard, recorders, live)
-        else:
-            run = SiloRun(cfg, recorders=recorders)
-            guard.drive(run)
+        # the run's handlers (``RunGuard.running``), from its start until its final results.h5
+        # is written: a signal meanwhile is the run's, never a bare KeyboardInterrupt
+        with contextlib.ExitStack() as handled:
+            if progress:
+                run = _run_with_bar(cfg, guard, recorders, live, handled)
+            else:
+                run = SiloRun(cfg, recorders=recorders)
+                handled.enter_context(guard.running())
+                guard.drive(run)
+            _write_final(guard, run, toml_text)
+            written = True
     except KeyboardInterrupt as exc:
-        if not guard.ended:  # before the run started: the command's own 'interrupted'
+        if not written:  # before the run started: the command's own 'interrupted'
             raise
         # just after the run's handlers were put back: the run is done, as with a signal in
-        # its last chunk (its complete results are written, then it stops)
+        # its last chunk (it stops once its checkpoint is removed)
         guard.stop_signal = guard.stop_signal or signal_of(exc)
-        run = live["run"] if progress else run
+    except RunInterrupted as exc:
+        if not written:
+            raise
+        # a second signal's stop in the moment after the final write, before the handlers
+        # were put back: the results are complete all the same
+        guard.stop_signal = exc.signum
     return _finish(cfg, guard, run, toml_text, t0, frozenset(live["printed"]))
 
 
-def _run_with_bar(cfg: Config, guard: RunGuard, recorders: list, live: dict) -> SiloRun:
-    """Make the run and drive it to its end under a progress bar on stderr; the bar is closed
-    while the run's signal handlers still answer (``RunGuard.running``): a signal then is the
-    run's (noted: its results are written, then it stops), not a bare KeyboardInterrupt."""
+def _write_final(guard: RunGuard, run: SiloRun, toml_text: str) -> None:
+    """Write the ended run's complete results.h5, under the run's handlers: a first signal
+    meanwhile is noted and the write goes on (the run then stops as after a signal in its last
+    chunk, ``_finish``); a second one stops it at once (the atomic write leaves results.h5 as
+    the last save's, and ``RunGuard.running`` names the checkpoint kept).  A failed write (a
+    full disk) says what is kept (``_kept``)."""
+    guard.final_write = True
+    try:
+        write_results(run, guard.results_path, toml_text)
+    except KeyboardInterrupt as exc:  # not through the run's handlers: a hard stop all the same
+        raise guard.final_write_stopped(signal_of(exc)) from None
+    except OSError as exc:
+        if guard.hard_stop is not None:  # (a second signal's stop, seen as a failed write)
+            raise guard.final_write_stopped(guard.hard_stop) from None
+        where = f" ({exc.filename})" if exc.filename else ""  # a full disk: say what is kept
+        raise OSError(exc.errno, f"{exc.strerror or exc}{where} while the run's final results "
+                      f"were written to {guard.results_path}; {_kept(guard)}") from None
+
+
+def _run_with_bar(cfg: Config, guard: RunGuard, recorders: list, live: dict,
+                  handled: contextlib.ExitStack) -> SiloRun:
+    """Make the run and drive it to its end under a progress bar on stderr; the run's signal
+    handlers (``RunGuard.running``) go on ``handled``, the caller's, which holds them until the
+    final results are written: the bar is closed while they answer (a signal then is the
+    run's, noted: its results are written, then it stops), not a bare KeyboardInterrupt."""
     from rich.console import Console
     from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
     from rich.progress import Progress as Bar
@@ -197,10 +232,10 @@ def _run_with_bar(cfg: Config, guard: RunGuard, recorders: list, live: dict) -> 
             run = SiloRun(cfg, on_progress=show, recorders=recorders)
             live["run"] = run
             _warn_new(console, live)
-            with guard.running():
-                guard.drive(run)
-                bar.update(task, completed=3)
-                closing.close()  # the bar's last state (its with block then closes nothing)
+            handled.enter_context(guard.running())
+            guard.drive(run)
+            bar.update(task, completed=3)
+            closing.close()  # the bar's last state (its with block then closes nothing)
         except BaseException:  # the error's one line is the last word, not a stale bar
             if not console.is_terminal:  # (a terminal shows the bar as it was drawn)
                 console.quiet = True
@@ -210,14 +245,13 @@ def _run_with_bar(cfg: Config, guard: RunGuard, recorders: list, live: dict) -> 
 
 def _finish(cfg: Config, guard: RunGuard, run: SiloRun, toml_text: str, t0: float,
             shown: frozenset[str]) -> RunSummary:
-    """Write the ended run's final results.h5, remove its checkpoint, draw its pictures and
-    report; a signal on the way ends it with a line that says what is kept."""
+    """Remove the checkpoint of the ended run, whose complete results.h5 is written
+    (``_write_final``), draw its pictures and report; a signal on the way, or one that came in
+    its last chunk or during the final write, ends it with a line that says where its results
+    are."""
     out = guard.out
-    written = False  # the complete results.h5
     noted: list[int] = []  # signals while the pictures were drawn
     try:
-        write_results(run, out / "results.h5", toml_text)
-        written = True
         with noted_signals(hold=True):  # (a checkpoint left beside complete results would
             guard.completed(run)        # block a new run there, and resume an ended one)
         if guard.stop_signal is not None:  # it came in the last chunk: the run is complete
@@ -233,19 +267,10 @@ def _finish(cfg: Config, guard: RunGuard, run: SiloRun, toml_text: str, t0: floa
         return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
                           dict(run.events), list(run.warnings), shown)
     except KeyboardInterrupt as exc:
-        signum = noted[0] if written and noted else signal_of(exc)
-        if not written:  # results.h5 is the last save's (atomic write)
-            raise RunInterrupted(f"while the run's final results were written; "
-                                 f"{_kept(guard)}", signum) from None
+        signum = noted[0] if noted else signal_of(exc)
         raise RunInterrupted(f"after the run's results were written to {out / 'results.h5'}; "
                              f"'silodem plot {out}' draws its pictures and report.html",
                              signum) from None
-    except OSError as exc:
-        if written:  # a picture's or the report's: as it was
-            raise
-        where = f" ({exc.filename})" if exc.filename else ""  # a full disk: say what is kept
-        raise OSError(exc.errno, f"{exc.strerror or exc}{where} while the run's final results "
-                      f"were written to {out / 'results.h5'}; {_kept(guard)}") from None
 
 
 def _kept(guard: RunGuard) -> str:

@@ -70,12 +70,35 @@ _RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTI
 
 def _replaced_files(out: Path) -> list[Path]:
     """The files of ``out`` that ``clear_previous_run`` removes by name (not the frames' and
-    VTK writers' own files, which they recognise)."""
+    VTK writers' own files, which they recognise); an unstable run's checkpoint.h5 among them
+    (``ended_unstable``)."""
     found = [out / name for name in _RUN_FILES if (out / name).exists()]
     figures = out / "figures"
     if figures.is_dir():
         found += sorted(figures.glob("*.png"))
+    if (out / CHECKPOINT_NAME).exists() and ended_unstable(out):
+        found.append(out / CHECKPOINT_NAME)
     return found
+
+
+def ended_unstable(out: Path) -> bool:
+    """Whether the last run in ``out`` was stopped as unstable: its results.h5, written by
+    silodem, has ``status = "unstable"`` (a resume of it, or a new run, rewrites that file at
+    its first save).  The checkpoint.h5 such a run leaves is the last good state before the
+    failure, with the failing config: a resume is bit-identical and comes to the same failure,
+    so a new run there (the config mended) replaces it with the run's other files, instead of
+    being refused as over an unfinished run."""
+    import h5py
+
+    try:
+        with h5py.File(out / RESULTS_NAME, "r") as h5:
+            status = h5.attrs.get("status")
+            ours = "silodem_version" in h5.attrs
+    except (OSError, ValueError):
+        return False
+    if isinstance(status, bytes):
+        status = status.decode(errors="replace")
+    return ours and status == "unstable"
 
 
 def _written_by_silodem(results: Path) -> bool:
@@ -110,7 +133,8 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
 
 def clear_previous_run(out: Path) -> None:
     """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
-    report, a failed run's diagnosis; only these names, ``figures/*.png``, the frames'
+    report, a failed run's diagnosis and failure state, an unstable run's checkpoint.h5
+    (``ended_unstable``); only these names, ``figures/*.png``, the frames'
     segment files in ``frames/`` and the VTK writer's own files in ``vtk/``), so that a
     fresh run's folder never shows the old run's results beside the new config, even if the
     new run is stopped before its first save or writes no VTK files.  InputError, removing
@@ -321,6 +345,7 @@ class RunGuard:
         self.hard_stop: int | None = None  # a second signal: stop without saving
         self.stopping = False  # the hard stop is on its way out: further signals wait
         self.ended = False  # the run has come to its end (its final results are written next)
+        self.final_write = False  # its final results.h5 is being (or was) written (run.py)
         self.failure: str | None = None  # the instability found, while its state is saved
         self.failure_saved: list[Path] = []  # what of that state is written so far
         self._running = False  # inside ``running``
@@ -363,9 +388,10 @@ class RunGuard:
         """``signals``, and the one line of a second signal's stop (a RunInterrupted naming
         what is kept, ``kept``; of an unstable run whose failure state was being saved, an
         UnstableRunError, ``_cut_short``).  ``drive`` runs in one; a caller may put ``drive``
-        in one of its own, and the run's handlers then last until that one ends (``silodem
-        run`` closes its progress bar in it: a signal then is the run's, noted, or its hard
-        stop, never a bare KeyboardInterrupt)."""
+        in one of its own, and the run's handlers then last until that one ends
+        (``run.run_simulation`` closes the progress bar and writes the ended run's final
+        results.h5 in it: a signal then is the run's, noted, the write going on to the end, or
+        its hard stop, never a bare KeyboardInterrupt)."""
         if self._running:  # the outer one answers
             yield
             return
@@ -626,4 +652,15 @@ class RunGuard:
 
     def _hard_stop_error(self) -> RunInterrupted:
         name = signal.Signals(self.hard_stop).name
-        return _HardStop(f"{name} again: stopped at once, without saving", self.hard_stop)
+        what = "without writing its final results" if self.final_write else "without saving"
+        return _HardStop(f"{name} again: stopped at once, {what}", self.hard_stop)
+
+    def final_write_stopped(self, signum: int) -> RunInterrupted:
+        """The hard stop of the ended run's final write, which ``running`` turns into its line
+        (what is kept, ``kept``): a second signal's (whose stop the write may have taken for a
+        failed write), or that of a KeyboardInterrupt that did not come through ``signals``
+        (the code under the write raised one)."""
+        if self.hard_stop is not None:
+            return self._hard_stop_error()
+        name = signal.Signals(signum).name
+        return _HardStop(f"{name}: stopped at once, without writing its final results", signum)
