@@ -283,3 +283,25 @@ def test_a_folder_whose_checkpoint_is_not_an_unstable_runs_is_still_refused(
                     f"with 'silodem run --resume {out}', or delete {out / 'checkpoint.h5'} to "
                     "start afresh there")
     assert (out / "checkpoint.h5").is_file() and (out / "failure.h5").is_file()
+
+
+def test_api_run_into_an_unstable_runs_folder_warns_what_it_replaces(monkeypatch, capsys,
+                                                                      tmp_path):
+    """``api.run`` replaces an unstable run's folder as the command line does, and its
+    SilodemWarning says what the command line's note says (it said "the earlier run's
+    results", without the checkpoint it removes)."""
+    import warnings
+
+    from silodem import api
+
+    out = tmp_path / "run"
+    _unstable_run(monkeypatch, capsys, out)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        api.run(quick_config(), out)
+    said = [str(w.message) for w in caught if issubclass(w.category, api.SilodemWarning)]
+    assert said[0] == (f"replacing the earlier unstable run in {out}, its checkpoint.h5 "
+                       "included (a resume of it only comes to the same failure)"), said
+    assert not (out / "checkpoint.h5").exists()
+    with h5py.File(out / "results.h5") as h5:
+        assert h5.attrs["status"] == "complete"

@@ -118,7 +118,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     not issued again (the final count of grains lost is).  A finished run's results already
     in ``out`` are replaced, which a SilodemWarning says before the run starts."""
     from silodem.run import check_out, check_threads, run_simulation
-    from silodem.safety import check_replaceable
+    from silodem.safety import replacing_note
     from silodem.scenario_files import revalidated
     from silodem.silo.checks import check_numbers
 
@@ -134,10 +134,9 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
-    if check_replaceable(folder):  # nor over files no silodem run wrote
-        # (the command line prints the same note on stderr: cli/commands_run.py)
-        _warnings.warn(f"replacing the earlier run's results in {folder}", SilodemWarning,
-                       stacklevel=2)
+    replacing = replacing_note(folder)  # nor over files no silodem run wrote
+    if replacing is not None:  # (the command line prints it on stderr: cli/commands_run.py)
+        _warnings.warn(replacing, SilodemWarning, stacklevel=2)
     summary = run_simulation(cfg, folder, threads=threads, progress=progress)
     for text in summary.warnings:
         if text not in summary.warnings_shown:  # (empty without progress)

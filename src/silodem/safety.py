@@ -131,6 +131,19 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
     return True
 
 
+def replacing_note(out: Path, flag: str = "out") -> str | None:
+    """What a new run in ``out`` replaces, in the words of the command line's note (printed on
+    stderr) and of the API's warning; None when there is nothing to replace.  InputError as
+    :func:`check_replaceable` for files no silodem run wrote."""
+    unstable = ended_unstable(out)  # (read before anything is replaced)
+    if not check_replaceable(out, flag):
+        return None
+    if unstable:
+        return (f"replacing the earlier unstable run in {out}, its checkpoint.h5 included (a "
+                "resume of it only comes to the same failure)")
+    return f"replacing the earlier run's results in {out}"
+
+
 def clear_previous_run(out: Path) -> None:
     """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
     report, a failed run's diagnosis and failure state, an unstable run's checkpoint.h5

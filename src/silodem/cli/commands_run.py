@@ -151,18 +151,14 @@ def run(
 
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     check_out(out_dir)
-    from silodem.safety import check_replaceable, ended_unstable
+    from silodem.safety import replacing_note
 
-    unstable = ended_unstable(out_dir)  # (read before anything is replaced)
-    replacing = check_replaceable(out_dir, "--out")  # (a finished run was replaced unsaid)
+    replacing = replacing_note(out_dir, "--out")  # (a finished run was replaced unsaid)
 
     console = Console(soft_wrap=True)
     console.print(f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False)
-    if unstable:
-        notes.append(f"silodem: replacing the earlier unstable run in {out_dir}, its "
-                     "checkpoint.h5 included (a resume of it only comes to the same failure)")
-    elif replacing:
-        notes.append(f"silodem: replacing the earlier run's results in {out_dir}")
+    if replacing is not None:
+        notes.append(f"silodem: {replacing}")
     for note in notes:
         Console(stderr=True, soft_wrap=True).print(note, markup=False, highlight=False)
     _run_and_print(console, lambda: run_simulation(cfg, out_dir, threads=threads, progress=True))
