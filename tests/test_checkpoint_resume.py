@@ -548,7 +548,8 @@ def test_a_completed_run_leaves_no_partial_save_behind(tmp_path):
 
     from silodem.safety import RunGuard
 
-    for name in (".checkpoint.h5.tmp", ".results.h5.tmp", "checkpoint.h5", "mine.tmp"):
+    for name in (".checkpoint.h5.tmp", ".results.h5.tmp", "checkpoint.h5", "mine.tmp",
+                 ".failure.h5.tmp", ".diagnostic.json.tmp", ".report.html.tmp"):
         (tmp_path / name).write_bytes(b"left")
     RunGuard(tmp_path, "", quick_config()).completed(SimpleNamespace(recorders=[]))
     assert [p.name for p in tmp_path.iterdir()] == ["mine.tmp"]

@@ -164,10 +164,12 @@ def clear_previous_run(out: Path) -> None:
 
 def remove_partial_saves(out: Path) -> None:
     """Remove the temporary files (``atomic.atomic_file``'s ``.NAME.tmp``) of results.h5,
-    checkpoint.h5 and config.toml that a SIGKILL in the middle of a save left in ``out``:
-    the next save of the same file replaced them, but a run that saved no more (it ended, or
-    checkpoints are off) kept a stale copy of a checkpoint beside its results."""
-    for name in (RESULTS_NAME, CHECKPOINT_NAME, "config.toml"):
+    checkpoint.h5, config.toml and the run's other files (``_RUN_FILES``: pictures, report,
+    an unstable run's failure.h5 and diagnostic.json) that a SIGKILL in the middle of a save
+    left in ``out``: the next save of the same file replaced them, but a run that saved no
+    more (it ended, or checkpoints are off) kept a stale copy of a checkpoint beside its
+    results, and a failure save cut short left its partial failure.h5."""
+    for name in (*_RUN_FILES, CHECKPOINT_NAME, "config.toml"):
         (out / f".{name}.tmp").unlink(missing_ok=True)
 
 
