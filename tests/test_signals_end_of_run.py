@@ -50,6 +50,17 @@ def _complete(out) -> str:
             f"('silodem plot {out}' draws its pictures and report.html)")
 
 
+def _assert_stopped_complete(out, capsys, sig: int, sent: list[int]):
+    """Run the command line into ``out``, whose ``sent`` signal (``sig``) comes as the run
+    ends: the run stops with complete results, no checkpoint left, 130 or 143.  ``out``."""
+    code, last = _exit_and_last_line(run_args(out), capsys)
+    assert sent == [sig]
+    assert (code, last) == (128 + sig, _complete(out))
+    assert _status(out) == "complete"
+    assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
+    return out
+
+
 # --- as the run ends --------------------------------------------------------------------------
 
 
@@ -72,12 +83,7 @@ def test_a_signal_as_the_progress_bar_closes_is_the_runs_and_loses_nothing(
         stop(self)
 
     monkeypatch.setattr(Progress, "stop", stop_with_a_signal)
-    out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
-    assert sent == [sig]
-    assert (code, last) == (128 + sig, _complete(out))
-    assert _status(out) == "complete"
-    assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
+    _assert_stopped_complete(tmp_path / "run", capsys, sig, sent)
 
 
 def test_a_second_signal_as_the_progress_bar_closes_stops_at_once_and_names_the_checkpoint(
@@ -223,13 +229,7 @@ def test_a_signal_while_the_final_results_are_written_lets_the_write_finish(
     had ended.  The run has ended: the signal is noted, the write finishes and the run ends as
     after a signal in its last chunk (complete results, no checkpoint left, 130 or 143)."""
     sent = _signals_in_the_final_write(monkeypatch, [sig])
-    out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
-    assert sent == [sig]
-    assert (code, last) == (128 + sig, _complete(out))
-    assert _status(out) == "complete"
-    assert not (out / "checkpoint.h5").exists()  # complete: nothing left to resume
-    _no_partial_save(out)
+    _no_partial_save(_assert_stopped_complete(tmp_path / "run", capsys, sig, sent))
 
 
 @pytest.mark.parametrize("first", ["in the final write", "after the last chunk"])
