@@ -283,7 +283,7 @@ def test_fig8_bars_are_seed_means_with_seed_deviations(study):
         bars = [b for b in ax.containers if isinstance(b, BarContainer)]
         assert len(bars) == len(COLS)
         for c, (container, (phi_g, phi_p)) in enumerate(zip(bars, COLS, strict=True)):
-            assert container.get_label() == f"phiG={phi_g}, phiP={phi_p}"
+            assert container.get_label() == f"phiG={phi_g} deg, phiP={phi_p} deg"
             segments = container.errorbar.lines[2][0].get_segments()
             for r, patch in enumerate(container.patches):
                 centre = patch.get_x() + patch.get_width() / 2
@@ -298,7 +298,7 @@ def test_fig8_bars_are_seed_means_with_seed_deviations(study):
             xs = [b.patches[r].get_x() for b in bars]
             assert xs == sorted(xs)
     ticks = [t.get_text() for t in axes[1].get_xticklabels()]
-    assert ticks == [f"theta={t}" for t in THETAS]
+    assert ticks == [f"theta={t} deg" for t in THETAS]
     assert list(axes[1].get_xticks()) == [0, 1, 2]
 
 
@@ -327,9 +327,9 @@ def test_heatmaps_are_seed_means_of_the_documented_quantities(study):
         if column.endswith("change_pct"):
             lim = max(abs(v) for v in expected[ok])
             assert ax.images[0].get_clim() == pytest.approx((-lim, lim), rel=REL)
-        assert [t.get_text() for t in ax.get_yticklabels()] == [f"theta={t}" for t in THETAS]
+        assert [t.get_text() for t in ax.get_yticklabels()] == [f"theta={t} deg" for t in THETAS]
         assert [t.get_text() for t in ax.get_xticklabels()] == [
-            f"phiG={g}, phiP={p}" for g, p in COLS]
+            f"phiG={g} deg, phiP={p} deg" for g, p in COLS]
     assert any(np.isnan(_seed_mean("discharge_rate", r, c)) for r in range(3) for c in range(4))
 
 

@@ -13,10 +13,12 @@ import base64
 import html
 import itertools
 import math
+import re
 import time
-from dataclasses import dataclass
+import typing
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import matplotlib
 
@@ -27,6 +29,8 @@ from matplotlib.patches import Rectangle
 
 from silodem import __version__
 from silodem.atomic import write_atomic
+from silodem.config import Config
+from silodem.errors import submodel
 from silodem.report.draw import (
     png_bytes,
     ratio_axis,
@@ -49,6 +53,13 @@ from silodem.study.table import (
     table_csv,
 )
 
+# the Runs table: one line per run (its name wrapped over five lines in the column the ten
+# numbers left it), a smaller font, and a scroll bar when it is wider than the page
+STUDY_CSS = """
+.wide{overflow-x:auto;margin:.5em 0}table.runs{margin:0}table.runs td,table.runs th{
+font-size:.8em;padding:3px 5px}table.runs td{white-space:nowrap}table.runs td.warn{
+white-space:normal}
+"""
 BEVERLOO_CSV = "beverloo.csv"  # the Beverloo fits, when the grid varies the outlet width
 CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
 
@@ -61,18 +72,54 @@ def regime(cv: float) -> str:
     return "anisotropic" if cv > CV_ANISOTROPIC else "continuum-like"
 
 
+def _numeric(annotation: Any) -> bool:
+    """Whether a Config field's annotation holds a number or a list of numbers (float,
+    ``float | None``, ``list[float] | None``), not a choice, a text or a bool."""
+    for arg in typing.get_args(annotation) or (annotation,):
+        if arg in (int, float) or (typing.get_origin(arg) is list
+                                   and {int, float} & set(typing.get_args(arg))):
+            return True
+    return False
+
+
+def key_unit(key: str) -> str:
+    """The unit of a config key's numbers, as the first ``[unit]`` of its description in
+    :class:`silodem.config.Config`: "deg" for ``silo.hopper_angle_from_horizontal_deg``, "m"
+    for ``silo.outlet_width``.  "" for a dimensionless key ("[-]"), one that is not a number
+    (a choice, a bool) and a key that is not the Config's (a study's grid key ``base``),
+    unless its name ends in ``_deg`` (an angle in degrees, as every such key of the Config)."""
+    model, found = Config, None
+    for part in key.split("."):
+        found = model.model_fields.get(part) if model is not None else None
+        if found is None:
+            return "deg" if key.endswith("_deg") else ""
+        model = submodel(found.annotation)
+    if model is not None or not _numeric(found.annotation):  # a section; not a number
+        return ""
+    unit = re.search(r"\[([^\]]+)\]", found.description or "")
+    return unit.group(1) if unit and unit.group(1) != "-" else ""
+
+
 @dataclass
 class Layout:
     row_key: str
     rows: list[Any]  # values of the first grid key
     cols: list[dict[str, Any]]  # combinations of the other keys
     names: dict[str, str]  # key -> short name
+    units: dict[str, str] = field(default_factory=dict)  # key -> its unit ("": none)
+
+    def value_label(self, key: str, value: Any) -> str:
+        """'theta=35 deg': the key's short name, the value and its unit (a number's only)."""
+        unit = self.units.get(key, "")
+        number = isinstance(value, int | float | list | tuple) and not isinstance(value, bool)
+        return f"{self.names[key]}={format_value(value)}" + (f" {unit}" if unit and number
+                                                             else "")
 
     def col_label(self, col: dict[str, Any]) -> str:
-        return ", ".join(f"{self.names[k]}={format_value(v)}" for k, v in col.items()) or "all"
+        return ", ".join(self.value_label(k, v) for k, v in col.items()) or "all"
 
     def row_label(self, value: Any) -> str:
-        return f"{self.names[self.row_key]}={format_value(value)}"
+        return self.value_label(self.row_key, value)
 
 
 def layout_of(plan: StudyPlan) -> Layout:
@@ -80,7 +127,8 @@ def layout_of(plan: StudyPlan) -> Layout:
     keys = list(grid)
     rest = keys[1:]
     cols = [dict(zip(rest, vals)) for vals in itertools.product(*(grid[k] for k in rest))]
-    return Layout(keys[0], list(grid[keys[0]]), cols, nicknames(keys))
+    return Layout(keys[0], list(grid[keys[0]]), cols, nicknames(keys),
+                  {k: key_unit(k) for k in keys})
 
 
 def _runs_at(plan: StudyPlan, lay: Layout, row: Any, col: dict[str, Any]) -> list[PlannedRun]:
@@ -233,20 +281,35 @@ def fig_change(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
     return fig
 
 
+class HeatMap(NamedTuple):
+    """One heat map of the study report: a column of results.csv over the grid."""
+
+    column: str  # results.csv's column (its unit in COLUMNS)
+    title: str  # what it is, with its unit
+    signed: bool  # below 0 by its definition: a two-sided map centred on 0 (SIGNED_CMAP)
+    cmap: str = "viridis"  # the one-way map of a quantity that is not signed
+
+
+SIGNED_CMAP = "RdBu_r"  # white at 0, red above, blue below
 HEATMAPS = [
-    ("switch_sigma_h_change_pct", "change of sigma_h [%]", "RdBu_r", True),
-    ("switch_sigma_v_change_pct", "change of sigma_v [%]", "RdBu_r", True),
-    ("switch_ratio_discharge", "sigma_h / sigma_v, discharge [-]", "viridis", False),
-    ("switch_ratio_cv_discharge", "CV of sigma_h / sigma_v, discharge [-]", "magma_r", False),
-    ("wall_peak_fill", "wall peak in the switch zone, after filling [Pa]", "viridis", False),
-    ("wall_peak_discharge", "wall peak in the switch zone, discharge [Pa]", "viridis", False),
-    ("janssen_K_fill", "Janssen K after filling (mu_w = tan phi_P) [-]", "viridis", False),
-    ("wall_friction_mobilised_fill", "mobilised wall friction after filling [-]", "viridis",
-     False),
-    ("discharge_rate", "discharge rate [kg/s]", "viridis", False),
-    ("mass_flow_index", "mass flow index v_wall / v_axis [-]", "viridis", False),
-    ("coordination_discharge", "coordination number at the junction, discharge [-]",
-     "viridis", False),
+    HeatMap("switch_sigma_h_change_pct", "change of sigma_h [%]", True),
+    HeatMap("switch_sigma_v_change_pct", "change of sigma_v [%]", True),
+    # one-sided: compressive (positive) stresses and their ratio, a CV, a fitted K (bounded
+    # above 0), a mass rate, a contact count
+    HeatMap("switch_ratio_discharge", "sigma_h / sigma_v, discharge [-]", False),
+    HeatMap("switch_ratio_cv_discharge", "CV of sigma_h / sigma_v, discharge [-]", False,
+            "magma_r"),
+    HeatMap("wall_peak_fill", "wall peak in the switch zone, after filling [Pa]", False),
+    HeatMap("wall_peak_discharge", "wall peak in the switch zone, discharge [Pa]", False),
+    HeatMap("janssen_K_fill", "Janssen K after filling (mu_w = tan phi_P) [-]", False),
+    # signed: sum(tau) / sum(sigma_n) on the walls, below 0 where they push the grains up
+    HeatMap("wall_friction_mobilised_fill", "mobilised wall friction after filling [-]", True),
+    HeatMap("discharge_rate", "discharge rate [kg/s]", False),
+    # one-sided: a ratio of two downward speeds, from 0 (the wall grains stand still: funnel
+    # flow) up to about 1 (mass flow); the threshold between them, 0.3, is not its middle
+    HeatMap("mass_flow_index", "mass flow index v_wall / v_axis [-]", False),
+    HeatMap("coordination_discharge", "coordination number at the junction, discharge [-]",
+            False),
 ]
 # heat maps whose cells are starred where a run's fit is poorly determined: value -> its error
 FIT_ERRORS = {"janssen_K_fill": "janssen_K_fill_err"}
@@ -288,51 +351,81 @@ def _poorly_fitted(rows_by_id: dict, runs: list[PlannedRun], column: str) -> boo
     return False
 
 
+def colour_range(grid: np.ndarray, signed: bool,
+                 starred: np.ndarray) -> tuple[float, float, str] | None:
+    """(vmin, vmax, extend) of a heat map of the values ``grid`` (in the map's unit); None
+    without a finite value.
+
+    The range is that of the finite values not ``starred`` (poorly determined, see
+    ``FIT_ERRORS``; all of them when every value is starred): a K of 3 +- 2 among
+    well-determined 0.7-1.4 would set the range and leave those alike.  A starred value
+    outside it is drawn in the colour of the range's end and ``extend`` ("max", "min",
+    "both", "neither": matplotlib's colorbar argument) says so.  ``signed``: centred on 0,
+    +- the largest magnitude, so that the sign is the colour's side."""
+    finite = np.isfinite(grid)
+    if not finite.any():
+        return None
+    ranged = grid[finite & ~starred] if (finite & ~starred).any() else grid[finite]
+    if signed:
+        lim = float(np.max(np.abs(ranged))) or 1.0
+        vmin, vmax = -lim, lim
+    else:
+        vmin, vmax = float(ranged.min()), float(ranged.max())
+    over, under = bool((grid[finite] > vmax).any()), bool((grid[finite] < vmin).any())
+    return vmin, vmax, {(True, True): "both", (True, False): "max", (False, True): "min",
+                        (False, False): "neither"}[over, under]
+
+
+CELL_FONT = 9  # [pt] of the cells' values: 11 px at the figure's 90 dpi (7 pt was 9 px)
+
+
 def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
     """One heat map per quantity over the grid (seed means, the value written in each cell;
-    a star where a run's fitted value there is poorly determined, see ``FIT_ERRORS``; the
-    cell hatched where a run's value there is flagged, see ``FLAGS``; each map's title says
-    what its marks mean)."""
+    a star where a run's fitted value there is poorly determined, see ``FIT_ERRORS``, its
+    colour left out of the map's range, see ``colour_range``; the cell hatched where a run's
+    value there is flagged, see ``FLAGS``; each map's title says what its marks mean).  A
+    quantity that can be below 0 (``HeatMap.signed``) on a two-sided map centred on 0."""
     n = len(HEATMAPS)
     ncols = 2
     nrows = math.ceil(n / ncols)
-    fig = Figure(figsize=(6.2 * ncols, (0.55 * len(lay.rows) + 2.2) * nrows), dpi=90)
+    fig = Figure(figsize=(6.2 * ncols, (0.6 * len(lay.rows) + 2.6) * nrows), dpi=90)
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     any_value = False
-    for ax, (column, title, cmap, centred) in zip(axes, HEATMAPS):
-        grid = np.array([[_mean_std(_values(rows_by_id, _runs_at(plan, lay, row, col),
-                                            column))[0] for col in lay.cols]
-                         for row in lay.rows], dtype=float)
-        finite = grid[np.isfinite(grid)]
-        any_value |= finite.size > 0
-        kw = {}
-        if finite.size and centred:
-            lim = float(np.max(np.abs(finite))) or 1.0
-            kw = {"vmin": -lim, "vmax": lim}
-        im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, aspect="auto", **kw)
-        starred = hatched = False
+    for ax, hm in zip(axes, HEATMAPS):
+        column, title = hm.column, hm.title
+        cells = [[_runs_at(plan, lay, row, col) for col in lay.cols] for row in lay.rows]
+        grid = np.array([[_mean_std(_values(rows_by_id, runs, column))[0] for runs in line]
+                         for line in cells], dtype=float)
+        starred = np.zeros(grid.shape, dtype=bool)
+        if column in FIT_ERRORS:
+            for (i, j), v in np.ndenumerate(grid):
+                starred[i, j] = math.isfinite(v) and _poorly_fitted(rows_by_id, cells[i][j],
+                                                                    column)
+        limits = colour_range(grid, hm.signed, starred)
+        any_value |= limits is not None
+        vmin, vmax, extend = limits or (None, None, "neither")
+        im = ax.imshow(np.ma.masked_invalid(grid), cmap=SIGNED_CMAP if hm.signed else hm.cmap,
+                       aspect="auto", vmin=vmin, vmax=vmax)
+        hatched = False
         for (i, j), v in np.ndenumerate(grid):
-            runs = _runs_at(plan, lay, lay.rows[i], lay.cols[j])
-            star = column in FIT_ERRORS and math.isfinite(v) and _poorly_fitted(
-                rows_by_id, runs, column)
-            starred |= star
-            if column in FLAGS and _flagged(rows_by_id, runs, column):
+            if column in FLAGS and _flagged(rows_by_id, cells[i][j], column):
                 hatched = True
                 for hatch, color in FLAG_HATCHES:
                     ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1.0, 1.0, fill=False, lw=0.0,
                                            hatch=hatch, edgecolor=color))
-            ax.text(j, i, significant(v) + ("*" if star else ""), ha="center",
-                    va="center", fontsize=7, color="k",
-                    bbox={"facecolor": "white", "alpha": 0.6, "lw": 0, "pad": 1})
-        if starred:
-            title += "\n*: a run's fit there is poorly determined (error over half the value)"
+            ax.text(j, i, significant(v) + ("*" if starred[i, j] else ""), ha="center",
+                    va="center", fontsize=CELL_FONT, color="k",
+                    bbox={"facecolor": "white", "alpha": 0.7, "lw": 0, "pad": 1.5})
+        if starred.any():
+            title += ("\n*: a run's fit there is poorly determined (error over half the value);"
+                      "\nits colour is left out of the range")
         if hatched:
             title += "\n" + FLAGS[column][1]
-        ax.set_xticks(range(len(lay.cols)), [lay.col_label(c) for c in lay.cols], fontsize=7,
+        ax.set_xticks(range(len(lay.cols)), [lay.col_label(c) for c in lay.cols], fontsize=8,
                       rotation=20, ha="right")
-        ax.set_yticks(range(len(lay.rows)), [lay.row_label(r) for r in lay.rows], fontsize=7)
-        ax.set_title(title, fontsize=9)
-        fig.colorbar(im, ax=ax, shrink=0.85)
+        ax.set_yticks(range(len(lay.rows)), [lay.row_label(r) for r in lay.rows], fontsize=8)
+        ax.set_title(title, fontsize=9.5)
+        fig.colorbar(im, ax=ax, shrink=0.85, extend=extend).ax.tick_params(labelsize=8)
     for ax in axes[n:]:
         ax.set_visible(False)
     if not any_value:
@@ -382,7 +475,8 @@ def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[st
                 str(row.get("flow_pattern") or "n/a")]
         body.append(f"<tr><td>{name}</td>" + "".join(f"<td>{html.escape(v)}</td>" for v in vals)
                     + "</tr>")
-    return f"<table><tr>{cells}</tr>{''.join(body)}</table>"
+    return (f"<div class='wide'><table class='runs'><tr>{cells}</tr>{''.join(body)}</table>"
+            "</div>")
 
 
 FIGURES = [
@@ -470,7 +564,8 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     spec = plan.study.spec
     title = f"silodem study: {plan.name}" + (" (--quick)" if plan.quick else "")
     parts = [(f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{PAGE_CSS}</style></head><body>"),
+             f"<title>{html.escape(title)}</title><style>{PAGE_CSS}{STUDY_CSS}</style></head>"
+             "<body>"),
              f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(spec.description)}</p>"]
     n_done = len(rows)
     meta = [("base", spec.base or "the grid's", ""), ("seeds", ", ".join(map(str, spec.seeds)), ""),
