@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 from measure_helpers import tiny_hopper_config
 
-from silodem.measure.fields import QUADRATURE, cell_area_inside, cell_sums, fields_of
+from silodem.measure.fields import (
+    QUADRATURE,
+    cell_area_inside,
+    cell_sums,
+    disk_rectangle_area,
+    fields_of,
+    solid_area_shares,
+)
 from silodem.measure.recorders import MeasureRecorder, recorders_for
 from silodem.silo.geometry import silo_shape
 from silodem.silo.procedure import SiloRun
@@ -43,8 +50,11 @@ def test_cell_areas_inside_a_flat_silo_and_a_hopper():
 
 def test_density_of_a_triangular_lattice_is_its_packing_fraction():
     """Equal disks of radius r on a triangular lattice (rows 2r apart along x, sqrt(3) r apart
-    in z) fill pi / (2 sqrt 3) of the plane; cells of 2 periods (4r x 4 sqrt(3) r), offset so no
-    centre lies on an edge, each hold exactly 2 x 2 x 2 centres: density pi/(2 sqrt 3) rho."""
+    in z) fill pi / (2 sqrt 3) of the plane; a cell of 2 x 2 periods (4r x 4 sqrt(3) r), the
+    disks shared among the cells by area, holds exactly that share of solid, wherever the cell
+    lies.  The cells at the grid's edge hold more or less (grains centred outside the grid
+    are left out, the outer parts of those inside are kept), the grid as a whole exactly the
+    mass of the grains centred in it."""
     r, rho, t = 0.05, 2500.0, 1.0
     rows, cols = 24, 24
     x = np.array([2 * r * c + (r if k % 2 else 0.0) for k in range(rows) for c in range(cols)])
@@ -52,14 +62,109 @@ def test_density_of_a_triangular_lattice_is_its_packing_fraction():
     mass = np.full(x.size, rho * math.pi * r * r * t)
     xe = np.arange(0, 2 * r * cols, 4 * r) - 0.5 * r
     ze = np.arange(0, math.sqrt(3) * r * rows, 4 * math.sqrt(3) * r) - 0.5 * r
-    msum, mom = cell_sums(x, z, mass, np.zeros((x.size, 2, 2)), xe, ze)
+    msum, mom = cell_sums(x, z, np.full(x.size, r), mass, np.zeros((x.size, 2, 2)), xe, ze)
     area = np.outer(np.diff(xe), np.diff(ze))
     density, stress = fields_of(msum, mom, area, t, 1)
-    np.testing.assert_allclose(density, math.pi / (2 * math.sqrt(3)) * rho, rtol=1e-12)
+    inner = density[1:-1, 1:-1]
+    assert inner.size >= 9
+    np.testing.assert_allclose(inner, math.pi / (2 * math.sqrt(3)) * rho, rtol=1e-12)
     assert np.all(stress == 0)
+    centred = (x >= xe[0]) & (x < xe[-1]) & (z >= ze[0]) & (z < ze[-1])
+    assert (density * area * t).sum() == pytest.approx(mass[centred].sum(), rel=1e-12)
     # two samples of the same state: the same mean
     density2, _ = fields_of(2 * msum, 2 * mom, area, t, 2)
     np.testing.assert_allclose(density2, density, rtol=1e-15)
+
+
+def test_disk_in_a_rectangle_has_its_exact_area():
+    """Worked by hand: a disk of radius r wholly inside a rectangle covers pi r^2 of it;
+    centred on an edge, half; on a corner, a quarter; one corner of the rectangle at the
+    centre and the opposite corner at (a, b) inside the disk: the quarter-disk part
+    a b (for a, b small against r, a^2 + b^2 <= r^2: the rectangle is wholly inside);
+    the band |x - x_c| <= h: the disk less two circular segments,
+    2 (h sqrt(r^2 - h^2) + r^2 asin(h / r))."""
+    r = 0.3
+    assert disk_rectangle_area(1.0, 2.0, r, 0.0, 5.0, 0.0, 5.0) == pytest.approx(
+        math.pi * r * r, rel=1e-14)
+    for x0, x1, z0, z1 in ((1.0, 5.0, 0.0, 5.0), (-5.0, 1.0, 0.0, 5.0),
+                           (0.0, 5.0, 2.0, 5.0), (0.0, 5.0, 0.0, 2.0)):  # the four edges
+        assert disk_rectangle_area(1.0, 2.0, r, x0, x1, z0, z1) == pytest.approx(
+            0.5 * math.pi * r * r, rel=1e-14)
+    for x0, x1, z0, z1 in ((1.0, 5.0, 2.0, 5.0), (-5.0, 1.0, 2.0, 5.0),
+                           (1.0, 5.0, -5.0, 2.0), (-5.0, 1.0, -5.0, 2.0)):  # the four corners
+        assert disk_rectangle_area(1.0, 2.0, r, x0, x1, z0, z1) == pytest.approx(
+            0.25 * math.pi * r * r, rel=1e-14)
+    assert disk_rectangle_area(1.0, 2.0, r, 1.0, 1.1, 2.0, 2.2) == pytest.approx(
+        0.1 * 0.2, rel=1e-12)
+    h = 0.1
+    band = 2 * (h * math.sqrt(r * r - h * h) + r * r * math.asin(h / r))
+    assert disk_rectangle_area(1.0, 2.0, r, 1.0 - h, 1.0 + h, -np.inf, np.inf) == \
+        pytest.approx(band, rel=1e-14)
+    assert disk_rectangle_area(1.0, 2.0, r, 1.4, 2.0, 0.0, 5.0) == 0.0  # apart
+
+
+def test_disk_rectangle_area_against_a_fine_quadrature():
+    """Random disks and rectangles cutting them anyhow: the area equals the midpoint rule on a
+    2000 x 2000 grid over the disk's bounding square (error under ~ 4 r^2 / 2000 of the
+    boundary's cells, well within 1e-3 pi r^2)."""
+    rng = np.random.default_rng(3)
+    n = 2000
+    for _ in range(20):
+        x, z, r = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0.05, 0.5)
+        x0, z0 = x + rng.uniform(-1.2, 0.8) * r, z + rng.uniform(-1.2, 0.8) * r
+        x1, z1 = x0 + rng.uniform(0.1, 2.0) * r, z0 + rng.uniform(0.1, 2.0) * r
+        u = -r + 2 * r * (np.arange(n) + 0.5) / n
+        gx, gz = np.meshgrid(x + u, z + u, indexing="ij")
+        inside = ((gx - x) ** 2 + (gz - z) ** 2 <= r * r) & (gx >= x0) & (gx <= x1) \
+            & (gz >= z0) & (gz <= z1)
+        quad = inside.sum() * (2 * r / n) ** 2
+        assert disk_rectangle_area(x, z, r, x0, x1, z0, z1) == pytest.approx(
+            quad, abs=1e-3 * math.pi * r * r)
+
+
+def test_solid_area_shares_add_up_to_each_grain():
+    """Conservation: over an uneven grid, each grain centred in it has shares adding up to
+    pi r^2 (the outer edges unbounded: a grain hanging over them counts there whole), so
+    the cells' solid areas add up to the grains' total area; grains centred outside are left
+    out.  Cells smaller than a grain: a grain reaches up to ceil(2r / cell) + 1 of them in
+    each direction."""
+    rng = np.random.default_rng(5)
+    xe = np.array([0.0, 0.3, 0.35, 0.9, 1.0, 1.6])
+    ze = np.array([0.0, 0.05, 0.5, 0.55, 1.2])
+    x, z = rng.uniform(-0.1, 1.7, 400), rng.uniform(-0.1, 1.3, 400)
+    r = rng.uniform(0.02, 0.2, 400)
+    grain, cell, area = solid_area_shares(x, z, r, xe, ze)
+    centred = (x >= 0) & (x < 1.6) & (z >= 0) & (z < 1.2)
+    assert set(grain) == set(np.flatnonzero(centred))
+    per_grain = np.bincount(grain, weights=area, minlength=x.size)
+    np.testing.assert_allclose(per_grain[centred], np.pi * r[centred] ** 2, rtol=1e-12)
+    assert np.all(area >= 0) and cell.max() < (xe.size - 1) * (ze.size - 1)
+    # a disk centred on an inner corner (x = 0.9, z = 0.5) puts a quarter in each of 4 cells
+    g, c, a = solid_area_shares([0.9], [0.5], [0.04], xe, ze)
+    assert np.all(g == 0)
+    nz = ze.size - 1
+    assert sorted(c) == sorted([2 * nz + 1, 2 * nz + 2, 3 * nz + 1, 3 * nz + 2])
+    np.testing.assert_allclose(a, 0.25 * math.pi * 0.04**2, rtol=1e-12)
+
+
+def test_no_cell_holds_more_solid_than_the_disks_cover():
+    """Equal disks touching on a triangular lattice, cells of one diameter: counted by their
+    centres a cell held up to two grains, 2 pi r^2 / (2r)^2 = 1.57 of its area; shared by
+    area, no cell holds more than its area (the disks do not overlap)."""
+    r = 0.1
+    rows, cols = 40, 20
+    x = np.array([2 * r * c + (r if k % 2 else 0.0) for k in range(rows) for c in range(cols)])
+    z = np.array([math.sqrt(3) * r * k for k in range(rows) for c in range(cols)])
+    rho, t = 835.0, 1.0
+    mass = np.full(x.size, rho * math.pi * r * r * t)
+    xe, ze = np.arange(0.0, 2 * r * cols, 2 * r), np.arange(0.0, math.sqrt(3) * r * rows, 2 * r)
+    msum, mom = cell_sums(x, z, np.full(x.size, r), mass, np.zeros((x.size, 2, 2)), xe, ze)
+    density, _ = fields_of(msum, mom, np.outer(np.diff(xe), np.diff(ze)), t, 1)
+    solid = density[1:-1, 1:-1] / rho
+    assert solid.max() <= 1.0 + 1e-12
+    assert solid.max() > math.pi / (2 * math.sqrt(3))  # (cells this small do vary)
+    counted = np.histogram2d(x, z, bins=(xe, ze))[0][1:-1, 1:-1] * math.pi * r * r / (2 * r) ** 2
+    assert counted.max() > 1.5  # what counting by centres made of the same cells
 
 
 def test_cells_outside_the_silo_or_without_samples_are_nan():

@@ -128,7 +128,7 @@ def test_stress_field_of_the_compressed_box_adds_up_to_the_wall_stress(compresse
     width, height = w.ax[1], w.ay[2]
     rd = read_simulation(sim)
     xe, ze = np.linspace(0, width, 5), np.linspace(0, height, 5)
-    mass, moments = cell_sums(rd.x, rd.z, rd.mass, rd.moments, xe, ze)
+    mass, moments = cell_sums(rd.x, rd.z, rd.r, rd.mass, rd.moments, xe, ze)
     area = np.outer(np.diff(xe), np.diff(ze))
     density, stress = fields_of(mass, moments, area, 1.0, 1)
     whole = region_stress(rd.moments, np.ones(rd.n, bool), width * height, 1.0)

@@ -646,6 +646,65 @@ def test_force_lines_have_a_key_that_reads_true(frames):
     assert widths[free] / fn[free] == pytest.approx(key_ratio[0], rel=1e-9)
 
 
+@pytest.mark.parametrize(("color", "height"), [("none", 700), ("velocity", 560),
+                                               ("velocity", 200), ("coordination", 320),
+                                               ("force", 800)])
+def test_the_keys_hide_no_grain_and_no_wall(frames, color, height):
+    """The force key and the colour bar lie outside the silo's plot: their boxes on the canvas
+    do not meet the plot's, nor each other, and stay inside the figure; and the plot's pixels
+    are the same with the key drawn and without it (in the first frame, pouring at the top,
+    and the settled one, whose force lines reach the right wall's top)."""
+    from silodem.viz.draw import FrameArtist
+
+    artist = FrameArtist(frames, color, height_px=height)
+    renderer = artist.canvas.get_renderer()
+    for frame in (frames[0], frames.end_of_filling()):
+        artist.draw(frame)
+        artist.force_key.set_visible(True)
+        with_key = artist.rgb()
+        plot = artist.ax.get_window_extent(renderer)
+        boxes = {"key": artist.force_key.get_window_extent(renderer)}
+        bars = [a for a in artist.fig.axes if a is not artist.ax]
+        assert len(bars) == (0 if color == "none" else 1)
+        if bars:
+            boxes["colour bar"] = bars[0].get_window_extent(renderer)
+        for name, box in boxes.items():
+            assert not box.overlaps(plot), name
+            assert box.x0 >= 0 and box.y0 >= 0, name
+            assert box.x1 <= artist.width_px and box.y1 <= artist.height_px, name
+        if bars:
+            assert not boxes["key"].overlaps(boxes["colour bar"])
+        artist.force_key.set_visible(False)
+        without = artist.rgb()
+        h = artist.height_px  # the plot's pixels: rows counted from the top
+        rows = slice(int(h - plot.y1) + 1, int(h - plot.y0) - 1)
+        cols = slice(int(plot.x0) + 1, int(plot.x1) - 1)
+        np.testing.assert_array_equal(with_key[rows, cols], without[rows, cols])
+        assert not np.array_equal(with_key, without)  # (the key is drawn somewhere)
+
+
+def _relative_luminance(rgb) -> float:
+    """WCAG 2 relative luminance of an sRGB colour (components 0 to 1)."""
+    lin = [c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4 for c in rgb[:3]]
+    return 0.2126 * lin[0] + 0.7152 * lin[1] + 0.0722 * lin[2]
+
+
+@pytest.mark.parametrize("color", ["velocity", "force"])
+def test_force_lines_stand_out_on_grains_at_rest(frames, color):
+    """A grain at rest (speed 0; no force on it) is drawn in the low end of the colour map:
+    against it the red force lines have a WCAG contrast ratio (L1 + 0.05) / (L2 + 0.05) of at
+    least 4.5 (6.1 on YlGnBu's pale yellow; 2.5 on viridis' dark purple), so a settled
+    packing's network reads."""
+    from matplotlib.colors import to_rgb
+
+    from silodem.viz.draw import CHAIN_COLOR, FrameArtist
+
+    artist = FrameArtist(frames, color)
+    rest = _relative_luminance(artist.cmap(artist.norm(0.0)))
+    chain = _relative_luminance(to_rgb(CHAIN_COLOR))
+    assert (max(rest, chain) + 0.05) / (min(rest, chain) + 0.05) >= 4.5
+
+
 def test_force_network_of_a_file_without_frames_is_a_one_line_error(tmp_path):
     """A results.h5 with no /frames (written by an older silodem or another program) gives a
     ValueError (``NoFramesError``, from ``read_frames`` itself) naming the file and what it

@@ -344,8 +344,9 @@ class Measure(_Strict):
         "[m]; unset: four mean grain diameters"
     )
     field_kernel: Literal["box", "gaussian"] = Field(
-        "box", description="coarse-graining of the density and stress fields: 'box' (grains "
-        "counted in the cell of their centre) or 'gaussian' (smooth, at the cell centres)"
+        "box", description="coarse-graining of the density and stress fields: 'box' (a grain's "
+        "mass shared among the cells by the area of its disk in each, its stress in the cell "
+        "of its centre) or 'gaussian' (smooth, at the cell centres)"
     )
     field_width: float | None = Field(
         None, gt=0, description="width w (standard deviation) of the Gaussian of "

@@ -107,6 +107,16 @@ def dead_zone(exit_time: npt.ArrayLike, max_displacement: npt.ArrayLike,
     return np.isnan(np.asarray(exit_time)) & (np.asarray(max_displacement) < radius)
 
 
+def dead_fraction(dead: npt.ArrayLike, lost: npt.ArrayLike | None = None) -> float:
+    """The fraction [-] of the grains in the silo as the gate opened that are in the dead zone
+    (``dead``, :func:`dead_zone`): grains ``lost`` through a wall before it opened
+    (``measure/flow/lost_before_discharge``; None: none) are in neither count.  NaN without
+    a grain."""
+    dead = np.asarray(dead, dtype=bool)
+    there = ~np.asarray(lost, dtype=bool) if lost is not None else np.ones(dead.size, bool)
+    return float(dead[there].mean()) if there.any() else float("nan")
+
+
 def classify_flow(mfi: float, dead_fraction: float, threshold: float = 0.3) -> str:
     """'mass flow' when MFI >= threshold and no dead zone (< 1 % of the grains), else
     'funnel flow'; 'unknown' when the MFI could not be measured."""

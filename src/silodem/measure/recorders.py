@@ -10,7 +10,8 @@ sample reads the run once (:mod:`silodem.measure.reading`) and feeds four parts:
             strips along both edges of the silo and in full-width slices, binned in z;
 * fields:   bulk density and Love-Weber stress on a grid, of the settled packing and over
             the discharge window (:mod:`silodem.measure.fields`);
-* flow:     from the gate opening on: when each grain leaves, how far it moved (dead zones),
+* flow:     from the gate opening on: when each grain leaves, how far it moved (dead zones;
+            grains already outside the silo at the opening marked lost, not followed),
             the mean velocity field on a grid over the discharge window, the velocities near the
             walls and on the axis above the junction (mass flow index), and a snapshot of the
             grains and contacts in the middle of the discharge window (force network, Fig. 5).
@@ -183,6 +184,16 @@ class _ProfilesPart:
             _dataset(pg, key, a[key], "Pa", components="xx,zz,xz; compression positive")
 
 
+def lost_before_discharge(shape, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """True for the grains whose centre (x, z) [m] lies outside the silo when the gate opens:
+    below the outlet (z < 0) or beyond a wall at its height (``regions.edge_distance`` < 0);
+    soft contacts push such grains through a wall while filling (``silo.procedure`` removes
+    them only once they are far out), and they did not discharge."""
+    x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
+    left, right = regions.edge_distance(shape, x, z)
+    return (z < 0.0) | (left < 0.0) | (right < 0.0)
+
+
 class _FlowPart:
     def __init__(self, cfg: Config, shape) -> None:
         m = cfg.measure
@@ -195,6 +206,7 @@ class _FlowPart:
         self.t_open = np.nan
         self.uid0 = np.zeros(0, dtype=np.int64)
         self.x0 = self.z0 = self.r0 = self.exit_time = self.max_disp = np.zeros(0)
+        self.lost = np.zeros(0, dtype=bool)  # lost before the discharge (``begin``)
         shape2 = (self.x_edges.size - 1, self.z_edges.size - 1)
         self.grid = np.zeros((3, *shape2))  # sum vx, sum vz, count
         self.grid_samples = 0
@@ -202,21 +214,35 @@ class _FlowPart:
         self.snapshot: Snapshot | None = None
 
     def start(self, run: SiloRun) -> None:
-        """The gate opens: note every grain's place; fit the mass-flow-index band (one
-        diameter above the junction, a third of the remaining fill, between one diameter and
-        B/2 high) under the free surface."""
+        """The gate opens: note every grain's place (``begin``)."""
         p = run.sim.particles
-        self.t_open = run.sim.time
-        lo = regions.reference_height(self.shape, 0.0) + self.d
-        height = float(np.clip((run.fill_level() - lo) / 3.0, self.d, 0.5 * self.shape.width))
-        self.mfi_band = (lo, lo + height)
-        self.uid0 = p.view("uid").copy()
-        self.x0, self.z0, self.r0 = p.view("x").copy(), p.view("y").copy(), \
-            p.view("radius").copy()
-        self.exit_time = np.full(self.uid0.size, np.nan)
-        self.max_disp = np.zeros(self.uid0.size)
+        self.begin(run.sim.time, p.view("uid").copy(), p.view("x").copy(),
+                   p.view("y").copy(), p.view("radius").copy(), run.fill_level())
 
-    def record(self, run: SiloRun, rd: Reading) -> None:
+    def begin(self, t_open: float, uid: np.ndarray, x: np.ndarray, z: np.ndarray,
+              r: np.ndarray, fill_level: float) -> None:
+        """The gate opens at ``t_open`` [s] on the grains ``uid`` at (x, z) [m] of radii r [m]:
+        note their places; mark the grains lost before the discharge (centre below the
+        outlet, z < 0, or beyond a wall, pushed through it by too soft contacts while filling:
+        they did not discharge, so they get no exit time and no displacement, NaN); fit the
+        mass-flow-index band (one diameter above the junction, a third of the remaining fill
+        up to ``fill_level`` [m], between one diameter and B/2 high) under the free surface."""
+        self.t_open = float(t_open)
+        lo = regions.reference_height(self.shape, 0.0) + self.d
+        height = float(np.clip((fill_level - lo) / 3.0, self.d, 0.5 * self.shape.width))
+        self.mfi_band = (lo, lo + height)
+        self.uid0 = np.asarray(uid, dtype=np.int64).copy()
+        self.x0, self.z0, self.r0 = (np.asarray(v, dtype=float).copy() for v in (x, z, r))
+        self.lost = lost_before_discharge(self.shape, self.x0, self.z0)
+        self.exit_time = np.full(self.uid0.size, np.nan)
+        self.max_disp = np.where(self.lost, np.nan, 0.0)
+
+    def record(self, run: SiloRun | None, rd: Reading) -> None:
+        """One sample ``rd`` after the gate opened: the tracked grains absent from it or with
+        their centre below the outlet (z < 0) have left, at this sample's time after the
+        opening unless they had left before; the others' largest displacement grows.  The
+        grains lost before the discharge are not followed.  (``run`` is read only for the
+        snapshot in the middle of the discharge window.)"""
         if not np.isfinite(self.t_open):
             return
         t = rd.time - self.t_open
@@ -226,8 +252,10 @@ class _FlowPart:
         idx = order[pos] if rd.n else pos
         present = (rd.uid[idx] == self.uid0) if rd.n else np.zeros(self.uid0.size, bool)
         present &= rd.z[idx] >= 0.0 if rd.n else present
-        gone = ~present & np.isnan(self.exit_time)
+        followed = ~self.lost
+        gone = ~present & np.isnan(self.exit_time) & followed
         self.exit_time[gone] = t
+        present &= followed
         if rd.n:
             k = idx[present]
             disp = np.hypot(rd.x[k] - self.x0[present], rd.z[k] - self.z0[present])
@@ -268,6 +296,7 @@ class _FlowPart:
         out: dict[str, Any] = {"flow.t_open": self.t_open, "flow.uid0": self.uid0,
                                "flow.x0": self.x0, "flow.z0": self.z0, "flow.r0": self.r0,
                                "flow.exit_time": self.exit_time, "flow.max_disp": self.max_disp,
+                               "flow.lost": self.lost,
                                "flow.grid": self.grid, "flow.grid_samples": self.grid_samples,
                                "flow.mfi": _stack(self.mfi_rows, (6,)),
                                "flow.mfi_band": np.array(self.mfi_band)}
@@ -284,6 +313,13 @@ class _FlowPart:
         self.t_open = float(state["flow.t_open"])
         for key in ("uid0", "x0", "z0", "r0", "exit_time", "max_disp", "grid"):
             setattr(self, key, np.array(state[f"flow.{key}"]))
+        if "flow.lost" in state:
+            self.lost = np.array(state["flow.lost"], dtype=bool)
+        else:  # a checkpoint written before the flag: from the grains' places at the opening,
+            # and what was recorded of those grains undone (they had the first exit time)
+            self.lost = lost_before_discharge(self.shape, self.x0, self.z0)
+            self.exit_time[self.lost] = np.nan
+            self.max_disp = np.where(self.lost, np.nan, self.max_disp)
         self.grid_samples = int(state["flow.grid_samples"])
         self.mfi_band = tuple(float(v) for v in state["flow.mfi_band"])
         self.mfi_rows = [tuple(r) for r in np.asarray(state["flow.mfi"]).tolist()]
@@ -309,8 +345,12 @@ class _FlowPart:
         _dataset(f, "z0", self.z0, "m")
         _dataset(f, "r0", self.r0, "m")
         _dataset(f, "exit_time", self.exit_time, "s", meaning="time after the gate opened at "
-                 "which the grain left (NaN: still inside)")
-        _dataset(f, "max_displacement", self.max_disp, "m")
+                 "which the grain left (NaN: still inside, or lost before the discharge)")
+        _dataset(f, "max_displacement", self.max_disp, "m", meaning="largest distance from "
+                 "its place at the gate opening (NaN: lost before the discharge)")
+        _dataset(f, "lost_before_discharge", self.lost, meaning="the grain's centre was below "
+                 "the outlet (z < 0) or beyond a wall when the gate opened: lost through a "
+                 "wall while filling, not discharged")
         grid = f.create_group("grid")
         _dataset(grid, "x_edges", self.x_edges, "m")
         _dataset(grid, "z_edges", self.z_edges, "m")

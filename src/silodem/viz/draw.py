@@ -38,7 +38,9 @@ COLORS = ("velocity", "force", "coordination", "none")
 _LABELS = {"velocity": "grain speed |v| [m/s]",
            "force": "sum of the grain's contact normal forces [N]",
            "coordination": "coordination number (contacts per grain) [-]"}
-_CMAPS = {"velocity": "viridis", "force": "YlGnBu", "coordination": "viridis"}
+# grain colours: low ends pale for speed and force (the red chains of grains at rest read on
+# them); all colour-blind safe (ColorBrewer YlGnBu, viridis)
+_CMAPS = {"velocity": "YlGnBu", "force": "YlGnBu", "coordination": "viridis"}
 CHAIN_COLOR = "#c0152f"
 PLAIN_GRAIN = "#ddd5c4"
 _MAX_COORD = 7
@@ -81,6 +83,28 @@ def key_forces(force_scale: float, raster: bool = False) -> list[float]:
     lo, hi = CHAIN_WIDTHS
     return [f for f in (0.5 * base, base, 2.0 * base)
             if lo <= CHAIN_WIDTH * f / force_scale <= hi]
+
+
+KEY_GAP = 14  # px between the plot, the colour bar and the force key
+_BAR_WIDTH = 16  # px: the colour bar
+_BAR_COLUMN = 92  # px: the colour bar with its ticks and its label, rotated
+
+
+def _legend_size_px(kw: dict) -> tuple[float, float]:
+    """(width, height) [px at 100 dpi] of a figure legend made with ``kw``, measured on a
+    scratch figure (its size does not depend on the figure's)."""
+    fig = Figure(figsize=(4, 4), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    box = fig.legend(**kw).get_window_extent(canvas.get_renderer())
+    return float(box.width), float(box.height)
+
+
+def _text_length_px(text: str, fontsize: float) -> float:
+    """Length [px at 100 dpi] of one line of ``text`` at ``fontsize`` [pt]."""
+    fig = Figure(figsize=(4, 4), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    return float(fig.text(0, 0, text, fontsize=fontsize).get_window_extent(
+        canvas.get_renderer()).width)
 
 
 def _even16(px: float) -> int:
@@ -163,22 +187,46 @@ class FrameArtist:
             self.norm = None
         self.cmap = matplotlib.colormaps[_CMAPS[color]] if color in _CMAPS else None
 
-        # the figure: axes sized to the silo (equal scales), a colour bar on the right [px]
+        # the figure [px]: axes sized to the silo (equal scales); right of them a column with
+        # the force key at the top and the colour bar under it (beside it where that leaves
+        # the bar shorter than 40 % of the plot or than its label): no key hides a grain or
+        # a wall
         dpi = 100
         aspect = (self.xlim[1] - self.xlim[0]) / (self.ylim[1] - self.ylim[0])
-        h = _even16(height_px)
         left, bottom, top = 62, 45, 28
-        right = 120 if self.norm is not None else 24
-        widest_plot = WIDTH_PX_MAX - left - right - 16  # (room for the rounding to 16 px)
-        if aspect * (h - bottom - top) > widest_plot:  # a wide silo: lower, not wider
+        gap = KEY_GAP
+        bar_col = gap + _BAR_COLUMN if self.norm is not None else 0
+        # the colour bar at least as long as its label (rotated along it) and 40 % of the plot
+        bar_min = _text_length_px(_LABELS[color], 8) if self.norm is not None else 0.0
+
+        def layout(h: int) -> tuple[bool, dict, float, bool, int]:
+            """For a figure h px tall: (grains drawn as pixels, the key's legend arguments,
+            its height [px], key beside the bar, right margin [px])."""
+            plot_h = h - bottom - top
+            # grains under RASTER_BELOW_PX across even at their largest: cells of pixels
+            raster = 2.0 * r_max * plot_h / (self.ylim[1] - self.ylim[0]) < RASTER_BELOW_PX
+            key_kw = self._key_arguments(raster)
+            key_w, key_h = _legend_size_px(key_kw)
+            beside = self.norm is not None and \
+                plot_h - key_h - gap < max(0.4 * plot_h, bar_min)
+            key_col = gap + key_w + 8
+            right = round((bar_col + key_col if beside else max(bar_col, key_col)) + 8)
+            return raster, key_kw, key_h, beside, right
+
+        h = _even16(height_px)
+        self.raster, key_kw, key_h, beside, right = layout(h)
+        for _ in range(3):  # (a lower figure may draw pixels, whose key differs: once)
+            widest_plot = WIDTH_PX_MAX - left - right - 16  # (room for the rounding to 16 px)
+            if aspect * (h - bottom - top) <= widest_plot:
+                break
+            # a wide silo: a lower figure, not a wider one
             h = max(96, 16 * int((widest_plot / aspect + bottom + top) // 16))
+            self.raster, key_kw, key_h, beside, right = layout(h)
         self.height_px = h
         plot_h = h - bottom - top
         plot_w = aspect * plot_h
-        self.width_px = w = _even16(left + plot_w + right + 8)
-        # grains under RASTER_BELOW_PX across even at their largest: drawn as cells of pixels
+        self.width_px = w = _even16(left + plot_w + right)
         diameter_px = 2.0 * r_max * plot_h / (self.ylim[1] - self.ylim[0])
-        self.raster = diameter_px < RASTER_BELOW_PX
         self.raster_shape = raster_shape(plot_h, plot_w, diameter_px)
         self.fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi, facecolor="white")
         self.canvas = FigureCanvasAgg(self.fig)
@@ -189,9 +237,16 @@ class FrameArtist:
         ax.set_xlabel("x [m]", fontsize=8)
         ax.set_ylabel("z [m]", fontsize=8)
         ax.tick_params(labelsize=7)
+        plot_right, plot_top = left + plot_w, bottom + plot_h
+        key_left = plot_right + (bar_col if beside else 0) + gap
+        # the key of the force lines' widths, fixed over the run like their scale
+        self.force_key = self.fig.legend(loc="upper left",
+                                         bbox_to_anchor=(key_left / w, plot_top / h), **key_kw)
         if self.norm is not None:
-            cax = self.fig.add_axes(((left + plot_w + 14) / w, (bottom + 0.1 * plot_h) / h,
-                                     16 / w, 0.8 * plot_h / h))
+            bar_top = plot_top if beside else plot_top - key_h - gap
+            bar_bottom = bottom + (0.1 * plot_h if beside else 0.0)
+            cax = self.fig.add_axes(((plot_right + gap) / w, bar_bottom / h, _BAR_WIDTH / w,
+                                     (bar_top - bar_bottom) / h))
             cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
             cb.set_label(_LABELS[color], fontsize=8)
             cb.ax.tick_params(labelsize=7)
@@ -202,8 +257,12 @@ class FrameArtist:
                                    color="k", lw=1.6, solid_capstyle="round")[0]
                            for k in range(len(walls))]
         self.text = ax.set_title("", fontsize=9, loc="left")
-        # the key of the force lines' widths, fixed over the run like their scale
-        if self.raster:  # one width, the opacity of a cell whose largest force is f
+        self._artists: list = []
+
+    def _key_arguments(self, raster: bool) -> dict:
+        """The legend arguments of the force lines' key: three widths, or for grains drawn as
+        pixels one width at the opacity of a cell whose largest force is f."""
+        if raster:
             handles = [Line2D([], [], color=CHAIN_COLOR, solid_capstyle="butt", lw=5.0,
                               alpha=float(chain_alphas(f, self.force_scale)), label=f"{f:g} N")
                        for f in key_forces(self.force_scale, raster=True)]
@@ -211,12 +270,9 @@ class FrameArtist:
             handles = [Line2D([], [], color=CHAIN_COLOR, alpha=CHAIN_ALPHA, solid_capstyle="round",
                               lw=float(chain_widths(f, self.force_scale)), label=f"{f:g} N")
                        for f in key_forces(self.force_scale)]
-        key_title = ("largest contact normal\nforce in each cell" if self.raster
-                     else "contact normal force")
-        self.force_key = ax.legend(handles=handles, title=key_title,
-                                   loc="upper right", fontsize=7, title_fontsize=7,
-                                   framealpha=0.85, handlelength=2.2)
-        self._artists: list = []
+        title = "largest contact normal\nforce in each cell" if raster else "contact normal force"
+        return {"handles": handles, "title": title, "fontsize": 7, "title_fontsize": 7,
+                "framealpha": 0.85, "handlelength": 2.2, "borderaxespad": 0.0}
 
     # --- drawing ------------------------------------------------------------------------------
     def draw(self, frame: Frame, title: str | None = None) -> None:

@@ -1,0 +1,207 @@
+"""Exit times and the grains lost before the discharge (``measure.recorders``' flow part), on
+a hand-made sequence of readings whose answers are worked out here: which grain leaves at
+which sample, which were never in the silo when the gate opened, and that state()/restore()
+carries it all; and the dead-zone figure that draws them."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from measure_helpers import tiny_hopper_config
+
+from silodem.measure.discharge import dead_zone
+from silodem.measure.reading import Reading
+from silodem.measure.recorders import _FlowPart, lost_before_discharge
+from silodem.silo.geometry import silo_shape
+
+T_OPEN = 3.0  # [s]
+R = 0.05  # [m]
+
+
+def _reading(time, uid, x, z):
+    """A reading of grains ``uid`` at (x, z) [m], at rest, without contacts."""
+    n = len(uid)
+    x, z = np.asarray(x, float), np.asarray(z, float)
+    zeros, none = np.zeros(n), np.zeros(0)
+    return Reading(float(time), 0, x, z, np.full(n, R), zeros, zeros, np.ones(n),
+                   np.asarray(uid, np.int64), none.astype(np.int64), none.astype(np.int64),
+                   none, none, none.astype(np.int64), none.astype(np.int64), none, none,
+                   none, none, np.zeros((n, 2, 2)), zeros)
+
+
+def _tiny():
+    """The tiny hopper: B = 1.2 m, outlet 0.4 m wide at z = 0 (x from 0.4 to 0.8), hopper walls
+    at 50 degrees from the horizontal up to z_j = 0.4 tan 50 = 0.477 m."""
+    cfg = tiny_hopper_config()
+    return cfg, silo_shape(cfg)
+
+
+# uid: place at the gate opening (x, z) [m], and what happens to it
+GRAINS = {
+    10: (0.60, 0.50),   # stays, moves 0.03 m down then 0.04 m (its largest) and back
+    11: (0.60, 0.10),   # above the outlet: below z = 0 at the 2nd sample -> leaves there
+    12: (0.60, -0.04),  # squashed through the gate while filling: lost before the discharge
+    13: (-0.02, 1.50),  # pushed through the left wall while filling: lost
+    14: (0.50, 0.20),   # gone (removed) at the 1st sample -> leaves there
+    15: (0.10, 0.15),   # z = 0.15 m but x = 0.1 m: beyond the left hopper wall (which is at
+                        # x = 0.4 (1 - 0.15 / 0.477) = 0.274 m there): lost
+}
+
+
+def _begin(flow):
+    uid = np.array(list(GRAINS))
+    x, z = np.array(list(GRAINS.values())).T
+    flow.begin(T_OPEN, uid, x, z, np.full(uid.size, R), fill_level=1.2)
+
+
+def _samples():
+    """Three samples after the opening, at +0.02, +0.04, +0.06 s (before the discharge window
+    of the tiny config, delay 0.2 s): the lost grains 12 and 13 are gone at once (the run
+    removes them), or still there below the outlet; 14 is gone at the first."""
+    return [
+        _reading(T_OPEN + 0.02, [10, 11, 12, 15], [0.60, 0.60, 0.60, 0.10],
+                 [0.47, 0.05, -0.06, 0.15]),
+        _reading(T_OPEN + 0.04, [10, 11, 15], [0.60, 0.60, 0.10], [0.46, -0.01, 0.15]),
+        _reading(T_OPEN + 0.06, [15, 10], [0.10, 0.60], [0.14, 0.49]),
+    ]
+
+
+def test_lost_before_discharge_is_a_centre_outside_the_silo():
+    _, shape = _tiny()
+    z_j = 0.4 * math.tan(math.radians(50.0))
+    x_wall = 0.4 * (1 - 0.15 / z_j)  # the left hopper wall at z = 0.15 m
+    got = lost_before_discharge(shape, [0.6, 0.6, -0.02, 1.22, x_wall + 1e-6, x_wall - 1e-6],
+                                [0.0, -1e-9, 1.5, 1.5, 0.15, 0.15])
+    np.testing.assert_array_equal(got, [False, True, True, True, False, True])
+
+
+def test_exit_times_skip_the_grains_lost_before_the_discharge():
+    """Grains 11 and 14 leave (at +0.04 and +0.02 s); 10 stays and moved at most
+    hypot(0, 0.04) = 0.04 m; 12, 13, 15 were outside the silo when the gate opened: flagged,
+    with no exit time (not the first to leave at +0.02 s) and no displacement (NaN), so that
+    the dead zone does not count them either."""
+    cfg, shape = _tiny()
+    flow = _FlowPart(cfg, shape)
+    _begin(flow)
+    for rd in _samples():
+        flow.record(None, rd)
+    order = list(GRAINS)
+    np.testing.assert_array_equal(flow.uid0, order)
+    np.testing.assert_array_equal(flow.lost, [False, False, True, True, False, True])
+    expected_exit = {10: np.nan, 11: 0.04, 12: np.nan, 13: np.nan, 14: 0.02, 15: np.nan}
+    np.testing.assert_allclose(flow.exit_time, [expected_exit[u] for u in order],
+                               rtol=0, atol=1e-12)
+    expected_disp = {10: 0.04, 11: 0.05, 12: np.nan, 13: np.nan, 14: 0.0, 15: np.nan}
+    np.testing.assert_allclose(flow.max_disp, [expected_disp[u] for u in order],
+                               rtol=0, atol=1e-12)
+    # the dead zone: grain 10 (never left, moved 0.04 m) is dead for a radius over 0.04 m,
+    # and no lost grain is, whatever the radius
+    np.testing.assert_array_equal(dead_zone(flow.exit_time, flow.max_disp, 0.045),
+                                  [True, False, False, False, False, False])
+
+
+def test_state_and_restore_carry_the_lost_grains_through_a_checkpoint():
+    """A copy restored from state() after the first sample goes on exactly as the original;
+    a checkpoint written before the flag existed (which gave the lost grains still there or
+    below the outlet the first sample's time, +0.02 s, and a displacement of 0) gets the flag
+    back from the places at the opening, and those grains' records undone."""
+    cfg, shape = _tiny()
+    a = _FlowPart(cfg, shape)
+    _begin(a)
+    first, *rest = _samples()
+    a.record(None, first)
+    state = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in a.state().items()}
+    assert state["flow.lost"].dtype == bool
+    b, c = _FlowPart(cfg, shape), _FlowPart(cfg, shape)
+    b.restore(state)
+    old = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in state.items()
+           if k != "flow.lost"}
+    old["flow.exit_time"][state["flow.lost"]] = 0.02
+    old["flow.max_disp"][state["flow.lost"]] = 0.0
+    c.restore(old)
+    for rd in rest:
+        for part in (a, b, c):
+            part.record(None, rd)
+    for part in (b, c):
+        np.testing.assert_array_equal(part.lost, a.lost)
+        np.testing.assert_array_equal(part.exit_time, a.exit_time)
+        np.testing.assert_array_equal(part.max_disp, a.max_disp)
+
+
+def test_results_file_holds_the_flag(tmp_path):
+    import h5py
+
+    cfg, shape = _tiny()
+    flow = _FlowPart(cfg, shape)
+    _begin(flow)
+    for rd in _samples():
+        flow.record(None, rd)
+    with h5py.File(tmp_path / "m.h5", "w") as h5:
+        flow.write(h5.create_group("measure"))
+    with h5py.File(tmp_path / "m.h5") as h5:
+        f = h5["measure/flow"]
+        np.testing.assert_array_equal(f["lost_before_discharge"][()],
+                                      [False, False, True, True, False, True])
+        assert np.isnan(f["exit_time"][2]) and np.isnan(f["max_displacement"][2])
+        assert f["exit_time"].attrs["unit"] == "s"
+
+
+def _analysis(exit_time, max_disp, z0, lost=None):
+    """The parts of an Analysis that fig_dead_zones reads, for grains on a row at z0 [m]."""
+    n = len(exit_time)
+    flow = {"uid": np.arange(n), "x0": np.linspace(0.2, 1.0, n), "z0": np.asarray(z0, float),
+            "r0": np.full(n, R), "exit_time": np.asarray(exit_time, float),
+            "max_displacement": np.asarray(max_disp, float)}
+    if lost is not None:
+        flow["lost_before_discharge"] = np.asarray(lost, bool)
+    walls = {"ax": np.zeros(1), "ay": np.zeros(1), "bx": np.zeros(1), "by": np.ones(1),
+             "name": np.array(["left_wall"])}
+    groups = {("measure", "flow"): flow, ("walls",): walls}
+    res = SimpleNamespace(group=lambda *path: groups.get(path))
+    dead = dead_zone(flow["exit_time"], flow["max_displacement"], R)
+    return SimpleNamespace(res=res, flow={"dead": dead, "dead_fraction": dead.mean()},
+                           geom={"B": 1.2, "top": 2.4})
+
+
+@pytest.mark.parametrize("with_flag", [True, False])
+def test_dead_zone_figure_leaves_the_lost_grains_out_of_the_exit_times(with_flag):
+    """Five grains: two left (0.2 and 0.3 s), one dead, two lost before the discharge.  The
+    exit-time colours hold 0.2 and 0.3 s only; the lost grains are drawn as outlines and
+    counted in the title.  A file written before the flag (its lost grains below the outlet
+    then got the first sample's time, 0.019 s, and a displacement of 0) is read the same
+    way, by z0 < 0."""
+    from silodem.report.figures_flow import fig_dead_zones
+
+    z0 = [0.5, 0.6, 0.7, -0.04, -0.03]
+    if with_flag:
+        a = _analysis([0.2, 0.3, np.nan, np.nan, np.nan], [0.5, 0.5, 0.0, np.nan, np.nan], z0,
+                      lost=[False, False, False, True, True])
+    else:
+        a = _analysis([0.2, 0.3, np.nan, 0.019, 0.019], [0.5, 0.5, 0.0, 0.0, 0.0], z0)
+    fig = fig_dead_zones(a)
+    ax = fig.axes[0]
+    coloured = [c for c in ax.collections if c.get_array() is not None]
+    assert len(coloured) == 1
+    np.testing.assert_array_equal(np.sort(coloured[0].get_array()), [0.2, 0.3])
+    assert "dashed: 2 grains lost through a wall before the gate opened" in ax.get_title()
+    # one collection of the lost grains, unfilled, with their centres
+    outlines = [c for c in ax.collections if c.get_array() is None
+                and len(c.get_facecolors()) == 0]
+    assert len(outlines) == 1
+    np.testing.assert_allclose(outlines[0].get_offsets()[:, 1], [-0.04, -0.03])
+
+
+def test_the_dead_fraction_counts_only_the_grains_there_as_the_gate_opened():
+    """Ten grains, two in the dead zone, three lost through a wall before the gate opened:
+    2 of the 7 that were there (2/10 before, the lost ones counted as not dead)."""
+    from silodem.measure.discharge import dead_fraction
+
+    dead = np.array([1, 1, 0, 0, 0, 0, 0, 0, 0, 0], bool)
+    lost = np.array([0, 0, 0, 0, 0, 0, 0, 1, 1, 1], bool)
+    assert dead_fraction(dead, lost) == pytest.approx(2 / 7)
+    assert dead_fraction(dead) == pytest.approx(2 / 10)  # a file without the flag
+    assert np.isnan(dead_fraction(dead[:0], lost[:0]))
+    assert np.isnan(dead_fraction(dead[7:], lost[7:]))  # every grain lost
