@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from silodem import theory as th
 from silodem.measure import discharge as dis
@@ -23,7 +24,14 @@ from silodem.report.flags import (
     walls_held_up,
 )
 from silodem.report.load import Results
-from silodem.report.numbers import pascals, percent_change, poorly_determined, significant
+from silodem.report.numbers import (
+    pascals,
+    percent_change,
+    percent_change_error,
+    poorly_determined,
+    resolved,
+    significant,
+)
 from silodem.silo.geometry import silo_shape
 
 if TYPE_CHECKING:
@@ -66,6 +74,7 @@ class Analysis:
     change_missing: str = ""  # why there is no change fill -> discharge at all ("": there is)
     # (z of the filling peak [m], stress there after filling, during discharge [Pa], change %)
     wall_at_fill_peak: tuple[float, float, float, float] | None = None
+    wall_at_fill_peak_err: float = float("nan")  # the error of its change [%]
     flow: dict[str, Any] = field(default_factory=dict)
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
     numbers: list[tuple[str, str, str]] = field(default_factory=list)
@@ -360,6 +369,27 @@ def _walker(a: Analysis, key: str) -> dict[str, Any]:
     return hop
 
 
+BATCHES = 5  # blocks of a window for the batch-means error (as dis.steady_rate's 5 blocks)
+
+
+def batch_mean_error(values: npt.ArrayLike, blocks: int = BATCHES) -> float:
+    """Standard error of the mean of a window's time samples [their unit], by batch means: the
+    finite samples, in time order, cut into ``blocks`` consecutive blocks of (nearly) equal
+    count (``np.array_split``), and the standard deviation (ddof = 1) of the block means over
+    sqrt(blocks).  Successive samples are correlated (a stress swings over tenths of a second,
+    sampled every 0.02 s), so the scatter of single samples over sqrt(n) would understate the
+    error; means of blocks longer than that correlation are nearly independent (Flyvbjerg &
+    Petersen 1989, J. Chem. Phys. 91, 461).  The steady discharge rate's error
+    (``measure.discharge.steady_rate``) is the same estimate for a slope.  NaN with fewer
+    finite samples than ``blocks``."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size < max(blocks, 2):
+        return float("nan")
+    means = np.array([b.mean() for b in np.array_split(v, blocks)])
+    return float(np.std(means, ddof=1) / math.sqrt(blocks))
+
+
 def window_mean(values: np.ndarray) -> float:
     """Mean of the finite values (``np.nanmean``); NaN, without numpy's warning, when there
     are none (a circle that held no contact in the whole window).  The report and a study's
@@ -385,21 +415,60 @@ def _evolution_change(a: Analysis, masks: dict[str, np.ndarray]) -> None:
     for k, name in enumerate(c["name"]):
         row = {}
         for comp, label in ((0, "sigma_h"), (1, "sigma_v")):
-            f = window_mean(stress[masks["fill"], k, comp])
-            dd = window_mean(stress[masks["discharge"], k, comp])
-            row[label + "_fill"], row[label + "_discharge"] = f, dd
-            row[label + "_change_pct"] = percent_change(f, dd)
+            fill, dis_ = stress[masks["fill"], k, comp], stress[masks["discharge"], k, comp]
+            _add_change(row, label, (window_mean(fill), batch_mean_error(fill)),
+                        (window_mean(dis_), batch_mean_error(dis_)))
         a.change[str(name)] = row
     if "fill" in a.peaks and "discharge" in a.peaks:
         # the switch zone's largest wall normal stress in each window, wherever it lies (the
         # two may be on different walls), and the discharge window's stress at the height of
-        # the filling peak: the same place
+        # the filling peak: the same place; each with the batch-means error of its bin's
+        # samples (the error of that bin's mean, not of which bin is the largest)
         (f, z_f), (dd, z_d) = a.peaks["fill"], a.peaks["discharge"]
-        a.change["wall peak"] = {"sigma_h_fill": f, "sigma_h_discharge": dd,
-                                 "sigma_h_change_pct": percent_change(f, dd), "z_fill": z_f,
-                                 "z_discharge": z_d}
+        row = {}
+        f_err = batch_mean_error(edge_samples(a.res, masks["fill"], z_f))
+        _add_change(row, "sigma_h", (f, f_err),
+                    (dd, batch_mean_error(edge_samples(a.res, masks["discharge"], z_d))))
+        a.change["wall peak"] = {**row, "z_fill": z_f, "z_discharge": z_d}
         same = wall_stress_at(a.edge["discharge"], z_f)
         a.wall_at_fill_peak = (z_f, f, same, percent_change(f, same))
+        a.wall_at_fill_peak_err = percent_change_error(
+            f, f_err, same, batch_mean_error(edge_samples(a.res, masks["discharge"], z_f)))
+
+
+def _add_change(row: dict[str, float], label: str, fill: tuple[float, float],
+                discharge: tuple[float, float]) -> None:
+    """Into ``row``: the window means ``label``_fill, ``label``_discharge [Pa] and their
+    batch-means errors (``_err``), the change ``label``_change_pct [%] and its error
+    ``label``_change_pct_err [%] (:func:`~silodem.report.numbers.percent_change_error`)."""
+    (f, f_err), (d, d_err) = fill, discharge
+    row[label + "_fill"], row[label + "_discharge"] = f, d
+    row[label + "_fill_err"], row[label + "_discharge_err"] = f_err, d_err
+    row[label + "_change_pct"] = percent_change(f, d)
+    row[label + "_change_pct_err"] = percent_change_error(f, f_err, d, d_err)
+
+
+def edge_samples(res: Results, mask: np.ndarray, z: float) -> np.ndarray:
+    """The wall normal stress [Pa] of the edge bin at height ``z`` in each sample of ``mask``,
+    as :func:`_edge` makes its profile: the mean of the left and right walls' bins when the two
+    sides have bins at the same heights, else the left wall's; empty when no bin lies there."""
+    m = res.group("measure", "wall_bins")
+    if m is None or not mask.any():
+        return np.zeros(0)
+    names = list(res.group("walls")["name"])
+    bins = {}  # side -> its bins' indices, sorted by z
+    for side in ("left", "right"):
+        ws = [names.index(n) for n in (f"{side}_wall", f"{side}_hopper") if n in names]
+        k = np.flatnonzero(np.isin(m["wall"], ws))
+        bins[side] = k[np.argsort(m["z"][k])]
+    zl, zr = m["z"][bins["left"]], m["z"][bins["right"]]
+    both = zl.size == zr.size and np.allclose(zl, zr, atol=1e-6)
+    at = np.flatnonzero(np.isclose(zl, z, rtol=0.0, atol=1e-9))
+    if not at.size:
+        return np.zeros(0)
+    normal = m["normal"][mask]
+    left = normal[:, bins["left"][at[0]]]
+    return 0.5 * (left + normal[:, bins["right"][at[0]]]) if both else left
 
 
 def above_coulomb(fit: th.JanssenFit, mu_wall: float) -> bool:
@@ -443,7 +512,7 @@ def _flow(a: Analysis, shape) -> None:
     band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
     mi = f["mass_flow_index"]
     dead = dis.dead_zone(f["exit_time"], f["max_displacement"], 0.5 * a.geom["d"])
-    dead_frac = float(dead.mean()) if dead.size else float("nan")
+    dead_frac = dis.dead_fraction(dead, f.get("lost_before_discharge"))  # (None: older files)
     if np.isfinite(rate.rate):
         mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
                                   band_hi - band_lo)
@@ -451,10 +520,22 @@ def _flow(a: Analysis, shape) -> None:
     else:  # no steady flow to classify: the velocities of grains at rest are noise
         mfi = float("nan")
         pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
-    a.flow.update(mfi=mfi, dead=dead, dead_fraction=dead_frac, pattern=pattern)
+    a.flow.update(mfi=mfi, dead=dead, dead_fraction=dead_frac, pattern=pattern,
+                  mfi_band=(band_lo, band_hi))
     if np.isfinite(rate.rate) and np.isfinite(a.rho_b):
         a.flow["beverloo_C"] = th.beverloo_2d_C(rate.rate, cfg.silo.outlet_width, a.geom["d"],
                                                 a.rho_b, cfg.gravity, 1.5, a.geom["t"])
+
+
+def mfi_where(a: Analysis) -> str:
+    """Where the mass flow index is measured, in words: "in the cell just above the junction,
+    z = 1.4 - 2.1 m" (above the floor in a flat silo): the flow pattern is read there, in
+    this run, not from the hopper's slope and wall friction as Jenike's chart classifies a
+    design."""
+    where = ("in the cell just above the junction" if a.res.cfg.silo.kind == "hopper"
+             else "just above the floor")
+    band = a.flow.get("mfi_band")
+    return where + (f", z = {_fmt(band[0], 3)} - {_fmt(band[1], 3)} m" if band else "")
 
 
 def _fmt(v: float, digits: int = 4) -> str:
@@ -493,6 +574,21 @@ def _janssen_K(fit: th.JanssenFit, key: str, mobilised: float = float("nan")) ->
                        f"{_fmt(mobilised, 3)}, the fit puts the missing friction into K")
             notes += (missing,)
     return _fitted(fit.K, fit.K_err, *notes)
+
+
+CHANGE_ERROR = f" (+- its standard error: batch means, {BATCHES} blocks a window)"
+
+
+def change_text(pct: float, err: float) -> str:
+    """A change [%] as the key numbers write it: '53.2 +- 12'; one within its error 'not
+    resolved' (:func:`~silodem.report.numbers.resolved`); 'n/a' without a value."""
+    if not math.isfinite(pct):
+        return "n/a"
+    text = f"{_fmt(pct, 3)} +- {_fmt(err, 2)}"
+    if not resolved(pct, err):
+        text += (" (within its error: not resolved)" if math.isfinite(err)
+                 else " (no error: too few samples; not resolved)")
+    return text
 
 
 def _numbers(a: Analysis) -> None:
@@ -598,27 +694,33 @@ def _numbers(a: Analysis) -> None:
             if name == "wall peak":
                 label = ("change fill -> discharge, wall peak: the switch zone's largest wall "
                          f"normal stress in each window, at z = {_fmt(row['z_fill'], 3)} m "
-                         f"-> {_fmt(row['z_discharge'], 3)} m")
-                n.append((label, _fmt(row["sigma_h_change_pct"], 3), "%"))
+                         f"-> {_fmt(row['z_discharge'], 3)} m" + CHANGE_ERROR)
+                n.append((label, change_text(row["sigma_h_change_pct"],
+                                             row["sigma_h_change_pct_err"]), "%"))
                 continue
-            parts = [f"{k.split('_')[1]} {_fmt(v, 3)}" for k, v in row.items()  # [%]
-                     if k.endswith("change_pct")]
-            n.append((f"change fill -> discharge, {name}", ", ".join(parts), "%"))
+            parts = [f"{c[-1]} {change_text(row[c + '_change_pct'], row[c + '_change_pct_err'])}"
+                     for c in ("sigma_h", "sigma_v")]  # [%]
+            n.append((f"change fill -> discharge, {name}{CHANGE_ERROR}", ", ".join(parts), "%"))
         same = a.wall_at_fill_peak
         if same is not None and same[0] != a.change.get("wall peak", {}).get("z_discharge"):
             z, f, dd, pct = same  # (at one height the peak-to-peak row says it already)
             label = (f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m, "
                      "after filling -> during discharge (the same place)")
-            n.append((label, f"{pascals(f)} -> {pascals(dd)} ({_fmt(pct, 3)} %)", "Pa"))
+            value = f"{pascals(f)} -> {pascals(dd)} ({change_text(pct, a.wall_at_fill_peak_err)} %)"
+            n.append((label, value, "Pa"))
     f = a.flow
     if "rate" in f:
         r = f["rate"]
         label = f"steady discharge rate W (of a slot of thickness t = {_fmt(a.geom['t'], 3)} m)"
         n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}", "kg/s"))
     if "pattern" in f:
-        n.append(("mass flow index v_wall / v_axis", _fmt(f["mfi"], 3), "-"))
+        where = mfi_where(a)
+        n.append((f"mass flow index v_wall / v_axis, {where}", _fmt(f["mfi"], 3), "-"))
         n.append(("dead-zone fraction of the grains", _fmt(f["dead_fraction"], 3), "-"))
-        n.append(("flow pattern", f["pattern"], ""))
+        threshold = a.res.cfg.measure.mass_flow_index_threshold
+        label = (f"flow pattern, measured: mass flow if v_wall / v_axis >= {threshold:g} "
+                 f"({where}) and no dead zone; not Jenike's hopper design chart")
+        n.append((label, f["pattern"], ""))
     if "beverloo_C" in f:
         hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
                   "its slope)" if a.res.cfg.silo.kind == "hopper" else "")

@@ -16,6 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection, LineCollection
 
 from silodem.measure.stress import contact_points_walls
+from silodem.report.numbers import loaded
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -185,6 +186,20 @@ def ratio_axis(ax: Axes, *curves: npt.ArrayLike) -> None:
                 transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.35",
                 zorder=5, bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none",
                                 "pad": 1.0})  # above the traces, readable
+
+
+def loaded_ratio(sh: npt.ArrayLike, sv: npt.ArrayLike) -> np.ndarray:
+    """sigma_h / sigma_v [-] per sample, NaN where the circle is almost unloaded: sigma_v
+    under ``UNLOADED`` (0.1) x the median of its positive values over the series, the rule by
+    which a study's CV of the ratio (``silodem.report.numbers.loaded``) and its Fig. 7 leave
+    samples out.  A ratio of two near-zero stresses (the start of filling, an emptied silo:
+    sigma_v of 32 Pa against a median of 1e4 Pa gave 43.5) is noise, not anisotropy.  (The
+    study report's Fig. 7 draws it too.)"""
+    sh = np.asarray(sh, dtype=float)
+    sv = np.asarray(sv, dtype=float)
+    ok = loaded(sv, np.isfinite(sv) & (sv > 0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(ok, sh / sv, np.nan)
 
 
 def rolling_mean(y: npt.ArrayLike, n: int) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from silodem.report.analysis import Analysis
+from silodem.report.analysis import Analysis, mfi_where
 from silodem.report.draw import (
     draw_force_network,
     draw_grains,
@@ -139,15 +139,18 @@ def fig_velocity(a: Analysis) -> Figure | None:
     silo_axes(ax, a.geom)
     w0, w1 = a.windows.get("discharge", (np.nan, np.nan))
     ax.set_title(f"mean velocity during discharge (t = {w0:.2f}-{w1:.2f} s)\n"
-                 f"flow pattern: {a.flow.get('pattern', 'n/a')}, mass flow index "
-                 f"{a.flow.get('mfi', np.nan):.2f}", fontsize=9)
+                 f"flow pattern: {a.flow.get('pattern', 'n/a')}, mass flow index v_wall / "
+                 f"v_axis = {a.flow.get('mfi', np.nan):.2f}\n(measured {mfi_where(a)})",
+                 fontsize=9)
     fig.colorbar(pm, ax=ax, shrink=0.6, label="speed [m/s]")
     return fig
 
 
 def fig_dead_zones(a: Analysis) -> Figure | None:
     """The grains at the gate opening coloured by the time they left; the dead zone (never
-    left, never moved more than a grain radius) in black."""
+    left, never moved more than a grain radius) in black; the grains lost through a wall
+    before the gate opened (``flow/lost_before_discharge``; in a file without it, those below
+    the outlet, z0 < 0) as dashed outlines, neither left nor dead."""
     f = a.res.group("measure", "flow")
     if f is None or f["uid"].size == 0 or "dead" not in a.flow:
         return None
@@ -155,18 +158,26 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
     ax = fig.subplots()
     p = {"x": f["x0"], "y": f["z0"], "radius": f["r0"]}
     exit_t = f["exit_time"]
-    left = np.isfinite(exit_t)
-    dead = a.flow.get("dead", np.zeros(exit_t.size, bool))
-    stayed = ~left & ~dead
+    lost = (np.asarray(f["lost_before_discharge"], dtype=bool)
+            if "lost_before_discharge" in f else np.asarray(f["z0"]) < 0.0)
+    left = np.isfinite(exit_t) & ~lost
+    dead = a.flow.get("dead", np.zeros(exit_t.size, bool)) & ~lost
+    stayed = ~left & ~dead & ~lost
     draw_grains(ax, {k: v[stayed] for k, v in p.items()}, color="#cccccc", edge="#999999")
     draw_grains(ax, {k: v[dead] for k, v in p.items()}, color="k", edge="k")
     pc = grain_disks(ax, {k: v[left] for k, v in p.items()}, cmap="plasma", edgecolor="none",
                      array=exit_t[left])
+    if lost.any():
+        grain_disks(ax, {k: v[lost] for k, v in p.items()}, facecolors="none",
+                    edgecolors="#555555", linewidths=0.8, linestyles="--")
     draw_walls(ax, a.res.group("walls"), np.ones(len(a.res.group("walls")["ax"]), bool))
     silo_axes(ax, a.geom)
+    n_lost = int(lost.sum())
+    note = (f"\ndashed: {n_lost} grain{'s' if n_lost > 1 else ''} lost through a wall before "
+            "the gate opened" if n_lost else "")
     ax.set_title(f"when each grain left the silo\nblack: dead zone "
                  f"({100 * a.flow.get('dead_fraction', 0):.1f} % of the grains), grey: still "
-                 "inside at the end", fontsize=9)
+                 f"inside at the end{note}", fontsize=9)
     if left.any():
         fig.colorbar(pc, ax=ax, shrink=0.6, label="exit time after the gate opened [s]")
     return fig

@@ -9,11 +9,12 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from silodem import theory as th
-from silodem.report.analysis import Analysis, above_coulomb
+from silodem.report.analysis import BATCHES, Analysis, above_coulomb
 from silodem.report.draw import (
     draw_walls,
     legend_below,
     legend_right,
+    loaded_ratio,
     ratio_axis,
     rolling_mean,
     shade_phases,
@@ -26,9 +27,49 @@ from silodem.report.flags import (
     above_hydrostatic,
     walls_held_up,
 )
+from silodem.report.numbers import UNLOADED, resolved
 from silodem.silo.geometry import silo_shape
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
+
+
+CUT_BELOW = 0.8  # a profile's z axis ends above the fill when that is under 0.8 of the wall
+MARGIN = 0.2  # ... at the fill's top plus this share of it (at least two grain diameters)
+
+
+def profile_top(a: Analysis) -> float:
+    """Upper end [m] of the z axis of the wall profiles (Figs. 3a, 3b, 6, wall shear): the
+    highest of the free surface after filling and of the profiles' loaded bins (a finite
+    stress above 0, of any window), plus ``MARGIN`` of it, at least two mean diameters, when
+    that lies under ``CUT_BELOW`` of the wall's top; else the wall's top.  Above the fill the
+    profiles are zero, and a quick case 1 (a 1 m fill in a 3.6 m silo) left 70 % of each plot
+    empty.  The junction and the switch zone lie under the fill and stay in view."""
+    top = a.geom["top"]
+    highest = [a.surface.get("fill", np.nan)]
+    for e in a.edge.values():
+        highest += [e.z[np.isfinite(v) & (v > 0)] for v in (e.sigma_n, np.abs(e.tau_down))]
+    for st in a.strips.values():
+        highest += [st["z"][np.isfinite(st[k]) & (st[k] > 0)]
+                    for k in ("near_xx", "near_zz", "slice_zz")]
+    z = np.concatenate([np.ravel(h) for h in highest])
+    z = z[np.isfinite(z)]
+    if not z.size:
+        return top
+    h = float(z.max())
+    end = h + max(MARGIN * h, 2.0 * a.geom["d"])
+    return end if end < CUT_BELOW * top else top
+
+
+def _z_axis(ax, a: Analysis) -> None:
+    """z [m] from 0 to :func:`profile_top`; the label of an axis cut above the fill says where
+    the wall ends (in the label, where no legend or curve can hide it)."""
+    end = profile_top(a)
+    ax.set_ylim(0, end)
+    if end < a.geom["top"]:
+        ax.set_ylabel(f"z [m] (axis cut above the fill; the wall's top: z = "
+                      f"{a.geom['top']:.3g} m)")
+    else:
+        ax.set_ylabel("z [m]")
 
 
 def _zone(ax, a: Analysis) -> None:
@@ -192,9 +233,8 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
                 label=f"switch-zone peak {v:,.0f} Pa at z = {z:.2f} m")
     on_hopper = " (normal stress on the hopper)" if a.res.cfg.silo.kind == "hopper" else ""
     ax.set_xlabel(f"horizontal stress sigma_h on the wall{on_hopper} [Pa]")
-    ax.set_ylabel("z [m]")
     ax.set_xlim(left=0)
-    ax.set_ylim(0, a.geom["top"])
+    _z_axis(ax, a)
     title = a.labels[key]
     t0, t1 = a.windows.get(key, (np.nan, np.nan))
     ax.set_title(f"Horizontal stress along the silo wall, {title} (t = {t0:.2f}-{t1:.2f} s)",
@@ -218,9 +258,8 @@ def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
     _janssen_curves(ax, a, key, "v")
     _hopper_curves(ax, a, "v")
     ax.set_xlabel("vertical stress sigma_v [Pa]")
-    ax.set_ylabel("z [m]")
     ax.set_xlim(left=0)
-    ax.set_ylim(0, a.geom["top"])
+    _z_axis(ax, a)
     ax.set_title(f"Vertical stress along the silo wall, {a.labels['fill']}", fontsize=10)
     legend_below(fig, ax)
     return fig
@@ -248,8 +287,7 @@ def fig_wall_shear(a: Analysis) -> Figure | None:
                 label=f"tan(phi_P) sigma_n (fully mobilised), {when}")
     ax.axvline(0, color="0.4", lw=0.6)
     ax.set_xlabel("wall shear stress [Pa]")
-    ax.set_ylabel("z [m]")
-    ax.set_ylim(0, a.geom["top"])
+    _z_axis(ax, a)
     ax.set_title("Wall friction along the silo wall", fontsize=10)
     ax.legend(fontsize=7)
     tight_layout(fig)
@@ -272,12 +310,13 @@ def fig_evolution(a: Analysis) -> Figure | None:
     ratios = []
     for k, name in enumerate(c["name"]):
         col = colors[k % len(colors)]
-        sh = rolling_mean(c["stress"][:, k, 0], n_smooth)
-        sv = rolling_mean(c["stress"][:, k, 1], n_smooth)
-        ax1.plot(t, sh, color=col, lw=1.5, label=f"{name}: sigma_h")
-        ax1.plot(t, sv, color=col, lw=1.2, ls="--", label=f"{name}: sigma_v")
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratios.append(sh / sv)
+        sh, sv = c["stress"][:, k, 0], c["stress"][:, k, 1]
+        ax1.plot(t, rolling_mean(sh, n_smooth), color=col, lw=1.5, label=f"{name}: sigma_h")
+        ax1.plot(t, rolling_mean(sv, n_smooth), color=col, lw=1.2, ls="--",
+                 label=f"{name}: sigma_v")
+        # the ratio of each sample, almost unloaded ones left out (as a study's CV and its
+        # Fig. 7 do), then the running mean of what is left
+        ratios.append(rolling_mean(loaded_ratio(sh, sv), n_smooth))
         ax2.plot(t, ratios[-1], color=col, lw=1.3, label=str(name))
     wb = a.res.group("measure", "wall_bins")
     if wb is not None:
@@ -293,6 +332,8 @@ def fig_evolution(a: Analysis) -> Figure | None:
     ax1.set_title("Stresses at the switch zone during silo use (running mean over 0.2 s)",
                   fontsize=10)
     ax2.set_ylabel("sigma_h / sigma_v [-]")
+    ax2.set_title(f"sigma_h / sigma_v, running mean over 0.2 s (samples with sigma_v under "
+                  f"{UNLOADED:g} x its median over the run left out)", fontsize=9)
     ratio_axis(ax2, *ratios)
     ax2.set_xlabel("time [s]")
     legend_right(ax2, fontsize=7)
@@ -301,28 +342,54 @@ def fig_evolution(a: Analysis) -> Figure | None:
 
 
 def fig_change(a: Analysis) -> Figure | None:
-    """Fig. 8: percentage change of the switch-zone stresses from filling to discharge."""
+    """Fig. 8: percentage change of the switch-zone stresses from filling to discharge, each
+    bar with its standard error (batch means of each window, propagated); a bar within its
+    error (not resolved) is drawn pale."""
     if not a.change:
         return None
     names = list(a.change)
-    h = [a.change[n].get("sigma_h_change_pct", np.nan) for n in names]
-    v = [a.change[n].get("sigma_v_change_pct", np.nan) for n in names]
-    if not np.isfinite(np.concatenate([h, v])).any():
+    if not np.isfinite([a.change[n].get(f"{c}_change_pct", np.nan) for n in names
+                        for c in ("sigma_h", "sigma_v")]).any():
         return None
-    fig = Figure(figsize=(8, 4.5), dpi=100)
+    fig = Figure(figsize=(10, 4.8), dpi=100)  # (room for the legend on the right)
     ax = fig.subplots()
     x = np.arange(len(names))
-    ax.bar(x - 0.2, h, 0.4, label="horizontal stress", color="#1f77b4")
-    ax.bar(x + 0.2, v, 0.4, label="vertical stress", color="#ff7f0e")
+    for shift, comp, label, color in ((-0.2, "sigma_h", "horizontal stress", "#1f77b4"),
+                                      (0.2, "sigma_v", "vertical stress", "#ff7f0e")):
+        pct = np.array([a.change[n].get(f"{comp}_change_pct", np.nan) for n in names])
+        err = np.array([a.change[n].get(f"{comp}_change_pct_err", np.nan) for n in names])
+        bars = ax.bar(x + shift, pct, 0.4, yerr=np.nan_to_num(err), color=color, label=label,
+                      capsize=3, error_kw={"elinewidth": 1.0, "ecolor": "k"})
+        for bar, p, e in zip(bars, pct, err):
+            if np.isfinite(p) and not resolved(p, e):
+                bar.set_alpha(0.35)
+    ax.bar([np.nan], [np.nan], color="0.6", alpha=0.35,
+           label="pale: within its error, not resolved")
     ax.axhline(0, color="k", lw=0.8)
     # the wall peak's bar is the wall normal stress, each window's largest in the switch zone
     ticks = ["wall peak (normal,\neach window's own)" if n == "wall peak" else n for n in names]
     ax.set_xticks(x, ticks, fontsize=8)
     ax.set_ylabel("change, discharge vs end of filling [%]")
-    ax.set_title("Change of the switch-zone stresses from filling to discharge", fontsize=10)
-    ax.legend(fontsize=8)
+    ax.set_title("Change of the switch-zone stresses from filling to discharge\n(error bars: "
+                 f"+- 1 standard error, batch means of each window's samples in {BATCHES} "
+                 "blocks)", fontsize=10)
+    legend_right(ax, fontsize=8)
     tight_layout(fig)
     return fig
+
+
+def walls_active_in(a: Analysis, window: str) -> np.ndarray:
+    """Which walls stand [bool per wall] in the field window ``window``: the walls_active of
+    the snapshot of that moment (/settled for "settled", /measure/discharge_snapshot for
+    "discharge"); without the snapshot, all of them while settling (the gate opens only for
+    the discharge) and the run's last state (/walls/active) during discharge."""
+    walls = a.res.group("walls")
+    snap = a.res.snapshot(window)
+    if isinstance(snap, dict) and "walls_active" in snap:
+        return np.asarray(snap["walls_active"], dtype=bool)
+    if window == "settled":
+        return np.ones(len(walls["ax"]), dtype=bool)
+    return np.asarray(walls.get("active", np.ones(len(walls["ax"]))), dtype=bool)
 
 
 def fig_fields(a: Analysis) -> Figure | None:
@@ -354,7 +421,7 @@ def fig_fields(a: Analysis) -> Figure | None:
             pm = ax.pcolormesh(xe, ze, v.T, cmap=cmap, vmin=0.0, vmax=top, shading="flat")
             # a cell cut by a hopper wall holds the value of its inside part (A_c, fields.py)
             pm.set_clip_path(Polygon(inside, transform=ax.transData))
-            draw_walls(ax, a.res.group("walls"))
+            draw_walls(ax, a.res.group("walls"), walls_active_in(a, window))
             silo_axes(ax, a.geom)
             ax.set_title(f"{label.split(' [')[0]}, {window}", fontsize=9)
             fig.colorbar(pm, ax=ax, shrink=0.7, label=label)

@@ -14,9 +14,10 @@ import numpy as np
 from silodem.atomic import write_atomic
 from silodem.report import figures_flow as ff
 from silodem.report import figures_stress as fs
-from silodem.report.analysis import UNSETTLED, Analysis, analyse
+from silodem.report.analysis import BATCHES, UNSETTLED, Analysis, analyse
 from silodem.report.draw import png_bytes
 from silodem.report.load import load_results
+from silodem.report.numbers import UNLOADED
 from silodem.report.unfinished import banner_html, note_line
 from silodem.scenario_files import QUICK_SUFFIX
 
@@ -77,16 +78,26 @@ FIGURES = [
                lambda a: fs.fig_horizontal(a, "discharge")),
     FigureSpec("fig7_switch_zone_evolution", "Fig. 7",
                "Horizontal and vertical stress at the switch zone (measurement circles) and "
-               "their ratio through filling, settling and discharge.", fs.fig_evolution),
+               "their ratio through filling, settling and discharge. The ratio leaves out the "
+               f"samples whose sigma_v is under {UNLOADED:g} x its median over the run (the "
+               "rule of a study's CV of the ratio): a ratio of two near-zero stresses, as at "
+               "the start of filling and in the emptied silo, is noise; where a 0.2 s stretch "
+               "has no sample left, the curve has a gap.", fs.fig_evolution),
     FigureSpec("fig8_change", "Fig. 8",
                "Percentage change of the switch-zone stresses from the end of filling to the "
-               "discharge window.", fs.fig_change),
+               "discharge window, with error bars of +- 1 standard error: each window's mean "
+               f"gets the batch-means error of its samples (in {BATCHES} consecutive blocks, "
+               "since successive samples are correlated), propagated to the change. A change "
+               "within its error (pale bar) is not resolved by this run: its sign may be "
+               "noise.", fs.fig_change),
     FigureSpec("stress_fields", "",
                "Bulk density and Love-Weber stresses sigma_xx, sigma_zz (compression "
-               "positive) on a grid of measure.field_cell, grains counted by their centres "
-               "(or, with measure.field_kernel = 'gaussian', a Gaussian of width "
+               "positive) on a grid of measure.field_cell: each grain's mass shared among the "
+               "cells by the area of its disk in each, its contacts' stress in the cell of its "
+               "centre (or, with measure.field_kernel = 'gaussian', a Gaussian of width "
                "measure.field_width at the cell centres): the settled packing, and the mean "
-               "over the discharge window. Arching shows as "
+               "over the discharge window; the walls as they stood then (dotted: withdrawn, "
+               "the open gate). Arching shows as "
                "sigma_zz that stops growing with depth and bends towards the walls.",
                fs.fig_fields),
     FigureSpec("wall_shear", "",
@@ -99,7 +110,11 @@ FIGURES = [
                "slopes.", ff.fig_discharge_rate),
     FigureSpec("velocity_field", "",
                "Mean grain velocity on a grid over the discharge window, and the flow pattern "
-               "(mass flow index = v_wall / v_axis above the junction).", ff.fig_velocity),
+               "as measured in this run: mass flow when the mass flow index v_wall / v_axis "
+               "in a band of the cell just above the junction (above the floor of a flat "
+               "silo) reaches measure.mass_flow_index_threshold and no grain stays in a dead "
+               "zone, funnel flow otherwise. It is not Jenike's classification of a hopper "
+               "design by its slope and wall friction.", ff.fig_velocity),
     FigureSpec("dead_zones", "",
                "Grains at the gate opening coloured by the time they left the silo; the dead "
                "zone (never left, never moved a grain radius) in black.", ff.fig_dead_zones),

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 
 def significant(value: float | None, digits: int = 3) -> str:
     """``value`` to ``digits`` significant digits, but every integer digit of a value under 1e9
@@ -36,3 +38,31 @@ def percent_change(before: float, after: float) -> float:
     """100 (after - before) / before [%]; NaN from a zero or non-finite ``before``."""
     return 100.0 * (after - before) / before if before and math.isfinite(before) \
         else float("nan")
+
+
+def percent_change_error(before: float, before_err: float, after: float,
+                         after_err: float) -> float:
+    """Standard error [%] of :func:`percent_change` p = 100 (after - before) / before from the
+    standard errors of the two values (independent: windows apart in time), by first-order
+    propagation: dp = 100 sqrt((after_err / before)^2 + (after before_err / before^2)^2).
+    NaN where p is NaN or an error is not finite."""
+    if not (before and math.isfinite(before) and math.isfinite(after)):
+        return float("nan")
+    return 100.0 * math.hypot(after_err / before, after * before_err / before**2)
+
+
+def resolved(change: float, error: float) -> bool:
+    """A change [%] larger than its standard error [%]: one within its error (or without a
+    finite error) is not resolved by the run, whichever its sign."""
+    return math.isfinite(change) and math.isfinite(error) and abs(change) > error
+
+
+UNLOADED = 0.1  # samples with sigma_v under this fraction of its median are left out
+
+
+def loaded(sv: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """The ``usable`` samples whose sigma_v is at least ``UNLOADED`` times the median of the
+    usable ones: a ratio sigma_h / sigma_v of two near-zero numbers is noise, not anisotropy
+    (a study's CV of the ratio, its Fig. 7 and the run report's Fig. 7 leave the others out,
+    ``report.draw.loaded_ratio``)."""
+    return usable & (sv >= UNLOADED * float(np.median(sv[usable]))) if usable.any() else usable

@@ -32,6 +32,7 @@ from silodem.atomic import write_atomic
 from silodem.config import Config
 from silodem.errors import submodel
 from silodem.report.draw import (
+    loaded_ratio,
     png_bytes,
     ratio_axis,
     rolling_mean,
@@ -39,16 +40,14 @@ from silodem.report.draw import (
     tight_layout,
 )
 from silodem.report.html import PAGE_CSS, QUICK_CAVEAT, html_table
-from silodem.report.numbers import poorly_determined, significant
+from silodem.report.numbers import UNLOADED, poorly_determined, significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
 from silodem.study.table import (
     CIRCLE_QUANTITIES,
     COLUMNS,
-    UNLOADED,
     SwitchSeries,
     as_float,
-    loaded,
     switch_series,
     table_csv,
 )
@@ -151,15 +150,6 @@ def _mean_std(v: np.ndarray) -> tuple[float, float]:
 # --- figures ---------------------------------------------------------------------------------
 
 
-def _loaded_ratio(sh: np.ndarray, sv: np.ndarray) -> np.ndarray:
-    """sigma_h / sigma_v per sample, NaN where the circle is almost unloaded (sigma_v under
-    ``UNLOADED`` x the median of its positive values), as the CV of the table leaves out: a
-    ratio of two near-zero numbers (a sigma_v of 2e-16 Pa gave 6e15) is noise."""
-    ok = loaded(sv, np.isfinite(sv) & (sv > 0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(ok, sh / sv, np.nan)
-
-
 def _quick_silo(plan: StudyPlan) -> str:
     """What --quick ran: the shrunk cell width, wall height and grain count (each value the
     runs have), which the set and grid values above do not show."""
@@ -212,7 +202,7 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
             n = max(1, round(0.2 / max(float(np.median(np.diff(s.time))), 1e-9))) \
                 if s.time.size > 1 else 1
             if ratio:
-                r = _loaded_ratio(s.sigma_h, s.sigma_v)
+                r = loaded_ratio(s.sigma_h, s.sigma_v)
                 ax.plot(s.time, r, color="#7f7f7f", lw=0.5)
                 ax.plot(s.time, rolling_mean(r, n), color="k", lw=1.2)
                 ratio_axis(ax, r)

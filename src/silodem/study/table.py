@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from silodem.report.numbers import loaded
+
 if TYPE_CHECKING:
     from silodem.study.plan import StudyPlan
 
@@ -109,16 +111,6 @@ def as_float(value: Any) -> float:
         return float(value)
     except (TypeError, ValueError):
         return NAN
-
-
-UNLOADED = 0.1  # samples with sigma_v under this fraction of its window median are left out
-
-
-def loaded(sv: np.ndarray, usable: np.ndarray) -> np.ndarray:
-    """The ``usable`` samples whose sigma_v is at least ``UNLOADED`` times the median of the
-    usable ones: a ratio sigma_h / sigma_v of two near-zero numbers is noise, not anisotropy
-    (the CV below and the study's ratio figure leave the others out)."""
-    return usable & (sv >= UNLOADED * float(np.median(sv[usable]))) if usable.any() else usable
 
 
 def _ratio_stats(sh: np.ndarray, sv: np.ndarray) -> tuple[float, float]:
