@@ -174,8 +174,9 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # 2: the default switch zone reaches at most half-way down the hopper (its wall peak moved);
 # the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*;
 # 4: wall_at_fill_peak_change_pct, wall_friction_mobilised_fill; 5: the flags
-# janssen_K_fill_above_1, wall_friction_negative_fill.
-ANALYSIS_VERSION = 5
+# janssen_K_fill_above_1, wall_friction_negative_fill; 6: the dead-zone fraction (so the
+# flow pattern) of the grains there as the gate opened, not those lost through a wall before.
+ANALYSIS_VERSION = 6
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
