@@ -14,12 +14,12 @@ import types
 import numpy as np
 import pytest
 
+from silodem.study.plan import key_unit
 from silodem.study.report import (
     HEATMAPS,
     SIGNED_CMAP,
     colour_range,
     fig_heatmaps,
-    key_unit,
     layout_of,
 )
 

@@ -413,7 +413,7 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
         rows.append({"id": run.id, "discharge_rate": W * (1.03 if run.seed == 1 else 0.97),
                      "discharge_rate_err": 0.01 * W, "bulk_density": rho_b})
     fits, notes = outlet_fits(plan, {r["id"]: r for r in rows})
-    assert [f.label for f in fits] == ["phiG=20", "phiG=30"] and notes == []
+    assert [f.label for f in fits] == ["phiG=20 deg", "phiG=30 deg"] and notes == []
     for f, C in zip(fits, (0.55, 0.45)):
         assert f.D.tolist() == [0.6, 0.8, 1.0, 1.2, 1.4] and f.n_runs == 10
         assert (f.fixed.C, f.fixed.k) == pytest.approx((C, 1.4), rel=1e-9)
@@ -452,25 +452,25 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     assert fits[1].rho_b == pytest.approx(rho_b * 12 / 10)  # 2 of its 10 packings at 2 rho_b
     C_rho = fits[1].fixed.C * fits[1].rho_b  # the rates fix C rho_b, whatever rho_b is
     assert (C_rho, fits[1].fixed.k) == pytest.approx((0.45 * rho_b, 1.4))
-    assert notes == [("phiG=30: no steady rate at D = 0.6 m (clogged, too short, or not "
+    assert notes == [("phiG=30 deg: no steady rate at D = 0.6 m (clogged, too short, or not "
                       "finished)")]
     for row, run in zip(rows, plan.runs):
         if run.cfg.material.friction_deg == 30.0 and run.cfg.silo.outlet_width in (0.8, 1.0):
             row["discharge_rate"] = float("nan")
     fits, notes = outlet_fits(plan, {r["id"]: r for r in rows})
-    assert [f.label for f in fits] == ["phiG=20"]
-    assert notes == [("phiG=30: no fit, 2 outlet width(s) with a steady rate, 3 needed; no "
+    assert [f.label for f in fits] == ["phiG=20 deg"]
+    assert notes == [("phiG=30 deg: no fit, 2 outlet width(s) with a steady rate, 3 needed; no "
                       "steady rate at D = 0.6, 0.8, 1 m (clogged, too short, or not finished)")]
     write_study_report(plan, tmp_path / "study", rows)
     html = (tmp_path / "study" / "report.html").read_text(encoding="utf-8")
-    assert "phiG=30: no fit" in html
+    assert "phiG=30 deg: no fit" in html
 
     # rates that fall as the outlet widens follow no Beverloo law: a note, not a fit
     for row, run in zip(rows, plan.runs):
         if run.cfg.material.friction_deg == 20.0:
             row["discharge_rate"] = 10.0 - run.cfg.silo.outlet_width
     fits, notes = outlet_fits(plan, {r["id"]: r for r in rows})
-    assert fits == [] and notes[0].startswith("phiG=20: no fit, the rates do not grow with "
+    assert fits == [] and notes[0].startswith("phiG=20 deg: no fit, the rates do not grow with "
                                               "the outlet width")
 
 

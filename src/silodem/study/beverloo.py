@@ -28,7 +28,14 @@ from silodem import theory as th
 from silodem.measure.discharge import mean_of_runs
 from silodem.measure.regions import mean_diameter
 from silodem.report.draw import tight_layout
-from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
+from silodem.study.plan import (
+    PlannedRun,
+    StudyPlan,
+    format_value,
+    key_unit,
+    nicknames,
+    value_label,
+)
 from silodem.study.table import as_float
 
 OUTLET = "silo.outlet_width"
@@ -117,8 +124,9 @@ def outlet_fits(plan: StudyPlan, rows_by_id: dict[str, dict[str, Any]]
     for run in plan.runs:
         groups.setdefault(tuple(format_value(run.point[k]) for k in others), []).append(run)
     fits, notes = [], []
-    for key, runs in groups.items():
-        label = ", ".join(f"{names[k]}={v}" for k, v in zip(others, key)) or "all"
+    for runs in groups.values():
+        label = ", ".join(value_label(names[k], key_unit(k), runs[0].point[k])
+                          for k in others) or "all"
         fit, note = _fit_group(label, runs, rows_by_id)
         if fit is not None:
             fits.append(fit)

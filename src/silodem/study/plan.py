@@ -16,6 +16,7 @@ import itertools
 import json
 import math
 import re
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from silodem.config import Config
-from silodem.errors import InputError, check_flag, format_validation_error
+from silodem.errors import InputError, check_flag, format_validation_error, submodel
 from silodem.scenario_files import QUICK_SUFFIX, load_config, quick_variant
 from silodem.study.spec import GRID_BASE, LoadedStudy
 
@@ -64,6 +65,41 @@ class StudyPlan:
     @property
     def grid_keys(self) -> list[str]:
         return list(self.study.spec.grid)
+
+
+def _numeric(annotation: Any) -> bool:
+    """Whether a Config field's annotation holds a number or a list of numbers (float,
+    ``float | None``, ``list[float] | None``), not a choice, a text or a bool."""
+    for arg in typing.get_args(annotation) or (annotation,):
+        if arg in (int, float) or (typing.get_origin(arg) is list
+                                   and {int, float} & set(typing.get_args(arg))):
+            return True
+    return False
+
+
+def key_unit(key: str) -> str:
+    """The unit of a config key's numbers, as the first ``[unit]`` of its description in
+    :class:`silodem.config.Config`: "deg" for ``silo.hopper_angle_from_horizontal_deg``, "m"
+    for ``silo.outlet_width``.  "" for a dimensionless key ("[-]"), one that is not a number
+    (a choice, a bool) and a key that is not the Config's (a study's grid key ``base``),
+    unless its name ends in ``_deg`` (an angle in degrees, as every such key of the Config)."""
+    model, found = Config, None
+    for part in key.split("."):
+        found = model.model_fields.get(part) if model is not None else None
+        if found is None:
+            return "deg" if key.endswith("_deg") else ""
+        model = submodel(found.annotation)
+    if model is not None or not _numeric(found.annotation):  # a section; not a number
+        return ""
+    unit = re.search(r"\[([^\]]+)\]", found.description or "")
+    return unit.group(1) if unit and unit.group(1) != "-" else ""
+
+
+def value_label(name: str, unit: str, value: Any) -> str:
+    """'theta=35 deg': a grid key's short ``name``, its ``value`` (``format_value``) and the
+    key's ``unit`` (:func:`key_unit`; a number's only, not a choice's or a bool's)."""
+    number = isinstance(value, int | float | list | tuple) and not isinstance(value, bool)
+    return f"{name}={format_value(value)}" + (f" {unit}" if unit and number else "")
 
 
 def nicknames(keys: list[str]) -> dict[str, str]:

@@ -13,9 +13,7 @@ import base64
 import html
 import itertools
 import math
-import re
 import time
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -29,8 +27,6 @@ from matplotlib.patches import Rectangle
 
 from silodem import __version__
 from silodem.atomic import write_atomic
-from silodem.config import Config
-from silodem.errors import submodel
 from silodem.report.draw import (
     loaded_ratio,
     png_bytes,
@@ -42,7 +38,14 @@ from silodem.report.draw import (
 from silodem.report.html import PAGE_CSS, QUICK_CAVEAT, html_table
 from silodem.report.numbers import UNLOADED, poorly_determined, significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
-from silodem.study.plan import PlannedRun, StudyPlan, format_value, nicknames
+from silodem.study.plan import (
+    PlannedRun,
+    StudyPlan,
+    format_value,
+    key_unit,
+    nicknames,
+    value_label,
+)
 from silodem.study.table import (
     CIRCLE_QUANTITIES,
     COLUMNS,
@@ -71,34 +74,6 @@ def regime(cv: float) -> str:
     return "anisotropic" if cv > CV_ANISOTROPIC else "continuum-like"
 
 
-def _numeric(annotation: Any) -> bool:
-    """Whether a Config field's annotation holds a number or a list of numbers (float,
-    ``float | None``, ``list[float] | None``), not a choice, a text or a bool."""
-    for arg in typing.get_args(annotation) or (annotation,):
-        if arg in (int, float) or (typing.get_origin(arg) is list
-                                   and {int, float} & set(typing.get_args(arg))):
-            return True
-    return False
-
-
-def key_unit(key: str) -> str:
-    """The unit of a config key's numbers, as the first ``[unit]`` of its description in
-    :class:`silodem.config.Config`: "deg" for ``silo.hopper_angle_from_horizontal_deg``, "m"
-    for ``silo.outlet_width``.  "" for a dimensionless key ("[-]"), one that is not a number
-    (a choice, a bool) and a key that is not the Config's (a study's grid key ``base``),
-    unless its name ends in ``_deg`` (an angle in degrees, as every such key of the Config)."""
-    model, found = Config, None
-    for part in key.split("."):
-        found = model.model_fields.get(part) if model is not None else None
-        if found is None:
-            return "deg" if key.endswith("_deg") else ""
-        model = submodel(found.annotation)
-    if model is not None or not _numeric(found.annotation):  # a section; not a number
-        return ""
-    unit = re.search(r"\[([^\]]+)\]", found.description or "")
-    return unit.group(1) if unit and unit.group(1) != "-" else ""
-
-
 @dataclass
 class Layout:
     row_key: str
@@ -109,10 +84,7 @@ class Layout:
 
     def value_label(self, key: str, value: Any) -> str:
         """'theta=35 deg': the key's short name, the value and its unit (a number's only)."""
-        unit = self.units.get(key, "")
-        number = isinstance(value, int | float | list | tuple) and not isinstance(value, bool)
-        return f"{self.names[key]}={format_value(value)}" + (f" {unit}" if unit and number
-                                                             else "")
+        return value_label(self.names[key], self.units.get(key, ""), value)
 
     def col_label(self, col: dict[str, Any]) -> str:
         return ", ".join(self.value_label(k, v) for k, v in col.items()) or "all"
