@@ -12,7 +12,6 @@ import contextlib
 import json
 import os
 import random
-import re
 import resource
 import shutil
 import signal
@@ -386,16 +385,6 @@ def test_a_second_signal_dropped_by_a_weakref_callback_still_stops_without_savin
             guard(None)  # the chunk hook: before any check or save of the run
     assert capsys.readouterr().err == ""
     assert not list(tmp_path.iterdir())  # nothing saved
-
-
-def _the_one_line(stderr: str) -> str:
-    """The line of a stopped run: the last on stderr, after nothing but progress lines (a log
-    line per phase when stderr is not a terminal) and the notes of its start ('silodem: ...',
-    e.g. what --quick changed of the --set values)."""
-    *before, line = stderr.strip().splitlines()
-    assert all(re.match(r"silodem: |(start|fill|settle|discharge|done) +t = ", b)
-               for b in before), stderr
-    return line
 
 
 def _saved_at(path: Path, step_key: str) -> str:
