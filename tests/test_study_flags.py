@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import itertools
 import math
 import types
 
 import pytest
+from study_helpers import fake_plan, heat_map
 from test_report_numbers import write_synthetic
 
 from silodem.report import analysis
@@ -94,16 +94,6 @@ def test_flag_columns_are_documented():
         assert f"| `{column}` | - | `true` where" in doc, column
 
 
-GRID = {"silo.hopper_angle_from_horizontal_deg": [45.0, 60.0], "walls.friction_deg": [10.0, 30.0]}
-SEEDS = (1, 2)
-
-
-def _plan():
-    runs = [types.SimpleNamespace(id=f"t{t:g}_p{p:g}_s{s}", point={
-        "silo.hopper_angle_from_horizontal_deg": t, "walls.friction_deg": p})
-        for s, t, p in itertools.product(SEEDS, *GRID.values())]
-    spec = types.SimpleNamespace(grid=GRID, seeds=list(SEEDS))
-    return types.SimpleNamespace(runs=runs, study=types.SimpleNamespace(spec=spec))
 
 
 def _rows(plan, k_flagged: set[str], friction_flagged: set[str]) -> dict[str, dict]:
@@ -118,12 +108,6 @@ def _rows(plan, k_flagged: set[str], friction_flagged: set[str]) -> dict[str, di
                    else "false")
         rows[run.id] = row
     return rows
-
-
-def _map(fig, title: str):
-    axes = [ax for ax in fig.axes if ax.images and ax.get_title().startswith(title)]
-    assert len(axes) == 1, title
-    return axes[0]
 
 
 def _hatched_cells(ax) -> set[tuple[float, float]]:
@@ -141,13 +125,13 @@ def test_heatmaps_hatch_the_cells_where_a_seed_is_flagged():
     the friction map the cell (theta = 45, phi_P = 30), one seed's friction negative (a
     results.csv 'true').  Each says so under its title; no other map, and no other cell, is
     hatched; the cell keeps its value.  Without any flag no map is hatched or captioned."""
-    plan = _plan()
+    plan = fake_plan()
     lay = layout_of(plan)
     assert lay.rows == [45.0, 60.0] and lay.cols == [{"walls.friction_deg": 10.0},
                                                      {"walls.friction_deg": 30.0}]
     fig = fig_heatmaps(plan, _rows(plan, {"t60_p10_s2"}, {"t45_p30_s1"}), lay)
-    k_map = _map(fig, "Janssen K after filling")
-    friction = _map(fig, "mobilised wall friction after filling")
+    k_map = heat_map(fig, "Janssen K after filling")
+    friction = heat_map(fig, "mobilised wall friction after filling")
     assert _hatched_cells(k_map) == {(0.0, 1.0)}  # column phi_P = 10, row theta = 60
     assert _cell_text_at(k_map, (0.0, 1.0)) == "0.8"
     assert k_map.get_title().endswith(
@@ -160,5 +144,5 @@ def test_heatmaps_hatch_the_cells_where_a_seed_is_flagged():
     assert not any("hatched" in ax.get_title() for ax in others)
     plain = fig_heatmaps(plan, _rows(plan, set(), set()), lay)
     assert not any(_hatched_cells(ax) or "hatched" in ax.get_title() for ax in plain.axes)
-    assert all(math.isclose(_map(plain, "Janssen K after filling").images[0].get_array()[i, j],
+    assert all(math.isclose(heat_map(plain, "Janssen K after filling").images[0].get_array()[i, j],
                             0.8) for i in range(2) for j in range(2))

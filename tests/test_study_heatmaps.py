@@ -9,10 +9,10 @@ two seeds with the same values, so that each cell's seed mean is the value set h
 from __future__ import annotations
 
 import itertools
-import types
 
 import numpy as np
 import pytest
+from study_helpers import GRID, fake_plan, heat_map
 
 from silodem.study.plan import key_unit
 from silodem.study.report import (
@@ -24,17 +24,7 @@ from silodem.study.report import (
 )
 
 NAN = float("nan")
-GRID = {"silo.hopper_angle_from_horizontal_deg": [45.0, 60.0], "walls.friction_deg": [10.0, 30.0]}
-SEEDS = (1, 2)
 CELLS = list(itertools.product(range(2), range(2)))  # (row i: theta, column j: phi_P)
-
-
-def _plan():
-    runs = [types.SimpleNamespace(id=f"t{t:g}_p{p:g}_s{s}", point={
-        "silo.hopper_angle_from_horizontal_deg": t, "walls.friction_deg": p})
-        for s, t, p in itertools.product(SEEDS, *GRID.values())]
-    spec = types.SimpleNamespace(grid=GRID, seeds=list(SEEDS))
-    return types.SimpleNamespace(runs=runs, study=types.SimpleNamespace(spec=spec))
 
 
 def _rows(plan, values: dict[str, dict[tuple[int, int], float]],
@@ -54,12 +44,6 @@ def _rows(plan, values: dict[str, dict[tuple[int, int], float]],
     return rows
 
 
-def _map(fig, title: str):
-    axes = [ax for ax in fig.axes if ax.images and ax.get_title().startswith(title)]
-    assert len(axes) == 1, title
-    return axes[0]
-
-
 def test_the_signed_quantities_are_the_changes_and_the_friction():
     """By their definitions (docs/sweeps.md): the sign of a change in % and of the mobilised
     wall friction sum(tau) / sum(sigma_n) is their meaning; stresses, their ratio, a CV, K
@@ -75,18 +59,18 @@ def test_the_friction_map_is_centred_on_zero_even_when_every_value_is_positive()
     colour range -0.05..0.05 (+- the largest magnitude), so 0 is its middle (white) and every
     cell is on the red side; the colour bar is not extended.  A one-way quantity, the
     coordination number 1.5, 2.0, 1.8, 1.6, keeps its own range 1.5..2.0."""
-    plan = _plan()
+    plan = fake_plan()
     mu = dict(zip(CELLS, (0.02, 0.05, 0.01, 0.04)))
     z = dict(zip(CELLS, (1.5, 2.0, 1.8, 1.6)))
     fig = fig_heatmaps(plan, _rows(plan, {"wall_friction_mobilised_fill": mu,
                                           "coordination_discharge": z}), layout_of(plan))
-    im = _map(fig, "mobilised wall friction after filling").images[0]
+    im = heat_map(fig, "mobilised wall friction after filling").images[0]
     assert im.get_clim() == pytest.approx((-0.05, 0.05), rel=1e-12)
     assert im.get_cmap().name == SIGNED_CMAP
     assert im.colorbar.extend == "neither"
     assert im.norm(0.0) == pytest.approx(0.5)
     assert all(im.norm(v) > 0.5 for v in mu.values())
-    coordination = _map(fig, "coordination number at the junction").images[0]
+    coordination = heat_map(fig, "coordination number at the junction").images[0]
     assert coordination.get_clim() == pytest.approx((1.5, 2.0), rel=1e-12)
     assert coordination.get_cmap().name == "viridis"
 
@@ -97,12 +81,12 @@ def test_a_poorly_determined_K_is_left_out_of_the_colour_range():
     drawn in the colour of its top (as 1.4), the colour bar extended at the top; the cell
     still reads '3*'.  A starred 0.2 +- 0.15 instead extends the bar at the bottom, and both
     at once at both ends."""
-    plan = _plan()
+    plan = fake_plan()
     lay = layout_of(plan)
     well = {(0, 0): 0.7, (1, 0): 1.4, (1, 1): 1.0}
     fig = fig_heatmaps(plan, _rows(plan, {"janssen_K_fill": {**well, (0, 1): 3.0}},
                                    {(0, 1): 2.0}), lay)
-    ax = _map(fig, "Janssen K after filling")
+    ax = heat_map(fig, "Janssen K after filling")
     im = ax.images[0]
     assert im.get_clim() == pytest.approx((0.7, 1.4), rel=1e-12)
     assert im.colorbar.extend == "max"
@@ -115,13 +99,13 @@ def test_a_poorly_determined_K_is_left_out_of_the_colour_range():
 
     low = fig_heatmaps(plan, _rows(plan, {"janssen_K_fill": {**well, (0, 1): 0.2}},
                                    {(0, 1): 0.15}), lay)
-    im = _map(low, "Janssen K after filling").images[0]
+    im = heat_map(low, "Janssen K after filling").images[0]
     assert im.get_clim() == pytest.approx((0.7, 1.4), rel=1e-12)
     assert im.colorbar.extend == "min"
 
     both = fig_heatmaps(plan, _rows(plan, {"janssen_K_fill": {
         (0, 0): 0.7, (0, 1): 3.0, (1, 0): 1.4, (1, 1): 0.2}}, {(0, 1): 2.0, (1, 1): 0.15}), lay)
-    im = _map(both, "Janssen K after filling").images[0]
+    im = heat_map(both, "Janssen K after filling").images[0]
     assert im.get_clim() == pytest.approx((0.7, 1.4), rel=1e-12)
     assert im.colorbar.extend == "both"
 
@@ -148,7 +132,7 @@ def test_tick_labels_carry_the_grid_keys_units():
     """The Config's angles are in degrees: theta=45 deg, phiP=10 deg on the heat maps' ticks;
     an outlet width in m, a density in kg/m^3; a dimensionless key, a choice and the grid key
     'base' (a scenario) carry none."""
-    plan = _plan()
+    plan = fake_plan()
     fig = fig_heatmaps(plan, _rows(plan, {}), layout_of(plan))
     for ax in (ax for ax in fig.axes if ax.images):
         assert [t.get_text() for t in ax.get_yticklabels()] == ["theta=45 deg", "theta=60 deg"]
