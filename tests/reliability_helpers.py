@@ -12,6 +12,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import pytest
 
 import silodem
 from silodem.config import Config
@@ -179,3 +180,28 @@ def hertz_config() -> Config:
     data["fill"]["n_particles"] = 120
     data["discharge"]["max_time"] = 4.0
     return Config.model_validate(data)
+
+
+def exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
+    """Run the command line in this process: its exit code and the last line on stderr (no
+    traceback before it)."""
+    from silodem.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    return exc.value.code, err.strip().splitlines()[-1]
+
+
+def saved_at(path: Path, step_key: str) -> str:
+    """'at t = T s (step N, phase)' as a stopped run's line reads it from the file it kept."""
+    with h5py.File(path) as h5:
+        return (f"at t = {float(h5.attrs['time']):.4g} s (step {int(h5.attrs[step_key])}, "
+                f"{h5.attrs['phase']})")
+
+
+def results_written_line(out: Path) -> str:
+    """The line of a run stopped by a signal after its complete results.h5 was written."""
+    return (f"interrupted: after the run's results were written to {out / 'results.h5'}; "
+            f"'silodem plot {out}' draws its pictures and report.html")

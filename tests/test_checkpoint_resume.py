@@ -31,8 +31,11 @@ from reliability_helpers import (
     command,
     datasets,
     env,
+    exit_and_last_line,
     quick_config,
+    results_written_line,
     run_args,
+    saved_at,
     signal_dropped_by_a_callback,
     signal_when,
     start,
@@ -259,15 +262,6 @@ def test_sigterm_outside_a_run_ends_in_one_line_and_143(tmp_path):
     assert not (tmp_path / "study").exists()
 
 
-def _exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
-    """Run the command line in this process: its exit code and the last line on stderr."""
-    from silodem.cli import main
-
-    with pytest.raises(SystemExit) as exc:
-        main(args)
-    return exc.value.code, capsys.readouterr().err.strip().splitlines()[-1]
-
-
 def test_a_keyboard_interrupt_out_of_the_final_write_is_a_hard_stop_that_names_the_resume(
         tmp_path, monkeypatch, capsys):
     """The final write of results.h5 stopped at once (here by a KeyboardInterrupt that the
@@ -285,7 +279,7 @@ def test_a_keyboard_interrupt_out_of_the_final_write_is_a_hard_stop_that_names_t
 
     monkeypatch.setattr(silodem.run, "write_results", interrupted_final_write)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     checkpoint = read_checkpoint(out)
     assert code == 130
     assert last.startswith("interrupted: SIGINT: stopped at once, without writing its final "
@@ -318,11 +312,9 @@ def test_ctrl_c_whose_interrupt_a_callback_drops_while_drawing_still_ends_with_1
 
     monkeypatch.setattr(silodem.run, "write_views", drawing_that_drops_the_interrupt)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert code == 130
-    assert last == (f"interrupted: after the run's results were written to "
-                    f"{out / 'results.h5'}; 'silodem plot {out}' draws its pictures and "
-                    "report.html")
+    assert last == results_written_line(out)
 
 
 def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, monkeypatch,
@@ -344,7 +336,7 @@ def test_ctrl_c_in_the_last_chunk_stops_after_the_complete_results(tmp_path, mon
     monkeypatch.setattr(silodem.run.RunGuard, "drive", signal_in_last_chunk)
     monkeypatch.setattr(silodem.run, "write_views", views)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert code == 130
     assert last.startswith("interrupted: as the run ended; its complete results are in")
     with h5py.File(out / "results.h5") as h5:
@@ -387,12 +379,6 @@ def test_a_second_signal_dropped_by_a_weakref_callback_still_stops_without_savin
     assert not list(tmp_path.iterdir())  # nothing saved
 
 
-def _saved_at(path: Path, step_key: str) -> str:
-    with h5py.File(path) as h5:
-        return (f"at t = {float(h5.attrs['time']):.4g} s (step {int(h5.attrs[step_key])}, "
-                f"{h5.attrs['phase']})")
-
-
 @pytest.mark.parametrize("checkpoints", [True, False], ids=["checkpoint", "no-checkpoint"])
 def test_a_second_ctrl_c_names_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch, capsys,
                                                              checkpoints):
@@ -425,20 +411,20 @@ def test_a_second_ctrl_c_names_what_is_kept_and_how_to_go_on(tmp_path, monkeypat
     monkeypatch.setattr(guard, "__call__", first_at_a_chunk_end)
     monkeypatch.setattr(guard, "_write_results", second_as_the_save_begins)
     out = tmp_path / "run"
-    code, line = _exit_and_last_line(run_args(out, *extra), capsys)
+    code, line = exit_and_last_line(run_args(out, *extra), capsys)
     assert sent == ["first", "second"]
     assert code == 130
     said = "interrupted: SIGINT again: stopped at once, without saving; "
     if checkpoints:
         assert line == (f"{said}the last checkpoint, {out / 'checkpoint.h5'} "
-                        f"{_saved_at(out / 'checkpoint.h5', 'step')}, is kept; continue with: "
+                        f"{saved_at(out / 'checkpoint.h5', 'step')}, is kept; continue with: "
                         f"silodem run --resume {out}")
         read_checkpoint(out)  # a checkpoint the named command can resume from
     else:
         assert not (out / "checkpoint.h5").exists()
         assert line == (f"{said}no checkpoint (checkpoint.enabled is false): the run cannot be "
                         f"resumed; {out / 'results.h5'} holds the run up to its last save "
-                        f"{_saved_at(out / 'results.h5', 'steps')}")
+                        f"{saved_at(out / 'results.h5', 'steps')}")
 
 
 def test_a_second_signal_before_any_save_says_there_is_nothing_to_resume(tmp_path):

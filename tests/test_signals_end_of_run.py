@@ -13,7 +13,13 @@ import signal
 
 import h5py
 import pytest
-from reliability_helpers import quick_config, run_args
+from reliability_helpers import (
+    exit_and_last_line,
+    quick_config,
+    results_written_line,
+    run_args,
+    saved_at,
+)
 
 from silodem.checkpoint import read_checkpoint
 from silodem.cli import main
@@ -24,24 +30,9 @@ SIGNALS = pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM],
                                   ids=["SIGINT", "SIGTERM"])
 
 
-def _exit_and_last_line(args: list[str], capsys) -> tuple[int, str]:
-    """Run the command line in this process: its exit code and the last line on stderr."""
-    with pytest.raises(SystemExit) as exc:
-        main(args)
-    err = capsys.readouterr().err
-    assert "Traceback" not in err, err
-    return exc.value.code, err.strip().splitlines()[-1]
-
-
 def _status(out) -> str:
     with h5py.File(out / "results.h5") as h5:
         return str(h5.attrs["status"])
-
-
-def _saved_at(path, step_key: str) -> str:
-    with h5py.File(path) as h5:
-        return (f"at t = {float(h5.attrs['time']):.4g} s (step {int(h5.attrs[step_key])}, "
-                f"{h5.attrs['phase']})")
 
 
 def _complete(out) -> str:
@@ -53,7 +44,7 @@ def _complete(out) -> str:
 def _assert_stopped_complete(out, capsys, sig: int, sent: list[int]):
     """Run the command line into ``out``, whose ``sent`` signal (``sig``) comes as the run
     ends: the run stops with complete results, no checkpoint left, 130 or 143.  ``out``."""
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert sent == [sig]
     assert (code, last) == (128 + sig, _complete(out))
     assert _status(out) == "complete"
@@ -104,11 +95,11 @@ def test_a_second_signal_as_the_progress_bar_closes_stops_at_once_and_names_the_
 
     monkeypatch.setattr(Progress, "stop", stop_with_two_signals)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     checkpoint = out / "checkpoint.h5"
     assert code == 130
     assert last == (f"interrupted: SIGINT again: stopped at once, without saving; the last "
-                    f"checkpoint, {checkpoint} {_saved_at(checkpoint, 'step')}, is kept; "
+                    f"checkpoint, {checkpoint} {saved_at(checkpoint, 'step')}, is kept; "
                     f"continue with: silodem run --resume {out}")
     assert _status(out) == "running"  # the last periodic save's
     monkeypatch.setattr(Progress, "stop", stop)
@@ -178,11 +169,9 @@ def test_a_signal_while_the_checkpoint_is_removed_keeps_the_folder_whole(
 
     monkeypatch.setattr(silodem.run.RunGuard, "completed", completed_with_a_signal)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert code == 130
-    assert last == (f"interrupted: after the run's results were written to "
-                    f"{out / 'results.h5'}; 'silodem plot {out}' draws its pictures and "
-                    "report.html")
+    assert last == results_written_line(out)
     assert _status(out) == "complete"
     assert not (out / "checkpoint.h5").exists()
     assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
@@ -252,11 +241,11 @@ def test_a_second_signal_while_the_final_results_are_written_stops_at_once(
     sent = _signals_in_the_final_write(
         monkeypatch, [signal.SIGINT] * (2 if first == "in the final write" else 1))
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     checkpoint = out / "checkpoint.h5"
     assert sent and code == 130
     assert last == (f"interrupted: SIGINT again: stopped at once, without writing its final "
-                    f"results; the last checkpoint, {checkpoint} {_saved_at(checkpoint, 'step')}"
+                    f"results; the last checkpoint, {checkpoint} {saved_at(checkpoint, 'step')}"
                     f", is kept; continue with: silodem run --resume {out}")
     assert _status(out) == "running"  # the last periodic save's
     _no_partial_save(out)
@@ -282,7 +271,7 @@ def test_a_full_disk_during_the_final_write_names_the_checkpoint_kept(
 
     monkeypatch.setattr(silodem.run, "write_results", no_room)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     kept = read_checkpoint(out)
     assert code == 2
     assert last == (f"error: No space left on device ({out / 'results.h5'}) while the run's "
@@ -304,7 +293,7 @@ def test_a_signal_while_the_summary_is_printed_says_the_run_is_complete(
 
     monkeypatch.setattr(commands_run, "_print_summary", print_with_a_signal)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert code == 128 + sig
     assert last == (f"interrupted: after the run had ended, while its summary was printed; "
                     f"nothing is lost: its results are complete in {out}")
@@ -379,7 +368,7 @@ def test_a_second_signal_while_an_unstable_runs_state_is_saved_stops_it_and_says
     done = _nan_after_chunk(monkeypatch)
     sent = _signals_in_the_failure_save(monkeypatch, where, 2)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert sent == [signal.SIGINT, signal.SIGINT]
     assert code == 3
     checkpoint = out / "checkpoint.h5"
@@ -396,7 +385,7 @@ def test_a_second_signal_while_an_unstable_runs_state_is_saved_stops_it_and_says
     assert not (out / "diagnostic.json").exists()
     assert last.endswith(
         f"; SIGINT again: stopped at once while saving the failure state, {written}; the last "
-        f"checkpoint, {checkpoint} {_saved_at(checkpoint, 'step')}, is kept; 'silodem run "
+        f"checkpoint, {checkpoint} {saved_at(checkpoint, 'step')}, is kept; 'silodem run "
         f"--resume {out}' repeats the run from it to the same failure, and saves its state"), last
     read_checkpoint(out)  # whole, as named
 
@@ -408,7 +397,7 @@ def test_a_first_signal_while_an_unstable_runs_state_is_saved_lets_the_save_fini
     _nan_after_chunk(monkeypatch)
     sent = _signals_in_the_failure_save(monkeypatch, "failure.h5", 1)
     out = tmp_path / "run"
-    code, last = _exit_and_last_line(run_args(out), capsys)
+    code, last = exit_and_last_line(run_args(out), capsys)
     assert sent == [signal.SIGINT] and code == 3
     assert last.startswith("run stopped: non-finite vx")
     assert last.endswith(f"; diagnosis in {out / 'diagnostic.json'}, state in "
@@ -435,13 +424,13 @@ def test_the_checkpoint_named_after_a_cut_short_failure_save_repeats_the_failure
     monkeypatch.setattr(procedure, "choose_time_step", too_large)
     sent = _signals_in_the_failure_save(monkeypatch, "results.h5", 2)
     out = tmp_path / "run"
-    code, cut = _exit_and_last_line(run_args(out), capsys)
+    code, cut = exit_and_last_line(run_args(out), capsys)
     assert code == 3 and len(sent) == 2 and "SIGINT again" in cut, cut
     assert not (out / "diagnostic.json").exists()
     sent.clear()
     monkeypatch.undo()
     monkeypatch.setattr(procedure, "choose_time_step", too_large)  # (the checkpoint has dt)
-    code, last = _exit_and_last_line(["run", "--resume", str(out)], capsys)
+    code, last = exit_and_last_line(["run", "--resume", str(out)], capsys)
     assert code == 3
     diagnosis = cut.split("; SIGINT again")[0]
     assert last.startswith(diagnosis), (cut, last)
