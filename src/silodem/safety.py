@@ -88,27 +88,27 @@ def ended_unstable(out: Path) -> bool:
     failure, with the failing config: a resume is bit-identical and comes to the same failure,
     so a new run there (the config mended) replaces it with the run's other files, instead of
     being refused as over an unfinished run."""
-    import h5py
-
-    try:
-        with h5py.File(out / RESULTS_NAME, "r") as h5:
-            status = h5.attrs.get("status")
-            ours = "silodem_version" in h5.attrs
-    except (OSError, ValueError):
-        return False
+    attrs = _silodem_attrs(out / RESULTS_NAME)
+    status = attrs.get("status") if attrs is not None else None
     if isinstance(status, bytes):
         status = status.decode(errors="replace")
-    return ours and status == "unstable"
+    return status == "unstable"
 
 
-def _written_by_silodem(results: Path) -> bool:
+def _silodem_attrs(results: Path) -> dict[str, Any] | None:
+    """The root attributes of ``results`` when silodem wrote it (it has ``silodem_version``);
+    None for another file, or one that cannot be read."""
     import h5py
 
     try:
         with h5py.File(results, "r") as h5:
-            return "silodem_version" in h5.attrs
+            return dict(h5.attrs) if "silodem_version" in h5.attrs else None
     except (OSError, ValueError):
-        return False
+        return None
+
+
+def _written_by_silodem(results: Path) -> bool:
+    return _silodem_attrs(results) is not None
 
 
 def check_replaceable(out: Path, flag: str = "out") -> bool:
