@@ -205,3 +205,45 @@ def test_the_dead_fraction_counts_only_the_grains_there_as_the_gate_opened():
     assert dead_fraction(dead) == pytest.approx(2 / 10)  # a file without the flag
     assert np.isnan(dead_fraction(dead[:0], lost[:0]))
     assert np.isnan(dead_fraction(dead[7:], lost[7:]))  # every grain lost
+
+
+def test_a_grain_under_the_floor_beside_the_outlet_has_not_left_and_is_lost_when_told():
+    """After the opening, grain 10 is seen under the silo at x = 0.15 m (under the left
+    hopper wall: the outlet spans 0.4-0.8 m, and 2 largest radii of room, 0.11 m, reach only
+    0.29 m): pushed through the wall, not discharged, so it has no exit time although its
+    centre is below z = 0; grain 11 under the outlet's edge (x = 0.35 m, within the room) has
+    left.  When the run removes grain 10 as lost (``lose``), it is flagged, its displacement
+    is undone (NaN) and it is followed no more, absent or not; a grain that had left keeps
+    its exit time even if told (14), as do the grains never told."""
+    cfg, shape = _tiny()
+    flow = _FlowPart(cfg, shape)
+    _begin(flow)
+    flow.record(None, _reading(T_OPEN + 0.02, [10, 11, 15], [0.15, 0.35, 0.10],
+                               [-0.01, -0.01, 0.15]))
+    order = list(GRAINS)
+    i10, i11, i14 = order.index(10), order.index(11), order.index(14)
+    assert np.isnan(flow.exit_time[i10])
+    assert flow.exit_time[i11] == pytest.approx(0.02)
+    assert flow.max_disp[i10] == pytest.approx(math.hypot(0.60 - 0.15, 0.51))
+    flow.lose(np.array([10]))
+    assert flow.lost_later.tolist() == [u == 10 for u in order]
+    assert np.isnan(flow.exit_time[i10]) and np.isnan(flow.max_disp[i10])
+    flow.record(None, _reading(T_OPEN + 0.04, [15], [0.10], [0.15]))  # 10 is gone now
+    assert np.isnan(flow.exit_time[i10])
+    assert flow.exit_time[i14] == pytest.approx(0.02)  # absent from the first sample
+    state = flow.state()
+    again = _FlowPart(cfg, shape)
+    again.restore(state)
+    np.testing.assert_array_equal(again.lost_later, flow.lost_later)
+    del state["flow.lost_later"]  # a checkpoint written before the flag: none lost later
+    again.restore(state)
+    assert not again.lost_later.any() and again.lost_later.size == len(order)
+
+
+def test_told_of_losses_before_the_gate_opens_the_flow_part_keeps_nothing():
+    """Grains lost while filling are gone before the opening: the flow part follows none yet,
+    so being told of them changes nothing (it has no grains)."""
+    cfg, shape = _tiny()
+    flow = _FlowPart(cfg, shape)
+    flow.lose(np.array([1, 2]))
+    assert flow.lost_later.size == 0 and flow.uid0.size == 0

@@ -16,7 +16,7 @@ from silodem.errors import InputError
 from silodem.run import run_simulation
 from silodem.scenario_files import load_config, quick_variant
 from silodem.silo.checks import estimate_overlap
-from silodem.silo.geometry import build_walls, silo_shape
+from silodem.silo.geometry import build_walls, outlet_room, silo_shape
 from silodem.silo.procedure import CHECK_INTERVAL, SiloRun
 
 
@@ -376,3 +376,55 @@ def test_every_phase_is_reported_however_short(monkeypatch):
     run = SiloRun(small(discharge__max_time=0.5), on_progress=seen.append)
     run.run()
     assert [pr.phase for pr in seen] == ["fill", "settle", "discharge", "done"]
+
+
+def test_a_grain_pushed_under_the_floor_after_the_gate_opens_is_lost_not_discharged():
+    """At the gate's opening (stiff grains: none lost on their own), one grain is moved under
+    the left hopper wall, halfway from the silo's edge to the outlet, and one under the
+    outlet's middle, both below the removal height.  At the next chunk the first is lost
+    (lost count, lost mass, the warning, the flow measurement's flag), not discharged, and
+    the second discharged, with an exit time; the discharged fraction is the discharged mass
+    over the mass at the opening less the lost grain's (a lost grain can never leave through
+    the outlet, so it must not keep the run from its stop_fraction)."""
+    from silodem.measure.recorders import MeasureRecorder, recorders_for
+
+    cfg = small()
+    run = SiloRun(cfg, recorders=recorders_for(cfg))
+    while run.phase != "discharge":
+        run.advance_chunk()
+    shape, p = run.shape, run.sim.particles
+    room = outlet_room(cfg)
+    x_beside = 0.5 * shape.outlet_left
+    assert x_beside < shape.outlet_left - room  # the premise: clearly not under the outlet
+    assert run.events.get("lost_count", 0) == 0 and run.discharged_count == 0
+    x, y, uid, mass = p.view("x"), p.view("y"), p.view("uid"), p.view("mass")
+    x[0], y[0] = x_beside, run.z_remove - 0.1
+    x[1], y[1] = 0.5 * (shape.outlet_left + shape.outlet_right), run.z_remove - 0.1
+    for name in ("vx", "vy", "omega"):
+        p.view(name)[:2] = 0.0
+    run.sim.invalidate()
+    lost_uid, left_uid = int(uid[0]), int(uid[1])
+    m_lost, m_left, mass0 = float(mass[0]), float(mass[1]), run.state.mass0
+    run.advance_chunk()
+    assert run.events["lost_count"] == 1 and run.state.lost_mass == m_lost
+    assert run.discharged_count == 1 and run.discharged_mass == m_left
+    assert run.discharged_fraction() == pytest.approx(m_left / (mass0 - m_lost), rel=1e-12)
+    assert any("through a wall during discharge" in w for w in run.warnings)
+    flow = next(r for r in run.recorders if isinstance(r, MeasureRecorder)).flow
+    at = {int(u): k for k, u in enumerate(flow.uid0)}
+    assert flow.lost_later[at[lost_uid]] and not flow.lost_later[at[left_uid]]
+    assert np.isnan(flow.exit_time[at[lost_uid]]) and np.isnan(flow.max_disp[at[lost_uid]])
+    assert flow.exit_time[at[left_uid]] > 0
+    assert flow.lost_later.sum() == 1
+
+
+def test_below_outlet_is_the_outlet_span_and_its_room():
+    """The tiny hopper's outlet spans x = 0.4-0.8 m; with 0.1 m of room a grain under the silo
+    at 0.31-0.89 m came through it, one at 0.29 or 0.91 m did not."""
+    from measure_helpers import tiny_hopper_config
+
+    shape = silo_shape(tiny_hopper_config())
+    assert (shape.outlet_left, shape.outlet_right) == pytest.approx((0.4, 0.8))
+    got = shape.below_outlet(np.array([0.29, 0.31, 0.6, 0.89, 0.91, -0.5, 1.5]), 0.1)
+    np.testing.assert_array_equal(got, [False, True, True, True, False, False, False])
+    assert outlet_room(tiny_hopper_config()) == pytest.approx(2 * 0.055)

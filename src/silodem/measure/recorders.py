@@ -32,7 +32,7 @@ from silodem.measure.fields import FieldsPart
 from silodem.measure.reading import Reading, read_simulation
 from silodem.measure.stress import circle_measure, region_stress
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
-from silodem.silo.geometry import build_walls, silo_shape
+from silodem.silo.geometry import build_walls, outlet_room, silo_shape
 from silodem.silo.recorders import (
     PHASE_CODES,
     PHASE_CODES_TEXT,
@@ -200,6 +200,7 @@ class _FlowPart:
         self.shape = shape
         self.delay, self.window = m.discharge_delay, m.window
         self.d = regions.mean_diameter(cfg)
+        self.room = outlet_room(cfg)  # beside the outlet's span [m]
         cell = regions.grid_cell(cfg)
         self.x_edges, self.z_edges = regions.grid_edges(shape, cell)
         self.mfi_band = (np.nan, np.nan)  # set when the gate opens, from the fill level
@@ -207,6 +208,7 @@ class _FlowPart:
         self.uid0 = np.zeros(0, dtype=np.int64)
         self.x0 = self.z0 = self.r0 = self.exit_time = self.max_disp = np.zeros(0)
         self.lost = np.zeros(0, dtype=bool)  # lost before the discharge (``begin``)
+        self.lost_later = np.zeros(0, dtype=bool)  # lost through a wall after (``lose``)
         shape2 = (self.x_edges.size - 1, self.z_edges.size - 1)
         self.grid = np.zeros((3, *shape2))  # sum vx, sum vz, count
         self.grid_samples = 0
@@ -234,15 +236,29 @@ class _FlowPart:
         self.uid0 = np.asarray(uid, dtype=np.int64).copy()
         self.x0, self.z0, self.r0 = (np.asarray(v, dtype=float).copy() for v in (x, z, r))
         self.lost = lost_before_discharge(self.shape, self.x0, self.z0)
+        self.lost_later = np.zeros(self.uid0.size, dtype=bool)
         self.exit_time = np.full(self.uid0.size, np.nan)
         self.max_disp = np.where(self.lost, np.nan, 0.0)
 
+    def lose(self, uids: np.ndarray) -> None:
+        """The grains ``uids`` left through a wall after the gate opened (the procedure's
+        ``grains_lost``): they did not discharge, so what was recorded of them is undone (an
+        exit time given while their centre was under the floor, their displacement: NaN),
+        and they are followed no more."""
+        if not np.isfinite(self.t_open):
+            return
+        hit = np.isin(self.uid0, uids)
+        self.lost_later |= hit
+        self.exit_time[hit] = np.nan
+        self.max_disp[hit] = np.nan
+
     def record(self, run: SiloRun | None, rd: Reading) -> None:
         """One sample ``rd`` after the gate opened: the tracked grains absent from it or with
-        their centre below the outlet (z < 0) have left, at this sample's time after the
-        opening unless they had left before; the others' largest displacement grows.  The
-        grains lost before the discharge are not followed.  (``run`` is read only for the
-        snapshot in the middle of the discharge window.)"""
+        their centre below the outlet (z < 0 within ``SiloShape.below_outlet``) have left, at
+        this sample's time after the opening unless they had left before; the others' largest
+        displacement grows.  The grains lost (before the discharge, or through a wall since)
+        are not followed.  (``run`` is read only for the snapshot in the middle of the
+        discharge window.)"""
         if not np.isfinite(self.t_open):
             return
         t = rd.time - self.t_open
@@ -251,8 +267,9 @@ class _FlowPart:
         pos = np.clip(pos, 0, max(rd.n - 1, 0))
         idx = order[pos] if rd.n else pos
         present = (rd.uid[idx] == self.uid0) if rd.n else np.zeros(self.uid0.size, bool)
-        present &= rd.z[idx] >= 0.0 if rd.n else present
-        followed = ~self.lost
+        if rd.n:  # under the silo: left through the outlet, or pushed through a wall (``lose``)
+            present &= (rd.z[idx] >= 0.0) | ~self.shape.below_outlet(rd.x[idx], self.room)
+        followed = ~(self.lost | self.lost_later)
         gone = ~present & np.isnan(self.exit_time) & followed
         self.exit_time[gone] = t
         present &= followed
@@ -296,7 +313,7 @@ class _FlowPart:
         out: dict[str, Any] = {"flow.t_open": self.t_open, "flow.uid0": self.uid0,
                                "flow.x0": self.x0, "flow.z0": self.z0, "flow.r0": self.r0,
                                "flow.exit_time": self.exit_time, "flow.max_disp": self.max_disp,
-                               "flow.lost": self.lost,
+                               "flow.lost": self.lost, "flow.lost_later": self.lost_later,
                                "flow.grid": self.grid, "flow.grid_samples": self.grid_samples,
                                "flow.mfi": _stack(self.mfi_rows, (6,)),
                                "flow.mfi_band": np.array(self.mfi_band)}
@@ -320,6 +337,8 @@ class _FlowPart:
             self.lost = lost_before_discharge(self.shape, self.x0, self.z0)
             self.exit_time[self.lost] = np.nan
             self.max_disp = np.where(self.lost, np.nan, self.max_disp)
+        self.lost_later = (np.array(state["flow.lost_later"], dtype=bool)
+                           if "flow.lost_later" in state else np.zeros(self.uid0.size, bool))
         self.grid_samples = int(state["flow.grid_samples"])
         self.mfi_band = tuple(float(v) for v in state["flow.mfi_band"])
         self.mfi_rows = [tuple(r) for r in np.asarray(state["flow.mfi"]).tolist()]
@@ -345,12 +364,14 @@ class _FlowPart:
         _dataset(f, "z0", self.z0, "m")
         _dataset(f, "r0", self.r0, "m")
         _dataset(f, "exit_time", self.exit_time, "s", meaning="time after the gate opened at "
-                 "which the grain left (NaN: still inside, or lost before the discharge)")
+                 "which the grain left (NaN: still inside, or lost through a wall)")
         _dataset(f, "max_displacement", self.max_disp, "m", meaning="largest distance from "
-                 "its place at the gate opening (NaN: lost before the discharge)")
+                 "its place at the gate opening (NaN: lost through a wall)")
         _dataset(f, "lost_before_discharge", self.lost, meaning="the grain's centre was below "
                  "the outlet (z < 0) or beyond a wall when the gate opened: lost through a "
                  "wall while filling, not discharged")
+        _dataset(f, "lost_during_discharge", self.lost_later, meaning="the grain left through "
+                 "a wall after the gate opened (pushed through it), not through the outlet")
         grid = f.create_group("grid")
         _dataset(grid, "x_edges", self.x_edges, "m")
         _dataset(grid, "z_edges", self.z_edges, "m")
@@ -395,6 +416,9 @@ class MeasureRecorder(Recorder):
             self.flow.record(run, rd)
             if self.flow.in_window(rd):
                 self.fields.add("discharge", rd)
+
+    def grains_lost(self, run: SiloRun, uids: np.ndarray) -> None:
+        self.flow.lose(uids)
 
     def phase_ended(self, run: SiloRun, phase: str) -> None:
         if phase == "settle":

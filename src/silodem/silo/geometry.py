@@ -17,11 +17,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from silodem.config import Config
 from silodem.engine.walls import Walls
 from silodem.silo.materials import contact_constants
 
 GATE = "gate"
+
+
+def outlet_room(cfg: Config) -> float:
+    """Room [m] each side of the outlet's span where a grain under the silo still counts as
+    come through it (``SiloShape.below_outlet``): 2 largest radii, as grains leave with a
+    converging, inward horizontal speed and fall 4 radii before they are removed."""
+    return 2.0 * cfg.material.radius_max
 
 
 @dataclass(frozen=True)
@@ -42,6 +51,13 @@ class SiloShape:
         f = max(z, 0.0) / self.junction
         right = self.outlet_right + (self.width - self.outlet_right) * f
         return self.outlet_left * (1.0 - f), right
+
+    def below_outlet(self, x: np.ndarray, room: float) -> np.ndarray:
+        """True where a grain under the silo (z < 0) at x [m] can have come through the outlet:
+        x within the outlet's span widened by ``room`` [m] each side.  A grain under the floor
+        or beside the walls elsewhere was pushed through a wall."""
+        x = np.asarray(x, dtype=float)
+        return (x >= self.outlet_left - room) & (x <= self.outlet_right + room)
 
     def outline(self) -> list[tuple[float, float]]:
         """Corners of the silo's inside [m], anticlockwise from the outlet's left edge (the

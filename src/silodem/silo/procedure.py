@@ -26,7 +26,7 @@ from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.errors import InputError
 from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
-from silodem.silo.geometry import GATE, SiloShape, build_walls, silo_shape
+from silodem.silo.geometry import GATE, SiloShape, build_walls, outlet_room, silo_shape
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
 
 PHASES = ("fill", "settle", "discharge", "done")
@@ -62,6 +62,7 @@ class ProcedureState:
     discharged_count: int = 0
     lost_mass: float = 0.0  # grains that left through a wall [kg]
     lost_count: int = 0
+    lost_mass_discharge: float = 0.0  # of lost_mass, lost after the gate opened [kg]
     pending_radii: list[float] = field(default_factory=list)  # discharged, to re-insert [m]
 
 
@@ -219,7 +220,7 @@ class SiloRun:
         """Gate withdrawn; stop on the discharged fraction, the time limit or a clog."""
         d, st = self.cfg.discharge, self.state
         self._advance(self._steps(CHECK_INTERVAL))
-        fraction = st.discharged_mass / st.mass0 if st.mass0 > 0 else 1.0
+        fraction = self.discharged_fraction()
         self._report(f"discharged {100 * fraction:.0f}%")
         elapsed = self.sim.time - st.phase_start
         if fraction >= d.stop_fraction or (self.sim.particles.n == 0 and not d.reinsert):
@@ -249,9 +250,9 @@ class SiloRun:
         """Remove the grains that left the silo since the last call, then step.  Removing first
         keeps the contact lists current whenever control returns to the procedure."""
         sim = self.sim
+        self._remove_escaped()
         if self.state.phase == "discharge":
             self._remove_discharged()
-        self._remove_escaped()
         every = [rec.every_steps(self.dt) for rec in self.recorders]
         end = sim.steps + n_steps
         while sim.steps < end:
@@ -347,16 +348,22 @@ class SiloRun:
 
     def _remove_escaped(self) -> None:
         """Remove grains that left the silo other than through the open outlet (pushed through
-        a wall by too soft contacts, or thrown out): one warning names the first loss, and a
-        second, rewritten at each later loss, holds the running total."""
+        a wall by too soft contacts, or thrown out): far beside or above the silo, or under
+        it while the gate is closed or away from the open outlet (``SiloShape.below_outlet``);
+        the recorders are told first (``Recorder.grains_lost``).  One warning names the first
+        loss, and a second, rewritten at each later loss, holds the running total."""
         p, shape, st = self.sim.particles, self.shape, self.state
         x, y = p.view("x"), p.view("y")
         margin = 1.0 + 4.0 * self.cfg.material.radius_max
         out = (x < -margin) | (x > shape.width + margin) | (y > shape.wall_top + 20.0)
-        if st.phase != "discharge":
-            out |= y < self.z_remove
+        under = y < self.z_remove
+        if st.phase == "discharge":
+            under &= ~shape.below_outlet(x, outlet_room(self.cfg))
+        out |= under
         if not np.any(out):
             return
+        for rec in self.recorders:
+            rec.grains_lost(self, p.view("uid")[out])
         count = int(np.count_nonzero(out))
         if st.lost_count == 0:
             self.warnings.append(
@@ -367,6 +374,8 @@ class SiloRun:
         first = st.lost_count == 0
         st.lost_count += count
         st.lost_mass += float(np.sum(p.view("mass")[out]))
+        if st.phase == "discharge":
+            st.lost_mass_discharge += float(np.sum(p.view("mass")[out]))
         self.events["lost_count"] = st.lost_count
         self.sim.remove(out)
         if not first:
@@ -395,6 +404,13 @@ class SiloRun:
     @property
     def discharged_count(self) -> int:
         return self.state.discharged_count
+
+    def discharged_fraction(self) -> float:
+        """Share of the mass in the silo at the gate's opening that has left through the
+        outlet, of the part not lost through a wall since (1 when there was none)."""
+        st = self.state
+        stayed = st.mass0 - st.lost_mass_discharge
+        return st.discharged_mass / stayed if stayed > 0 else 1.0
 
     def fill_level(self) -> float:
         """Height of the top of the grains in the silo [m] (mean of the 5 highest tops)."""

@@ -41,6 +41,10 @@ class Recorder:
     def phase_ended(self, run: SiloRun, phase: str) -> None:
         """Called when ``phase`` ends (before the next one begins)."""
 
+    def grains_lost(self, run: SiloRun, uids: np.ndarray) -> None:
+        """Called with the ids of grains that left the silo other than through the outlet
+        (pushed through a wall), just before they are removed."""
+
     def volume_warning(self, run: SiloRun) -> str | None:
         """A warning when what this recorder would gather is out of proportion (None: fine);
         asked once, before the run starts."""
