@@ -243,8 +243,8 @@ class Discharge(_Strict):
     enabled: bool = Field(True, description="run the discharge phase")
     stop_fraction: float = Field(
         0.9, gt=0, le=1, description="stop when this fraction of the mass in the silo at "
-        "the gate's opening has left through the outlet (of the mass not lost through a wall "
-        "since) [-]"
+        "the gate's opening, less any mass lost through a wall since, has left through the "
+        "outlet [-]"
     )
     max_time: float = Field(30.0, gt=0, description="stop after this discharge time [s] "
                             "(checked every 0.05 s of simulated time)")

@@ -217,13 +217,15 @@ class SiloRun:
             self._finish()
 
     def _discharge_chunk(self) -> None:
-        """Gate withdrawn; stop on the discharged fraction, the time limit or a clog."""
+        """Gate withdrawn; stop on the discharged fraction (of the mass not lost through a wall:
+        ``stop_fraction_of``), the time limit or a clog."""
         d, st = self.cfg.discharge, self.state
         self._advance(self._steps(CHECK_INTERVAL))
         fraction = self.discharged_fraction()
         self._report(f"discharged {100 * fraction:.0f}%")
         elapsed = self.sim.time - st.phase_start
-        if fraction >= d.stop_fraction or (self.sim.particles.n == 0 and not d.reinsert):
+        if self.stop_fraction_of() >= d.stop_fraction or (self.sim.particles.n == 0
+                                                          and not d.reinsert):
             reason = "fraction"
         elif elapsed >= d.max_time:
             reason = "time"
@@ -407,7 +409,14 @@ class SiloRun:
 
     def discharged_fraction(self) -> float:
         """Share of the mass in the silo at the gate's opening that has left through the
-        outlet, of the part not lost through a wall since (1 when there was none)."""
+        outlet [-] (1 when there was none): ``/events`` ``discharged_fraction``."""
+        st = self.state
+        return st.discharged_mass / st.mass0 if st.mass0 > 0 else 1.0
+
+    def stop_fraction_of(self) -> float:
+        """The share ``discharge.stop_fraction`` is held against [-]: the discharged mass over
+        the mass at the opening less the mass lost through a wall since (1 when none is left),
+        so that grains that can never reach the outlet cannot keep the run from stopping."""
         st = self.state
         stayed = st.mass0 - st.lost_mass_discharge
         return st.discharged_mass / stayed if stayed > 0 else 1.0
