@@ -538,7 +538,7 @@ def test_a_completed_run_leaves_no_partial_save_behind(tmp_path):
 
 def test_a_new_run_keeps_files_it_did_not_write_in_vtk(tmp_path):
     """Only the VTK writer's own names are removed from an old run's vtk/ folder."""
-    from silodem.safety import clear_previous_run
+    from silodem.run_folder import clear_previous_run
 
     vtk = tmp_path / "vtk"
     vtk.mkdir()
@@ -552,7 +552,7 @@ def test_a_new_run_keeps_files_it_did_not_write_in_vtk(tmp_path):
 def test_a_linked_vtk_folder_is_emptied_of_old_files_and_kept(tmp_path):
     """vtk/ as a link to another disk: its old files go, the link stays (rmdir of the link
     raised 'Not a directory' and stopped every new run)."""
-    from silodem.safety import clear_previous_run
+    from silodem.run_folder import clear_previous_run
 
     scratch = tmp_path / "scratch"
     scratch.mkdir()

@@ -30,7 +30,7 @@ from test_report_numbers import (
     write_synthetic,
 )
 
-from silodem.report.analysis import UNSETTLED, _numbers, analyse
+from silodem.report.analysis import UNSETTLED, analyse
 from silodem.report.eurocode import add_loads, highest_wall_contact
 from silodem.report.figures_stress import (
     _en1991_4_curve,
@@ -38,6 +38,7 @@ from silodem.report.figures_stress import (
     fig_vertical,
     fig_wall_shear,
 )
+from silodem.report.key_numbers import add_numbers
 from silodem.report.load import load_results
 
 NAN = float("nan")
@@ -64,7 +65,7 @@ def _with_fits(a, fill: tuple[float, float], discharge: tuple[float, float] | No
     b.janssen_free = dataclasses.replace(a.janssen_free, K=(free or fill)[0],
                                          K_err=(free or fill)[1])
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     return b
 
 
@@ -126,7 +127,7 @@ def _loads_with_K(a, K: float, err: float):
     b.en1991_4 = {}
     add_loads(b, highest_wall_contact(a.res.snapshot("settled"), a.geom["B"], a.geom["d"]))
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     return b
 
 
@@ -177,7 +178,7 @@ def test_a_negative_mobilised_friction_is_flagged_in_the_wall_shear_legend(synth
     b = copy.copy(synth)
     b.mu_mobilised = {"fill": -0.0312, "discharge": 0.05}
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     assert _row(b, "mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
                 "the Janssen fit, after filling").startswith("-0.0312 (negative: ")
     labels = [t.get_text() for t in fig_wall_shear(b).axes[0].get_legend().get_texts()]

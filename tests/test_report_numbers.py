@@ -29,12 +29,12 @@ from measure_helpers import tiny_hopper_config
 
 from silodem.output import write_text
 from silodem.report.analysis import (
-    _numbers,
     analyse,
     column_tops,
     surface_height,
 )
 from silodem.report.eurocode import _hopper_numbers, add_loads, highest_wall_contact, hopper_loads
+from silodem.report.key_numbers import add_numbers
 from silodem.report.load import load_results
 from silodem.report.numbers import significant
 from silodem.run import run_simulation
@@ -607,18 +607,18 @@ def test_key_numbers_of_the_report(synth):
     # a peak below the junction, on the hopper walls: the cell's Janssen where the cell ends
     import copy
 
-    from silodem.report.analysis import _numbers
+    from silodem.report.key_numbers import add_numbers
 
     below = copy.copy(a)
     below.peaks, below.numbers = {**a.peaks, "fill": (4500.0, 0.3)}, []
-    _numbers(below)
+    add_numbers(below)
     ratio = 4500.0 / float(_janssen_sigma_h(SURF_FILL - Z_J, K_TRUE))
     assert float(_number(below, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
     # with K poorly determined (error over half of it) the ratio says so
     loose = copy.copy(below)
     loose.janssen = {**a.janssen, "fill": dataclasses.replace(a.janssen["fill"], K_err=0.4)}
     loose.numbers = []
-    _numbers(loose)
+    add_numbers(loose)
     value = _number(loose, "switch-zone peak / Janssen")
     assert float(value.split()[0]) == pytest.approx(ratio, rel=5e-3)
     assert value.endswith("(K = 0.55 +- 0.4 is poorly determined: a ratio to a curve the run "
@@ -648,7 +648,7 @@ def test_key_numbers_of_the_report(synth):
     one = copy.copy(a)
     one.change = {**a.change, "wall peak": {**a.change["wall peak"], "z_discharge": 0.5}}
     one.numbers = []
-    _numbers(one)
+    add_numbers(one)
     assert not [r for r in one.numbers if r[0].startswith("wall normal stress at the filling")]
 
 
@@ -662,13 +662,13 @@ def test_bulk_density_above_the_grain_density_is_flagged(synth):
     # a fill under 4 diameters above the junction: measured over the whole fill, and said
     thin = copy.copy(a)
     thin.surface, thin.numbers = {**a.surface, "fill": Z_J + 3.5 * DIAM}, []
-    _numbers(thin)
+    add_numbers(thin)
     assert _number(thin, "bulk density rho_b (whole fill: under 4 grain diameters of it above "
                    "the junction)") == significant(RHO_B, 4)
     b = copy.copy(a)
     b.rho_b = 1.25 * RHO
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     assert _number(b, "bulk density") == (
         "1000 (above the grain density 800: the grains overlap far beyond a contact's range; "
         "stiffer contacts are needed)")
@@ -707,7 +707,7 @@ def test_en1991_4_loads_of_the_report(synth):
     assert share == pytest.approx(0.684, abs=1e-3)  # over FEW_MOBILISED = 0.5: no caveat
     b = copy.copy(a)  # a quarter mobilised (0.061 of 0.445 in the quick case 2: 14 %)
     b.en1991_4, b.numbers = {**a.en1991_4, "mobilised": 0.25}, []
-    _numbers(b)
+    add_numbers(b)
     assert _number(b, "EN 1991-4 loads' wall friction") == (
         "25 %: the settled silo does not show the wall support these loads assume; read them "
         "as the standard's, not as a model of this silo")
@@ -798,7 +798,7 @@ def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):
     b.en1991_4 = {**a.en1991_4, "hopper": hopper_loads(a, 1.32, 20000.0)}
     assert b.en1991_4["hopper"]["kind"] == "shallow" and "p_nf" not in b.en1991_4["hopper"]
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     assert _number(b, "EN 1991-4 §6 hopper class") == (
         "shallow: the rules do not apply (K = 1.32 >= 1 leaves a shallow hopper no mobilised "
         "friction)")
@@ -843,7 +843,7 @@ def test_a_fill_too_shallow_for_the_janssen_fit_says_why_and_keeps_its_en_class(
     b.mu_mobilised, b.hopper, b.en1991_4, b.numbers = {}, {}, {}, []
     _fit_theory(b, silo_shape(b.res.cfg))
     add_loads(b, 0.9)
-    _numbers(b)
+    add_numbers(b)
     assert "fill" not in b.janssen and b.janssen_free is None
     assert _number(b, "Janssen K fitted to the cell wall profile, after filling") == (
         f"n/a (1 wall bin(s) on the cell walls between the switch zone's top, z = "
@@ -883,7 +883,7 @@ def test_a_retaining_silo_is_named_but_gets_no_en_loads(synth):
     b = copy.copy(a)
     b.en1991_4 = {"kind": "retaining", "section": "5.4", "h_c": 0.4, "ratio": 0.4 / B}
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     assert _number(b, "EN 1991-4 slenderness").endswith("retaining, no loads drawn (§5.4, not "
                                                         "built in silodem)")
     assert not [row for row in b.numbers if "discharge magnifiers" in row[0]]
@@ -1254,7 +1254,7 @@ def test_numbers_are_written_with_their_significant_digits():
 def test_fits_whose_error_is_over_half_their_value_are_called_poorly_determined():
     """The quick hopper's Janssen K came out 1.29 +- 0.69 from six noisy wall bins, printed as
     a measurement; a fit error over half the value is now said to be one."""
-    from silodem.report.analysis import _fitted
+    from silodem.report.key_numbers import _fitted
 
     assert _fitted(1.286, 0.69).endswith("(poorly determined: the error is over half the value)")
     assert _fitted(0.55, 0.012) == "0.55 +- 0.012"
@@ -1309,7 +1309,7 @@ def test_a_free_janssen_fit_above_the_coulomb_limit_is_flagged(synth):
     assert not above_coulomb(a.janssen_free, MU_WALL)
     b = copy.copy(a)
     b.geom, b.numbers = {**a.geom, "mu_wall": 0.2}, []
-    _numbers(b)
+    add_numbers(b)
     assert above_coulomb(b.janssen_free, 0.2)
     assert _number(b, row).endswith("; above tan phi_P = 0.2, the most friction the walls can "
                                     "carry: this profile does not follow Janssen's law")
@@ -1346,7 +1346,7 @@ def test_a_negative_mobilised_wall_friction_is_flagged(synth):
     b.mu_mobilised = {"fill": -0.0312, "discharge": -0.004}
     b.en1991_4 = {**a.en1991_4, "mobilised": -0.0312 / MU_WALL}
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     walls = ("negative: the walls' friction on the grains points down, net over these bins, so "
              "the cell walls carry none of the fill's weight but add to the load below (the "
              "grains hold the walls up): the reverse of the wall support Janssen assumes")
@@ -1371,7 +1371,8 @@ def test_a_janssen_k_above_1_is_flagged_after_filling_and_noted_during_discharge
     synthetic 0.55, and 0.5) and a K within its error of 1 get no note; a K that is also
     poorly determined reads both in one parenthesis, and a poorly determined K that reaches
     1 within its error only the first."""
-    from silodem.report.analysis import ABOVE_HYDROSTATIC, _janssen_K, above_hydrostatic
+    from silodem.report.flags import ABOVE_HYDROSTATIC, above_hydrostatic
+    from silodem.report.key_numbers import _janssen_K
 
     a, _ = synth
     fill_row = "Janssen K fitted to the cell wall profile, after filling"
@@ -1385,7 +1386,7 @@ def test_a_janssen_k_above_1_is_flagged_after_filling_and_noted_during_discharge
                  "discharge": dataclasses.replace(j, K=1.4, K_err=0.1)}
     b.janssen_free = dataclasses.replace(a.janssen_free, K=1.45, K_err=0.2)
     b.numbers = []
-    _numbers(b)
+    add_numbers(b)
     fill_note = ("above 1 by more than its error: as fitted, the walls are pressed harder than "
                  "the fill's vertical stress, a passive-like state, not the K of a fill at rest "
                  "under its own weight (Jaky: K0 = 1 - sin phi < 1)")

@@ -258,7 +258,7 @@ def test_the_flow_pattern_says_where_it_is_measured(synth):
                      "Jenike's hopper design chart")
     assert any(q == "mass flow index v_wall / v_axis, in the cell just above the junction, "
                "z = 0.6 - 0.9 m" for q, _, _ in synth.numbers)
-    from silodem.report.analysis import mfi_where
+    from silodem.report.key_numbers import mfi_where
 
     flat = copy.copy(synth)
     flat.res = copy.copy(synth.res)

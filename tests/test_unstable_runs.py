@@ -198,7 +198,7 @@ def test_a_discharged_grain_far_below_the_outlet_is_not_an_escape():
     far it fell (under gravity = 1000 m/s^2 one passed the domain's floor within a chunk, and
     the run stopped as unstable, exit 3).  Only its x is tested: one thrown far sideways down
     there is still found."""
-    from silodem.safety import domain_of, find_problem
+    from silodem.instability import domain_of, find_problem
 
     run = SiloRun(quick_config())
     for _ in range(3):
@@ -254,7 +254,7 @@ def test_a_new_run_stopped_at_once_leaves_no_unstable_checkpoint_to_resume(
     that run's files): a new run stopped before its first save leaves its own config and no
     checkpoint of the old config beside it, which '--resume' would have run."""
     from silodem.run import check_out
-    from silodem.safety import check_replaceable, clear_previous_run
+    from silodem.run_folder import check_replaceable, clear_previous_run
 
     out = tmp_path / "run"
     _unstable_run(monkeypatch, capsys, out)

@@ -118,7 +118,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     not issued again (the final count of grains lost is).  A finished run's results already
     in ``out`` are replaced, which a SilodemWarning says before the run starts."""
     from silodem.run import check_out, check_threads, run_simulation
-    from silodem.safety import replacing_note
+    from silodem.run_folder import replacing_note
     from silodem.scenario_files import revalidated
     from silodem.silo.checks import check_numbers
 

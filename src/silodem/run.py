@@ -18,7 +18,8 @@ from silodem.config import Config
 from silodem.errors import InputError, RunInterrupted, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.safety import ANIMATIONS, RunGuard, clear_previous_run, ended_unstable
+from silodem.run_folder import ANIMATIONS, clear_previous_run, ended_unstable
+from silodem.safety import RunGuard
 from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
@@ -66,7 +67,7 @@ class RunSummary:
 def check_out(out: Path, flag: str = "out") -> None:
     """Refuse (InputError) an output folder that is a file, lies under a file, cannot be
     created or written, or holds an unfinished run (a checkpoint.h5, unless the run was stopped
-    as unstable: a new run replaces that one, ``safety.ended_unstable``); create it.  ``flag``
+    as unstable: a new run replaces that one, ``run_folder.ended_unstable``); create it.  ``flag``
     names it in the message (``--out`` on the command line)."""
     try:
         _check_out_folder(Path(out), flag)

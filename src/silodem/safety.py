@@ -4,43 +4,23 @@ SIGTERM asks the run to stop. (Numbers that give no usable run are refused befor
 by ``silo.checks.check_numbers``.)
 
 :class:`RunGuard` drives a ``SiloRun`` and is its chunk hook: between two chunks it checks the
-state, then saves results.h5 and checkpoint.h5 when they are due or when a signal came.
-
-A run is stopped as unstable (exit code 3) when, between two chunks,
-
-* a grain has a non-finite position, velocity or spin;
-* a grain is outside the domain: the silo's bounding box grown by one silo size
-  L = max(cell width, wall height) on every side (grains that slip just through a wall are
-  removed by the procedure and reported as lost; a grain that far away was thrown); of a
-  grain under the removal level, discharged and removed at the next chunk, only x is tested;
-* every grain has gone out through the walls, after pouring and with none discharged;
-* the kinetic energy exceeds ``ENERGY_FACTOR`` times the energy the grains in the silo could gain
-  by falling from the wall top to the removal level under the outlet, plus their pouring energy:
-  E_max = 100 * M * (max(g, 9.81 m/s^2) * (z_top - z_remove) + v0^2 / 2);
-
-or when the engine raises :class:`UnstableRunError` inside a step (non-finite position, grains
-spread over a huge area).  The grain to blame is found from the arrays (lowest uid among the
-non-finite ones, else the farthest out, else the most energetic / fastest).
+state, then saves results.h5 and checkpoint.h5 when they are due or when a signal came.  What
+makes a run unstable, and the grain to blame, is :mod:`silodem.instability`'s; the names of
+the files in the run's folder are :mod:`silodem.run_folder`'s.
 """
 
 from __future__ import annotations
 
-import json
-import math
 import signal
 import sys
 import threading
 import time as wallclock
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from silodem import __version__
-from silodem.atomic import atomic_file
 from silodem.checkpoint import (
     CHECKPOINT_NAME,
     FAILURE_NAME,
@@ -48,274 +28,22 @@ from silodem.checkpoint import (
     save_checkpoint,
 )
 from silodem.config import Config
-from silodem.errors import InputError, RunInterrupted, UnstableRunError, one_line
-from silodem.silo import frame_store
+from silodem.errors import RunInterrupted, UnstableRunError, one_line
+from silodem.instability import (
+    Problem,
+    blame,
+    domain_of,
+    energy_bound,
+    find_problem,
+    grain_record,
+    grain_text,
+    write_json,
+)
+from silodem.run_folder import DIAGNOSTIC_NAME, RESULTS_NAME, remove_partial_saves
 from silodem.silo.checks import law_key_names
-from silodem.silo.frames import FOLDER
 
 if TYPE_CHECKING:
     from silodem.silo.procedure import SiloRun
-
-ENERGY_FACTOR = 100.0
-DIAGNOSTIC_NAME = "diagnostic.json"
-RESULTS_NAME = "results.h5"
-_STATE_FIELDS = ("x", "y", "vx", "vy", "omega")
-
-
-# what a run and its pictures write into the folder (the VTK writer clears its own files)
-ANIMATIONS = ("animation.mp4", "animation.gif")  # silodem animate's default names
-_RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTIC_NAME,
-              FAILURE_NAME, *ANIMATIONS)
-
-
-def _replaced_files(out: Path) -> list[Path]:
-    """The files of ``out`` that ``clear_previous_run`` removes by name (not the frames' and
-    VTK writers' own files, which they recognise); an unstable run's checkpoint.h5 among them
-    (``ended_unstable``)."""
-    found = [out / name for name in _RUN_FILES if (out / name).exists()]
-    figures = out / "figures"
-    if figures.is_dir():
-        found += sorted(figures.glob("*.png"))
-    if (out / CHECKPOINT_NAME).exists() and ended_unstable(out):
-        found.append(out / CHECKPOINT_NAME)
-    return found
-
-
-def ended_unstable(out: Path) -> bool:
-    """Whether the last run in ``out`` was stopped as unstable: its results.h5, written by
-    silodem, has ``status = "unstable"`` (a resume of it, or a new run, rewrites that file at
-    its first save).  The checkpoint.h5 such a run leaves is the last good state before the
-    failure, with the failing config: a resume is bit-identical and comes to the same failure,
-    so a new run there (the config mended) replaces it with the run's other files, instead of
-    being refused as over an unfinished run."""
-    attrs = _silodem_attrs(out / RESULTS_NAME)
-    status = attrs.get("status") if attrs is not None else None
-    if isinstance(status, bytes):
-        status = status.decode(errors="replace")
-    return status == "unstable"
-
-
-def _silodem_attrs(results: Path) -> dict[str, Any] | None:
-    """The root attributes of ``results`` when silodem wrote it (it has ``silodem_version``);
-    None for another file, or one that cannot be read."""
-    import h5py
-
-    try:
-        with h5py.File(results, "r") as h5:
-            return dict(h5.attrs) if "silodem_version" in h5.attrs else None
-    except (OSError, ValueError):
-        return None
-
-
-def _written_by_silodem(results: Path) -> bool:
-    return _silodem_attrs(results) is not None
-
-
-def check_replaceable(out: Path, flag: str = "out") -> bool:
-    """Whether ``out`` holds an earlier run's files, which a new run there replaces; InputError
-    if it holds files of those names that no silodem run wrote (no config.toml beside them, or
-    a results.h5 without silodem's attributes): a user's own results.h5 or figures/*.png in a
-    folder given as ``--out`` were deleted without a word."""
-    found = _replaced_files(out)
-    if not found:
-        return False
-    results = out / RESULTS_NAME
-    foreign = not (out / "config.toml").is_file() or (
-        results.exists() and not _written_by_silodem(results))
-    if foreign:
-        more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
-        raise InputError(f"{flag} {out} holds {found[0].relative_to(out)}{more}, which a run "
-                         "there would replace, but no silodem run wrote it (no config.toml "
-                         "and silodem results.h5 there); give a new or empty folder, or move "
-                         "those files")
-    return True
-
-
-def replacing_note(out: Path, flag: str = "out") -> str | None:
-    """What a new run in ``out`` replaces, in the words of the command line's note (printed on
-    stderr) and of the API's warning; None when there is nothing to replace.  InputError as
-    :func:`check_replaceable` for files no silodem run wrote."""
-    unstable = ended_unstable(out)  # (read before anything is replaced)
-    if not check_replaceable(out, flag):
-        return None
-    if unstable:
-        return (f"replacing the earlier unstable run in {out}, its checkpoint.h5 included (a "
-                "resume of it only comes to the same failure)")
-    return f"replacing the earlier run's results in {out}"
-
-
-def clear_previous_run(out: Path) -> None:
-    """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
-    report, a failed run's diagnosis and failure state, an unstable run's checkpoint.h5
-    (``ended_unstable``); only these names, ``figures/*.png``, the frames'
-    segment files in ``frames/`` and the VTK writer's own files in ``vtk/``), so that a
-    fresh run's folder never shows the old run's results beside the new config, even if the
-    new run is stopped before its first save or writes no VTK files.  InputError, removing
-    nothing, where those files are not a silodem run's (``check_replaceable``)."""
-    from silodem.viz.vtk import remove_written
-
-    check_replaceable(out)
-    for path in _replaced_files(out):
-        path.unlink(missing_ok=True)
-    remove_partial_saves(out)
-    frame_store.clear(out / FOLDER)
-    remove_written(out / "vtk")
-
-
-def remove_partial_saves(out: Path) -> None:
-    """Remove the temporary files (``atomic.atomic_file``'s ``.NAME.tmp``) of results.h5,
-    checkpoint.h5, config.toml and the run's other files (``_RUN_FILES``: pictures, report,
-    an unstable run's failure.h5 and diagnostic.json) that a SIGKILL in the middle of a save
-    left in ``out``: the next save of the same file replaced them, but a run that saved no
-    more (it ended, or checkpoints are off) kept a stale copy of a checkpoint beside its
-    results, and a failure save cut short left its partial failure.h5."""
-    for name in (*_RUN_FILES, CHECKPOINT_NAME, "config.toml"):
-        (out / f".{name}.tmp").unlink(missing_ok=True)
-
-
-# --- finding what went wrong ---------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Domain:
-    """The box a grain must stay in [m]."""
-
-    xmin: float
-    xmax: float
-    ymin: float
-    ymax: float
-
-    def distance_outside(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        dx = np.maximum(np.maximum(self.xmin - x, x - self.xmax), 0.0)
-        dy = np.maximum(np.maximum(self.ymin - y, y - self.ymax), 0.0)
-        return np.hypot(dx, dy)
-
-    def text(self) -> str:
-        return (f"x in [{self.xmin:.3g}, {self.xmax:.3g}] m, "
-                f"y in [{self.ymin:.3g}, {self.ymax:.3g}] m")
-
-
-def domain_of(run: SiloRun) -> Domain:
-    shape = run.shape
-    size = max(shape.width, shape.wall_top)
-    return Domain(-size, shape.width + size, run.z_remove - size, shape.wall_top + size)
-
-
-def energy_bound(run: SiloRun) -> float:
-    """The largest kinetic energy a stable run may have now [J] (module docstring)."""
-    g = max(run.cfg.gravity, 9.81)
-    height = run.shape.wall_top - run.z_remove
-    v0 = run.cfg.fill.initial_speed
-    return ENERGY_FACTOR * run.sim.particles.total_mass() * (g * height + 0.5 * v0 * v0)
-
-
-def grain_record(run: SiloRun, index: int) -> dict[str, Any]:
-    """Everything about the live grain ``index``: uid, position, velocity, spin, size, force."""
-    p = run.sim.particles
-    rec: dict[str, Any] = {"uid": int(p.uid[index]), "index": int(index)}
-    for key in ("x", "y", "vx", "vy", "omega", "radius", "mass", "fx", "fy"):
-        rec[key] = float(getattr(p, key)[index])
-    rec["speed"] = float(math.hypot(rec["vx"], rec["vy"]))
-    return rec
-
-
-@dataclass
-class Problem:
-    """What is wrong, with the grain to blame (``index`` into the live grains, or None)."""
-
-    kind: str  # non_finite | outside_domain | energy | engine | all_lost
-    message: str
-    index: int | None
-    details: dict[str, Any] = field(default_factory=dict)
-
-
-def _where(rec: dict[str, Any]) -> str:
-    return (f"grain uid {rec['uid']} at (x, y) = ({rec['x']:.4g}, {rec['y']:.4g}) m, velocity "
-            f"({rec['vx']:.3g}, {rec['vy']:.3g}) m/s")
-
-
-def find_problem(run: SiloRun) -> Problem | None:
-    """The first unphysical thing in the state of ``run`` (module docstring), or None."""
-    p = run.sim.particles
-    n = p.n
-    when = f"at t = {run.sim.time:.6g} s (step {run.sim.steps}, {run.state.phase})"
-    if n == 0:
-        lost = int(run.events.get("lost_count", 0))
-        # poured (a pour may lose its first batch and go on) and none left by the outlet
-        if lost > 0 and run.state.phase != "fill" and run.state.discharged_mass == 0.0:
-            return Problem("all_lost", f"no grain is left in the silo: all {lost} have gone "
-                           f"out through its walls, {when}; the contacts are far too soft for "
-                           "the silo's weight (the soft-contact warning, if any, gives the "
-                           "stiffness to use) or the time step is too large", None,
-                           {"lost_count": lost})
-        return None
-    uid = p.view("uid")
-    bad = np.zeros(n, dtype=bool)
-    for key in _STATE_FIELDS:
-        bad |= ~np.isfinite(p.view(key))
-    if np.any(bad):
-        idx = np.flatnonzero(bad)
-        i = int(idx[np.argmin(uid[idx])])
-        rec = grain_record(run, i)
-        fields = [k for k in _STATE_FIELDS if not math.isfinite(rec[k])]
-        return Problem("non_finite", f"non-finite {', '.join(fields)} of {_where(rec)}, {when} "
-                       f"({idx.size} grain(s) with non-finite values)", i,
-                       {"n_non_finite": int(idx.size),
-                        "non_finite_uids": sorted(int(u) for u in uid[idx])[:20]})
-    domain = domain_of(run)
-    # a grain under the removal level has been discharged: it is removed at the start of the
-    # next chunk however far it fell in this one (at 100 m/s under gravity = 1000 m/s^2, past
-    # the domain's floor), so only its x is tested
-    out = domain.distance_outside(p.view("x"), np.maximum(p.view("y"), run.z_remove))
-    if np.any(out > 0):
-        i = int(np.argmax(out))
-        rec = grain_record(run, i)
-        return Problem("outside_domain", f"{_where(rec)} has left the domain "
-                       f"({domain.text()}), {when}", i,
-                       {"n_outside": int(np.count_nonzero(out > 0))})
-    ke = p.kinetic_energy()
-    bound = energy_bound(run)
-    if not ke <= bound:
-        i = int(np.argmax(p.kinetic_energies()))
-        rec = grain_record(run, i)
-        return Problem("energy", f"kinetic energy {ke:.3g} J exceeds {ENERGY_FACTOR:g} x the "
-                       f"energy the grains can gain by falling and being poured ({bound:.3g} J) "
-                       f"{when}; most energetic: {_where(rec)}", i)
-    return None
-
-
-def blame(run: SiloRun, message: str) -> Problem:
-    """A Problem for an error the engine raised: the grain found by :func:`find_problem`, else
-    the fastest grain."""
-    found = find_problem(run)
-    if found is not None:
-        return Problem("engine", message, found.index,
-                       {"found": found.kind, "found_message": found.message, **found.details})
-    p = run.sim.particles
-    if p.n == 0:
-        return Problem("engine", message, None)
-    speed = np.hypot(p.view("vx"), p.view("vy"))
-    return Problem("engine", message, int(np.argmax(speed)), {"found": "fastest grain"})
-
-
-def _json_safe(value: Any) -> Any:
-    """JSON without NaN/Infinity tokens: non-finite floats become the strings 'nan', 'inf'."""
-    if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    return value
-
-
-def write_json(path: Path, data: dict[str, Any]) -> None:
-    with atomic_file(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
-        json.dump(_json_safe(data), fh, indent=2, allow_nan=False)
-        fh.write("\n")
-        fh.flush()
 
 
 def _saved_at(path: Path, step_key: str) -> str:
@@ -331,9 +59,6 @@ def _saved_at(path: Path, step_key: str) -> str:
         return ""
     phase = f", {phase.decode() if isinstance(phase, bytes) else phase}" if phase else ""
     return f" at t = {at:.4g} s (step {step}{phase})"
-
-
-# --- the guard -----------------------------------------------------------------------------
 
 
 class _Stopped(UnstableRunError):
@@ -540,7 +265,7 @@ class RunGuard:
         self.failure = one_line(problem.message)
         grain = grain_record(run, problem.index) if problem.index is not None else None
         if grain is not None and problem.kind == "engine":
-            self.failure = one_line(f"{problem.message}; {_where(grain)}")
+            self.failure = one_line(f"{problem.message}; {grain_text(grain)}")
         notes: list[str] = []
         failure = self.out / FAILURE_NAME
         failure_written = False

@@ -151,7 +151,7 @@ def run(
 
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     check_out(out_dir)
-    from silodem.safety import replacing_note
+    from silodem.run_folder import replacing_note
 
     replacing = replacing_note(out_dir, "--out")  # (a finished run was replaced unsaid)
 

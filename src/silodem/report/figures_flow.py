@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from silodem.report.analysis import Analysis, mfi_where
+from silodem.report.analysis import Analysis
 from silodem.report.draw import (
     draw_force_network,
     draw_grains,
@@ -16,6 +16,7 @@ from silodem.report.draw import (
     silo_axes,
     tight_layout,
 )
+from silodem.report.key_numbers import mfi_where
 from silodem.report.numbers import significant
 from silodem.silo.geometry import silo_shape
 

@@ -1,11 +1,10 @@
 """The judgements the reports pass on physically suspicious numbers, in one place: the key
-numbers (:mod:`silodem.report.analysis`), the figures' legends
+numbers (:mod:`silodem.report.key_numbers`), the figures' legends
 (:mod:`silodem.report.figures_stress`), the EN 1991-4 loads (:mod:`silodem.report.eurocode`),
 and a study's results.csv and heat maps (:mod:`silodem.study.table`,
 :mod:`silodem.study.report`) all ask these predicates, so each says the same of the same
-number.  (A module of its own because ``analysis`` imports ``eurocode``, which needs them
-too; ``analysis`` imports them back, so ``from silodem.report.analysis import
-above_hydrostatic`` still works.)"""
+number.  (A module of its own because ``eurocode``, which ``analysis`` imports, needs them
+too.)"""
 
 from __future__ import annotations
 

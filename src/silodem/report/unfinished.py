@@ -15,7 +15,7 @@ from pathlib import Path
 from silodem.checkpoint import CHECKPOINT_NAME as CHECKPOINT
 from silodem.report.analysis import UNSETTLED, Analysis, stopped_at
 
-DIAGNOSTIC = "diagnostic.json"  # silodem.safety.DIAGNOSTIC_NAME: why an unstable run stopped
+DIAGNOSTIC = "diagnostic.json"  # silodem.run_folder.DIAGNOSTIC_NAME: why an unstable run stopped
 
 # how the run had stopped, by status: for the banner, and shorter for the stderr line
 _HOW = {

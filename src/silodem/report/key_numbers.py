@@ -1,0 +1,232 @@
+"""The report's key numbers in words: the (quantity, value, unit) rows of report.html's table
+and of ``api.RunResults.numbers()``, written from an
+:class:`~silodem.report.analysis.Analysis` by :func:`add_numbers` (the last thing
+:func:`~silodem.report.analysis.analyse` does), each number with its error and what the
+flags (:mod:`silodem.report.flags`) say of it; :func:`mfi_where`, where the mass flow index is
+measured, is shared with the flow figure."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from silodem import theory as th
+from silodem.report import eurocode
+from silodem.report.analysis import (
+    BATCHES,
+    UNSETTLED,
+    Analysis,
+    above_coulomb,
+    density_band,
+    no_settled_fill,
+)
+from silodem.report.flags import (
+    ABOVE_HYDROSTATIC,
+    WALLS_HELD_UP,
+    above_hydrostatic,
+    walls_held_up,
+)
+from silodem.report.numbers import pascals, poorly_determined, resolved, significant
+
+
+def mfi_where(a: Analysis) -> str:
+    """Where the mass flow index is measured, in words: "in the cell just above the junction,
+    z = 1.4 - 2.1 m" (above the floor in a flat silo): the flow pattern is read there, in
+    this run, not from the hopper's slope and wall friction as Jenike's chart classifies a
+    design."""
+    where = ("in the cell just above the junction" if a.res.cfg.silo.kind == "hopper"
+             else "just above the floor")
+    band = a.flow.get("mfi_band")
+    return where + (f", z = {_fmt(band[0], 3)} - {_fmt(band[1], 3)} m" if band else "")
+
+
+def _fmt(v: float, digits: int = 4) -> str:
+    return significant(v, digits)
+
+
+def _bulk_density_text(rho_b: float, rho_grain: float) -> str:
+    """rho_b, flagged when it exceeds the grains' own density: only grains that overlap far
+    more than a contact law allows pack more mass into an area than solid grain (porosity < 0),
+    as paper case 1's soft Table 1 springs do; every stress measured on them is suspect."""
+    if rho_b > rho_grain:
+        return (f"{_fmt(rho_b)} (above the grain density {_fmt(rho_grain)}: the grains overlap "
+                "far beyond a contact's range; stiffer contacts are needed)")
+    return _fmt(rho_b)
+
+
+def _fitted(value: float, error: float, *notes: str) -> str:
+    """'value +- error', saying so when the error is more than half the value (a fit to few
+    or noisy wall bins: a K of 1.29 +- 0.69 is no measurement of K), with any further
+    ``notes`` in the same parentheses, after it."""
+    said = (("poorly determined: the error is over half the value",)
+            if poorly_determined(value, error) else ()) + notes
+    text = f"{_fmt(value, 3)} +- {_fmt(error, 2)}"
+    return text + (f" ({'; '.join(said)})" if said else "")
+
+
+def _janssen_K(fit: th.JanssenFit, key: str, mobilised: float = float("nan")) -> str:
+    """K +- its error, with what the fit's error and a K above 1 (:func:`above_hydrostatic`)
+    say; after filling, a fit with mu_w given above the ``mobilised`` friction the walls
+    carry also says that K takes up the friction they leave out (docs/theory.md)."""
+    notes: tuple[str, ...] = ()
+    if above_hydrostatic(fit):
+        notes = (ABOVE_HYDROSTATIC[key],)
+        if key == "fill" and not fit.mu_w_fitted and mobilised < fit.mu_w:
+            missing = (f"with mu_w = {_fmt(fit.mu_w, 3)} where the walls mobilise "
+                       f"{_fmt(mobilised, 3)}, the fit puts the missing friction into K")
+            notes += (missing,)
+    return _fitted(fit.K, fit.K_err, *notes)
+
+
+CHANGE_ERROR = f" (+- its standard error: batch means, {BATCHES} blocks a window)"
+
+
+def change_text(pct: float, err: float) -> str:
+    """A change [%] as the key numbers write it: '53.2 +- 12'; one within its error 'not
+    resolved' (:func:`~silodem.report.numbers.resolved`); 'n/a' without a value."""
+    if not math.isfinite(pct):
+        return "n/a"
+    text = f"{_fmt(pct, 3)} +- {_fmt(err, 2)}"
+    if not resolved(pct, err):
+        text += (" (within its error: not resolved)" if math.isfinite(err)
+                 else " (no error: too few samples; not resolved)")
+    return text
+
+
+def add_numbers(a: Analysis) -> None:
+    """Into ``a.numbers``: the key numbers, (quantity, value, unit) rows."""
+    n = a.numbers
+    g = a.geom
+    n.append(("cell width B / outlet D / junction z_j",
+              f"{g['B']:.3g} / {g['D']:.3g} / {g['z_j']:.3g}", "m"))
+    if a.res.cfg.silo.kind == "hopper":
+        n.append(("hopper half-angle from the vertical alpha (= 90 - theta)",
+                  f"{g['alpha']:.3g}", "deg"))
+    surface = ("free surface after filling (mean top of the grain columns, one diameter "
+               "wide; the run's fill level is the mean top of its 5 highest grains)")
+    why = no_settled_fill(a)  # an n/a says what is missing
+    n.append((surface, _fmt(a.surface["fill"]) if np.isfinite(a.surface["fill"]) or not why
+              else f"n/a ({why})", "m"))
+    top = a.surface["fill"]
+    cell = not np.isfinite(top) or density_band(g["z_j"], top, g["d"])[0] > 0.0
+    where = "cell" if cell else "whole fill: under 4 grain diameters of it above the junction"
+    n.append((f"bulk density rho_b ({where})",
+              _bulk_density_text(a.rho_b, a.res.cfg.material.density)
+              if np.isfinite(a.rho_b) or not why else f"n/a ({why})", "kg/m^3"))
+    n.append(("switch zone", f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))
+    for key, label in a.labels.items():
+        if key in a.peaks:
+            v, z = a.peaks[key]
+            n.append((f"switch-zone peak of the wall normal stress, {label}",
+                      f"{pascals(v)} at z = {_fmt(z, 3)} m", "Pa"))
+    for key, label in a.labels.items():
+        if key in a.mu_mobilised:
+            what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
+                    f"the Janssen fit, {label} (tan phi_P = {_fmt(g['mu_wall'], 3)})")
+            mu = a.mu_mobilised[key]  # tau_down: the grains' downward traction on the wall
+            n.append((what, _fmt(mu, 3) + (f" ({WALLS_HELD_UP})" if walls_held_up(mu) else ""),
+                      "-"))
+        what = f"Janssen K fitted to the cell wall profile, {label} (mu_w = tan phi_P)"
+        if key in a.janssen:
+            value = _janssen_K(a.janssen[key], key, a.mu_mobilised.get(key, np.nan))
+            n.append((what, value, "-"))
+        elif key in a.janssen_missing:  # said, not left out without a word
+            n.append((what, f"n/a ({a.janssen_missing[key]})", "-"))
+    if a.janssen_free is not None:
+        j = a.janssen_free
+        mu = ("~0 (at the fit's lower bound: the profile shows no wall support)"
+              if j.mu_w_at_bound else _fitted(j.mu_w, j.mu_w_err))
+        if above_coulomb(j, g["mu_wall"]):
+            mu += (f"; above tan phi_P = {_fmt(g['mu_wall'], 3)}, the most friction the walls "
+                   "can carry: this profile does not follow Janssen's law")
+        value = f"{_janssen_K(j, 'fill')}, {mu}"
+        n.append(("Janssen free fit after filling: K, mu_w", value, "-"))
+    if "fill" in a.janssen and "fill" in a.peaks:
+        v, z = a.peaks["fill"]
+        # Janssen is the cell's theory: a peak on the hopper walls is set against the cell's
+        # sigma_h where the cell ends, at the junction
+        jan = th.janssen_sigma_h(a.surface["fill"] - max(z, g["z_j"]), a.rho_b, g["g"],
+                                 g["B"], a.janssen["fill"].K, g["mu_wall"])
+        label = ("switch-zone peak / Janssen sigma_h at its height (at the junction for a "
+                 "peak below it), after filling")
+        value = _fmt(v / jan, 3) if jan > 0 else "n/a"
+        K = a.janssen["fill"]
+        if jan > 0 and poorly_determined(K.K, K.K_err):
+            value += (f" (K = {_fmt(K.K, 3)} +- {_fmt(K.K_err, 2)} is poorly determined: a "
+                      "ratio to a curve the run does not measure)")
+        n.append((label, value, "-"))
+    n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
+    for key, hop in a.hopper.items():
+        when = a.labels[key]
+        label = f"measured mean vertical stress q on the junction, {when} (hopper theory input)"
+        n.append((label, pascals(hop["q"]), "Pa"))
+        if "D_fit" in hop:  # (no error: a bounded 1-parameter fit, often to a few bins)
+            label = (f"Walker distribution factor D fitted on the hopper walls (planar), {when}, "
+                     f"to {hop['D_bins']} wall bins")
+            n.append((label, _fmt(hop["D_fit"], 3), "-"))
+    window = a.res.cfg.measure.window
+    # an unfinished run stopped in its discharge: the stop, not the discharge's end, cut the
+    # discharge window short
+    stopped = a.unfinished and a.res.attrs.get("phase") == "discharge"
+    for key, label in (("fill", "after filling (the end of settling)"),
+                       ("discharge", "during discharge")):
+        if key not in a.windows:
+            continue
+        start, end = a.windows[key]
+        if key == "fill" and a.labels["fill"] == UNSETTLED:  # said always: no settled fill
+            what = (f"averaging window {UNSETTLED}: the last measure.window = {window:g} s of "
+                    "the settling reached (the run stopped before settling ended)")
+            if end - start < window:
+                what += ", cut short: less settling than that was reached"
+        elif end - start < window:
+            why = ("settling lasted less than" if key == "fill" else
+                   "the run stopped within" if stopped else "the discharge ended within")
+            what = f"averaging window {label}, cut short: {why} measure.window = {window:g} s"
+        else:
+            continue
+        n.append((what, f"{start:.3f} - {end:.3f} ({end - start:.3g} s)", "s"))
+    if "window_emptied" in a.flow:  # the discharge stresses depend on it (a quick silo
+        # empties by half in the same 1 s window a full one loses a tenth in)
+        start, end = a.flow["window_emptied"]
+        n.append(("share of the fill's mass discharged at the discharge window's start / end",
+                  f"{100 * start:.0f} / {100 * end:.0f}", "%"))
+    if a.change_missing:  # one row that says why, not "h n/a %, v n/a %" for each circle
+        n.append(("change fill -> discharge", f"n/a ({a.change_missing})", "%"))
+    else:
+        for name, row in a.change.items():
+            if name == "wall peak":
+                label = ("change fill -> discharge, wall peak: the switch zone's largest wall "
+                         f"normal stress in each window, at z = {_fmt(row['z_fill'], 3)} m "
+                         f"-> {_fmt(row['z_discharge'], 3)} m" + CHANGE_ERROR)
+                n.append((label, change_text(row["sigma_h_change_pct"],
+                                             row["sigma_h_change_pct_err"]), "%"))
+                continue
+            parts = [f"{c[-1]} {change_text(row[c + '_change_pct'], row[c + '_change_pct_err'])}"
+                     for c in ("sigma_h", "sigma_v")]  # [%]
+            n.append((f"change fill -> discharge, {name}{CHANGE_ERROR}", ", ".join(parts), "%"))
+        same = a.wall_at_fill_peak
+        if same is not None and same[0] != a.change.get("wall peak", {}).get("z_discharge"):
+            z, f, dd, pct = same  # (at one height the peak-to-peak row says it already)
+            label = (f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m, "
+                     "after filling -> during discharge (the same place)")
+            value = f"{pascals(f)} -> {pascals(dd)} ({change_text(pct, a.wall_at_fill_peak_err)} %)"
+            n.append((label, value, "Pa"))
+    f = a.flow
+    if "rate" in f:
+        r = f["rate"]
+        label = f"steady discharge rate W (of a slot of thickness t = {_fmt(a.geom['t'], 3)} m)"
+        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}", "kg/s"))
+    if "pattern" in f:
+        where = mfi_where(a)
+        n.append((f"mass flow index v_wall / v_axis, {where}", _fmt(f["mfi"], 3), "-"))
+        n.append(("dead-zone fraction of the grains", _fmt(f["dead_fraction"], 3), "-"))
+        threshold = a.res.cfg.measure.mass_flow_index_threshold
+        label = (f"flow pattern, measured: mass flow if v_wall / v_axis >= {threshold:g} "
+                 f"({where}) and no dead zone; not Jenike's hopper design chart")
+        n.append((label, f["pattern"], ""))
+    if "beverloo_C" in f:
+        hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
+                  "its slope)" if a.res.cfg.silo.kind == "hopper" else "")
+        n.append((f"Beverloo 2D constant C implied by W (k = 1.5){hopper}",
+                  _fmt(f["beverloo_C"], 3), "-"))

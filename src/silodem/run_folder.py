@@ -1,0 +1,132 @@
+"""The run folder's files: the names a run writes into its folder, and what a new run in the
+folder of an earlier one replaces (docs/reliability.md, "A new run in a used folder").
+
+:func:`clear_previous_run` removes the earlier run's results, pictures, report and diagnosis
+(an unstable run's checkpoint.h5 too, :func:`ended_unstable`), and refuses, removing nothing,
+files of those names that no silodem run wrote (:func:`check_replaceable`);
+:func:`replacing_note` says what a new run replaces; :func:`remove_partial_saves` removes the
+temporary files of saves that a SIGKILL cut short."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from silodem.checkpoint import CHECKPOINT_NAME, FAILURE_NAME
+from silodem.errors import InputError
+from silodem.silo import frame_store
+from silodem.silo.frames import FOLDER
+
+DIAGNOSTIC_NAME = "diagnostic.json"
+RESULTS_NAME = "results.h5"
+
+# what a run and its pictures write into the folder (the VTK writer clears its own files)
+ANIMATIONS = ("animation.mp4", "animation.gif")  # silodem animate's default names
+_RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTIC_NAME,
+              FAILURE_NAME, *ANIMATIONS)
+
+
+def _replaced_files(out: Path) -> list[Path]:
+    """The files of ``out`` that ``clear_previous_run`` removes by name (not the frames' and
+    VTK writers' own files, which they recognise); an unstable run's checkpoint.h5 among them
+    (``ended_unstable``)."""
+    found = [out / name for name in _RUN_FILES if (out / name).exists()]
+    figures = out / "figures"
+    if figures.is_dir():
+        found += sorted(figures.glob("*.png"))
+    if (out / CHECKPOINT_NAME).exists() and ended_unstable(out):
+        found.append(out / CHECKPOINT_NAME)
+    return found
+
+
+def ended_unstable(out: Path) -> bool:
+    """Whether the last run in ``out`` was stopped as unstable: its results.h5, written by
+    silodem, has ``status = "unstable"`` (a resume of it, or a new run, rewrites that file at
+    its first save).  The checkpoint.h5 such a run leaves is the last good state before the
+    failure, with the failing config: a resume is bit-identical and comes to the same failure,
+    so a new run there (the config mended) replaces it with the run's other files, instead of
+    being refused as over an unfinished run."""
+    attrs = _silodem_attrs(out / RESULTS_NAME)
+    status = attrs.get("status") if attrs is not None else None
+    if isinstance(status, bytes):
+        status = status.decode(errors="replace")
+    return status == "unstable"
+
+
+def _silodem_attrs(results: Path) -> dict[str, Any] | None:
+    """The root attributes of ``results`` when silodem wrote it (it has ``silodem_version``);
+    None for another file, or one that cannot be read."""
+    import h5py
+
+    try:
+        with h5py.File(results, "r") as h5:
+            return dict(h5.attrs) if "silodem_version" in h5.attrs else None
+    except (OSError, ValueError):
+        return None
+
+
+def _written_by_silodem(results: Path) -> bool:
+    return _silodem_attrs(results) is not None
+
+
+def check_replaceable(out: Path, flag: str = "out") -> bool:
+    """Whether ``out`` holds an earlier run's files, which a new run there replaces; InputError
+    if it holds files of those names that no silodem run wrote (no config.toml beside them, or
+    a results.h5 without silodem's attributes): a user's own results.h5 or figures/*.png in a
+    folder given as ``--out`` were deleted without a word."""
+    found = _replaced_files(out)
+    if not found:
+        return False
+    results = out / RESULTS_NAME
+    foreign = not (out / "config.toml").is_file() or (
+        results.exists() and not _written_by_silodem(results))
+    if foreign:
+        more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
+        raise InputError(f"{flag} {out} holds {found[0].relative_to(out)}{more}, which a run "
+                         "there would replace, but no silodem run wrote it (no config.toml "
+                         "and silodem results.h5 there); give a new or empty folder, or move "
+                         "those files")
+    return True
+
+
+def replacing_note(out: Path, flag: str = "out") -> str | None:
+    """What a new run in ``out`` replaces, in the words of the command line's note (printed on
+    stderr) and of the API's warning; None when there is nothing to replace.  InputError as
+    :func:`check_replaceable` for files no silodem run wrote."""
+    unstable = ended_unstable(out)  # (read before anything is replaced)
+    if not check_replaceable(out, flag):
+        return None
+    if unstable:
+        return (f"replacing the earlier unstable run in {out}, its checkpoint.h5 included (a "
+                "resume of it only comes to the same failure)")
+    return f"replacing the earlier run's results in {out}"
+
+
+def clear_previous_run(out: Path) -> None:
+    """Remove from ``out`` the files an earlier run wrote there (results.h5, its pictures and
+    report, a failed run's diagnosis and failure state, an unstable run's checkpoint.h5
+    (``ended_unstable``); only these names, ``figures/*.png``, the frames'
+    segment files in ``frames/`` and the VTK writer's own files in ``vtk/``), so that a
+    fresh run's folder never shows the old run's results beside the new config, even if the
+    new run is stopped before its first save or writes no VTK files.  InputError, removing
+    nothing, where those files are not a silodem run's (``check_replaceable``)."""
+    from silodem.viz.vtk import remove_written
+
+    check_replaceable(out)
+    for path in _replaced_files(out):
+        path.unlink(missing_ok=True)
+    remove_partial_saves(out)
+    frame_store.clear(out / FOLDER)
+    remove_written(out / "vtk")
+
+
+def remove_partial_saves(out: Path) -> None:
+    """Remove the temporary files (``atomic.atomic_file``'s ``.NAME.tmp``) of results.h5,
+    checkpoint.h5, config.toml and the run's other files (``_RUN_FILES``: pictures, report,
+    an unstable run's failure.h5 and diagnostic.json) that a SIGKILL in the middle of a save
+    left in ``out``: the next save of the same file replaced them, but a run that saved no
+    more (it ended, or checkpoints are off) kept a stale copy of a checkpoint beside its
+    results, and a failure save cut short left its partial failure.h5."""
+    for name in (*_RUN_FILES, CHECKPOINT_NAME, "config.toml"):
+        (out / f".{name}.tmp").unlink(missing_ok=True)
+
