@@ -149,7 +149,7 @@ def test_results_file_holds_the_flag(tmp_path):
         assert f["exit_time"].attrs["unit"] == "s"
 
 
-def _analysis(exit_time, max_disp, z0, lost=None):
+def _analysis(exit_time, max_disp, z0, lost=None, lost_later=None):
     """The parts of an Analysis that fig_dead_zones reads, for grains on a row at z0 [m]."""
     n = len(exit_time)
     flow = {"uid": np.arange(n), "x0": np.linspace(0.2, 1.0, n), "z0": np.asarray(z0, float),
@@ -157,6 +157,8 @@ def _analysis(exit_time, max_disp, z0, lost=None):
             "max_displacement": np.asarray(max_disp, float)}
     if lost is not None:
         flow["lost_before_discharge"] = np.asarray(lost, bool)
+    if lost_later is not None:
+        flow["lost_during_discharge"] = np.asarray(lost_later, bool)
     walls = {"ax": np.zeros(1), "ay": np.zeros(1), "bx": np.zeros(1), "by": np.ones(1),
              "name": np.array(["left_wall"])}
     groups = {("measure", "flow"): flow, ("walls",): walls}
@@ -247,3 +249,43 @@ def test_told_of_losses_before_the_gate_opens_the_flow_part_keeps_nothing():
     flow = _FlowPart(cfg, shape)
     flow.lose(np.array([1, 2]))
     assert flow.lost_later.size == 0 and flow.uid0.size == 0
+
+
+def test_the_dead_zone_map_names_the_grains_lost_before_and_after_the_gate_opened():
+    """Five grains: one left (0.2 s), one dead, one lost before the opening (below the floor)
+    and two lost through a wall after it (never given an exit time): all three outlined,
+    none coloured, the title counts each kind."""
+    from silodem.report.figures_flow import fig_dead_zones, lost_note
+
+    a = _analysis([0.2, np.nan, np.nan, np.nan, np.nan], [0.5, 0.0, np.nan, np.nan, np.nan],
+                  [0.5, 0.6, -0.04, 0.3, 0.4], lost=[False, False, True, False, False],
+                  lost_later=[False, False, False, True, True])
+    ax = fig_dead_zones(a).axes[0]
+    assert ("dashed: 3 grains lost through a wall: 1 before the gate opened, 2 after"
+            in ax.get_title())
+    outlines = [c for c in ax.collections if c.get_array() is None
+                and len(c.get_facecolors()) == 0]
+    np.testing.assert_allclose(outlines[0].get_offsets()[:, 1], [-0.04, 0.3, 0.4])
+    assert lost_note(0, 1) == "1 grain lost through a wall after the gate opened"
+
+
+def test_lost_grains_reads_both_flags_and_older_files():
+    """A file with both flags gives them as written; one without the later flag (written
+    before it) has none lost later; one without either takes the grains below the outlet at
+    the opening (z0 < 0) as lost before.  The dead fraction leaves both kinds out: one dead
+    grain of the 2 that neither kind took."""
+    from silodem.measure.discharge import dead_fraction, lost_grains
+
+    z0 = np.array([0.5, -0.02, 0.4, 0.3])
+    both = {"z0": z0, "lost_before_discharge": np.array([0, 0, 1, 0], bool),
+            "lost_during_discharge": np.array([0, 0, 0, 1], bool)}
+    before, during = lost_grains(both)
+    assert before.tolist() == [False, False, True, False]
+    assert during.tolist() == [False, False, False, True]
+    before, during = lost_grains({"z0": z0, "lost_before_discharge": both[
+        "lost_before_discharge"]})
+    assert not during.any() and during.size == 4
+    before, during = lost_grains({"z0": z0})
+    assert before.tolist() == [False, True, False, False] and not during.any()
+    dead = np.array([True, False, True, True])
+    assert dead_fraction(dead, np.logical_or(*lost_grains(both))) == pytest.approx(1 / 2)

@@ -16,7 +16,9 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -107,11 +109,24 @@ def dead_zone(exit_time: npt.ArrayLike, max_displacement: npt.ArrayLike,
     return np.isnan(np.asarray(exit_time)) & (np.asarray(max_displacement) < radius)
 
 
+def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """(before, during): per grain of results.h5's ``measure/flow`` (a mapping of its
+    datasets), True for the grains lost through a wall before the gate opened
+    (``lost_before_discharge``; in a file written before that flag, those below the outlet,
+    z0 < 0) and for those lost through a wall after it (``lost_during_discharge``; none in a
+    file written before it).  Neither kind discharged."""
+    z0 = np.asarray(flow["z0"], dtype=float)
+    before = (np.asarray(flow["lost_before_discharge"], dtype=bool)
+              if "lost_before_discharge" in flow else z0 < 0.0)
+    during = (np.asarray(flow["lost_during_discharge"], dtype=bool)
+              if "lost_during_discharge" in flow else np.zeros(z0.size, bool))
+    return before, during
+
+
 def dead_fraction(dead: npt.ArrayLike, lost: npt.ArrayLike | None = None) -> float:
     """The fraction [-] of the grains in the silo as the gate opened that are in the dead zone
-    (``dead``, :func:`dead_zone`): grains ``lost`` through a wall before it opened
-    (``measure/flow/lost_before_discharge``; None: none) are in neither count.  NaN without
-    a grain."""
+    (``dead``, :func:`dead_zone`): grains ``lost`` through a wall (either kind of
+    :func:`lost_grains`; None: none) are in neither count.  NaN without a grain."""
     dead = np.asarray(dead, dtype=bool)
     there = ~np.asarray(lost, dtype=bool) if lost is not None else np.ones(dead.size, bool)
     return float(dead[there].mean()) if there.any() else float("nan")

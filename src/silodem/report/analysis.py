@@ -503,7 +503,7 @@ def _flow(a: Analysis, shape) -> None:
     band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
     mi = f["mass_flow_index"]
     dead = dis.dead_zone(f["exit_time"], f["max_displacement"], 0.5 * a.geom["d"])
-    dead_frac = dis.dead_fraction(dead, f.get("lost_before_discharge"))  # (None: older files)
+    dead_frac = dis.dead_fraction(dead, np.logical_or(*dis.lost_grains(f)))
     if np.isfinite(rate.rate):
         mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
                                   band_hi - band_lo)

@@ -7,6 +7,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
+from silodem.measure.discharge import lost_grains
 from silodem.report.analysis import Analysis
 from silodem.report.draw import (
     draw_force_network,
@@ -147,11 +148,21 @@ def fig_velocity(a: Analysis) -> Figure | None:
     return fig
 
 
+def lost_note(before: int, during: int) -> str:
+    """The dead-zone map's words for ``before`` grains lost through a wall before the gate
+    opened and ``during`` after it (not both 0)."""
+    total = before + during
+    head = f"{total} grain{'s' if total > 1 else ''} lost through a wall"
+    if before and during:
+        return f"{head}: {before} before the gate opened, {during} after"
+    return f"{head} {'before' if before else 'after'} the gate opened"
+
+
 def fig_dead_zones(a: Analysis) -> Figure | None:
     """The grains at the gate opening coloured by the time they left; the dead zone (never
-    left, never moved more than a grain radius) in black; the grains lost through a wall
-    before the gate opened (``flow/lost_before_discharge``; in a file without it, those below
-    the outlet, z0 < 0) as dashed outlines, neither left nor dead."""
+    left, never moved more than a grain radius) in black; the grains lost through a wall,
+    before the gate opened or after (``measure.discharge.lost_grains``), as dashed outlines,
+    neither left nor dead."""
     f = a.res.group("measure", "flow")
     if f is None or f["uid"].size == 0 or "dead" not in a.flow:
         return None
@@ -159,8 +170,8 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
     ax = fig.subplots()
     p = {"x": f["x0"], "y": f["z0"], "radius": f["r0"]}
     exit_t = f["exit_time"]
-    lost = (np.asarray(f["lost_before_discharge"], dtype=bool)
-            if "lost_before_discharge" in f else np.asarray(f["z0"]) < 0.0)
+    before, during = lost_grains(f)
+    lost = before | during
     left = np.isfinite(exit_t) & ~lost
     dead = a.flow.get("dead", np.zeros(exit_t.size, bool)) & ~lost
     stayed = ~left & ~dead & ~lost
@@ -173,9 +184,7 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
                     edgecolors="#555555", linewidths=0.8, linestyles="--")
     draw_walls(ax, a.res.group("walls"), np.ones(len(a.res.group("walls")["ax"]), bool))
     silo_axes(ax, a.geom)
-    n_lost = int(lost.sum())
-    note = (f"\ndashed: {n_lost} grain{'s' if n_lost > 1 else ''} lost through a wall before "
-            "the gate opened" if n_lost else "")
+    note = f"\ndashed: {lost_note(int(before.sum()), int(during.sum()))}" if lost.any() else ""
     ax.set_title(f"when each grain left the silo\nblack: dead zone "
                  f"({100 * a.flow.get('dead_fraction', 0):.1f} % of the grains), grey: still "
                  f"inside at the end{note}", fontsize=9)

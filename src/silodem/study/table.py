@@ -175,8 +175,10 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # the columns janssen_K_fill_err, window_emptied_start_pct / _end_pct; 3: coordination_*;
 # 4: wall_at_fill_peak_change_pct, wall_friction_mobilised_fill; 5: the flags
 # janssen_K_fill_above_1, wall_friction_negative_fill; 6: the dead-zone fraction (so the
-# flow pattern) of the grains there as the gate opened, not those lost through a wall before.
-ANALYSIS_VERSION = 6
+# flow pattern) of the grains there as the gate opened, not those lost through a wall before;
+# 7: nor those lost through a wall after (measure.discharge.lost_grains; in a file written
+# before the flag of those lost before, the grains below the outlet at the opening).
+ANALYSIS_VERSION = 7
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
