@@ -37,6 +37,21 @@ def _imgs(html: str) -> list[str]:
     return re.findall(r"<img [^>]*src='data:image/png;base64,([A-Za-z0-9+/=]+)'", html)
 
 
+def test_a_report_written_before_its_folder_is_renamed_names_no_gone_folder(run_dir,
+                                                                            tmp_path):
+    """A study's run writes its report in runs/.<id>.tmp-<uuid> and renames the folder once
+    complete: the page named that temporary folder's results.h5, which no longer existed."""
+    from silodem.report.html import write_report
+
+    tmp = tmp_path / ".run.tmp-0123456789ab"
+    shutil.copytree(run_dir, tmp)
+    write_report(tmp)
+    final = tmp.rename(tmp_path / "run")
+    page = (final / "report.html").read_text(encoding="utf-8")
+    assert ".tmp-" not in page and str(tmp_path) not in page
+    assert "Results: results.h5 in this page's folder, status complete." in page
+
+
 def test_run_writes_a_self_contained_report(run_dir):
     html = (run_dir / "report.html").read_text(encoding="utf-8")
     pngs = sorted(p.stem for p in (run_dir / "figures").glob("*.png"))
@@ -47,7 +62,9 @@ def test_run_writes_a_self_contained_report(run_dir):
     assert "src='http" not in html and "<script" not in html  # nothing to fetch or run
     assert "[silo]" in html  # the config
     # which results file, in what state, made the page
-    assert f"Results: {(run_dir / 'results.h5').resolve()}, status complete." in html
+    # (named in the page's folder, not by a path: a study writes the report in a temporary
+    # folder that is then renamed, and a run folder may be moved)
+    assert "Results: results.h5 in this page's folder, status complete." in html
     # force-network snapshots of the frames (issue 8): end of filling, early/late discharge
     for view in ("end_of_filling", "early_discharge", "late_discharge"):
         assert f"id='network_{view}'" in html

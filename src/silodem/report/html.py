@@ -176,7 +176,7 @@ EVENT_MEANINGS = {
                                "kinetic energy [J])"),
     "fill_level": "fill level after settling [m]",
     "discharge_start_time": "time the gate opened [s]",
-    "initial_mass": "mass in the silo when the gate opened (per thickness t) [kg]",
+    "initial_mass": "mass in the silo (a slot of thickness t) when the gate opened [kg]",
     "discharge_end_reason": "what ended the discharge (fraction, time or clog)",
     "discharge_time": "time the discharge took [s]",
     "discharged_fraction": "share of the initial mass discharged [-]",
@@ -272,7 +272,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              f"{cfg.seed}, time step {res.attrs.get('dt', float('nan')):.3g} s. Stresses are "
              "compressive positive [Pa]: a 2D force per unit length divided by the grains' "
              f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle} Results: "
-             f"{html.escape(str(res.folder.resolve() / 'results.h5'))}, status "
+             "results.h5 in this page's folder, status "
              f"{html.escape(str(res.attrs.get('status', '?')))}.</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>", banner_html(a),
              f"<p>{html.escape(cfg.description)}</p>", intro]

@@ -76,7 +76,8 @@ COLUMNS: list[tuple[str, str, str]] = [
      "filling (F_f p_vft)")),
     ("en1991_4_hopper_p_n_discharge", "Pa", ("EN 1991-4 hopper normal pressure at the "
      "transition, discharge (F_e p_vft)")),
-    ("discharge_rate", "kg/s", "steady discharge rate W (per unit thickness t)"),
+    ("discharge_rate", "kg/s", ("steady discharge rate W through the slot of thickness t "
+     "(material.thickness; not per metre of it)")),
     ("discharge_rate_err", "kg/s", "its standard error (5 block slopes)"),
     ("window_emptied_start_pct", "%", ("share of the fill's mass discharged when the "
      "discharge window starts")),
