@@ -16,6 +16,7 @@ import numpy.typing as npt
 from silodem import theory as th
 from silodem.measure import discharge as dis
 from silodem.measure import regions
+from silodem.measure.fields import disk_rectangle_area
 from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report import eurocode
 from silodem.report.load import Results
@@ -174,16 +175,17 @@ def density_band(junction: float, surface: float, d: float) -> tuple[float, floa
 def bulk_density(snap: dict[str, Any] | None, cfg: Config, shape: SiloShape,
                  surface: float) -> float:
     """Mass per volume of the grains in the cell [kg/m^3], between the junction (+1 diameter)
-    and the surface (-1 diameter); in the whole silo if that band is too thin."""
+    and the surface (-1 diameter); in the whole silo if that band is too thin.  Each grain
+    counts with the exact area of its disk inside the band (``measure.fields``'s rule for the
+    density field: counting whole grains by their centres biased it by a few per cent)."""
     if snap is None:
         return float("nan")
     p = snap["particles"]
     d = regions.mean_diameter(cfg)
-    mass = cfg.material.density * math.pi * p["radius"] ** 2 * cfg.material.thickness
     lo, hi = density_band(shape.junction, surface, d)
-    sel = (p["y"] >= lo) & (p["y"] < hi)
+    solid = disk_rectangle_area(p["x"], p["y"], p["radius"], -np.inf, np.inf, lo, hi)
     area = shape.area_below(hi) - shape.area_below(lo)
-    return float(mass[sel].sum() / (area * cfg.material.thickness)) if area > 0 else float("nan")
+    return float(cfg.material.density * solid.sum() / area) if area > 0 else float("nan")
 
 
 def _edge(res: Results, mask: np.ndarray) -> EdgeProfile | None:

@@ -178,7 +178,8 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # janssen_K_fill_above_1, wall_friction_negative_fill; 6: the dead-zone fraction (so the
 # flow pattern) of the grains there as the gate opened, not those lost through a wall before;
 # 7: nor those lost through a wall after (measure.discharge.lost_grains; in a file written
-# before the flag of those lost before, the grains below the outlet at the opening).
+# before the flag of those lost before, the grains below the outlet at the opening); the bulk
+# density by each disk's area in its band, not whole grains by their centres.
 ANALYSIS_VERSION = 7
 
 
