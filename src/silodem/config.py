@@ -343,7 +343,8 @@ class Measure(_Strict):
     )
     field_cell: float | None = Field(
         None, gt=0, description="cell size of the grid of the bulk density and stress fields "
-        "[m]; unset: four mean grain diameters"
+        "[m], about: the width and the height of the silo are each cut into the whole number "
+        "of equal cells nearest to it; unset: four mean grain diameters"
     )
     field_kernel: Literal["box", "gaussian"] = Field(
         "box", description="coarse-graining of the density and stress fields: 'box' (a grain's "
