@@ -254,3 +254,17 @@ def test_fields_are_written_for_paraview_and_read_back(tmp_path):
         main(["plot", str(out)])
     assert exc.value.code == 0
     assert {p.name: p.read_bytes() for p in (out / "vtk").glob("fields_*.vtu")} == written
+
+
+def test_band_solid_area_counts_each_disk_by_its_part_in_the_band():
+    """Unit disks against the band 0.5 <= z < 10: one centred at z = 0 has in it the circular
+    segment beyond a line 0.5 from its centre, acos(0.5) - 0.5 sqrt(0.75) = pi/3 - sqrt(3)/4;
+    one at z = 5 is whole (pi); one at z = 9.5 is cut by the line z = 10, 0.5 above its
+    centre: pi less the same segment; one at z = -2 has nothing in it."""
+    from silodem.measure.fields import band_solid_area
+
+    seg = math.pi / 3 - math.sqrt(3) / 4
+    got = band_solid_area([0.0, 5.0, 9.5, -2.0], [1.0, 1.0, 1.0, 1.0], 0.5, 10.0)
+    assert got == pytest.approx(seg + math.pi + (math.pi - seg), rel=1e-12)
+    # a grain of radius 0.1 centred on the band's foot: half of it
+    assert band_solid_area([0.5], [0.1], 0.5, 10.0) == pytest.approx(0.005 * math.pi, rel=1e-12)

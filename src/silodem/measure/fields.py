@@ -101,6 +101,15 @@ def disk_rectangle_area(x: npt.ArrayLike, z: npt.ArrayLike, r: npt.ArrayLike,
     return np.maximum(area, 0.0)  # (rounding of a sliver)
 
 
+def band_solid_area(z: npt.ArrayLike, r: npt.ArrayLike, lo: float, hi: float) -> float:
+    """Solid area [m^2] of the disks centred at heights ``z`` with radii ``r`` [m] inside the
+    horizontal band lo <= z < hi [m] (unbounded sideways), each by the exact area of its disk
+    in the band (``disk_rectangle_area``), not whole by its centre.  A bulk density is the
+    grain density times this over the band's area."""
+    z = np.asarray(z, dtype=float)
+    return float(disk_rectangle_area(0.0, z, r, -np.inf, np.inf, lo, hi).sum())
+
+
 def solid_area_shares(x: npt.ArrayLike, z: npt.ArrayLike, r: npt.ArrayLike,
                       x_edges: np.ndarray,
                       z_edges: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -16,7 +16,7 @@ import numpy.typing as npt
 from silodem import theory as th
 from silodem.measure import discharge as dis
 from silodem.measure import regions
-from silodem.measure.fields import disk_rectangle_area
+from silodem.measure.fields import band_solid_area
 from silodem.measure.wall_profiles import peak_in_zone
 from silodem.report import eurocode
 from silodem.report.load import Results
@@ -183,9 +183,9 @@ def bulk_density(snap: dict[str, Any] | None, cfg: Config, shape: SiloShape,
     p = snap["particles"]
     d = regions.mean_diameter(cfg)
     lo, hi = density_band(shape.junction, surface, d)
-    solid = disk_rectangle_area(p["x"], p["y"], p["radius"], -np.inf, np.inf, lo, hi)
+    solid = band_solid_area(p["y"], p["radius"], lo, hi)
     area = shape.area_below(hi) - shape.area_below(lo)
-    return float(cfg.material.density * solid.sum() / area) if area > 0 else float("nan")
+    return cfg.material.density * solid / area if area > 0 else float("nan")
 
 
 def _edge(res: Results, mask: np.ndarray) -> EdgeProfile | None:

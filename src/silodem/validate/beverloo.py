@@ -23,7 +23,8 @@ to 1.61 +- 0.04; with one silo and one fill height every outlet sees the same pr
 Measured: the steady rate W = slope of the discharged mass m(t) from 20 % to 95 % of the mass
 that left (the start-up and the last, partly counted samples left out), with its batch-means
 standard error (``measure.discharge.steady_rate``), averaged over two fills (seeds 1, 2); the
-bulk density rho_b of the settled fill.
+bulk density rho_b of the settled fill (each disk by its area in the band,
+``measure.fields.band_solid_area``).
 
 Checks: the exponent b of W = A (D - k d)^b fitted with A, k and b free is 1.5 +- 0.1; the rate
 at D = 9 d changes by no more than 5 % when the fill height is doubled (H = B -> 2 B).
@@ -41,6 +42,7 @@ import numpy as np
 
 from silodem.config import Config
 from silodem.measure.discharge import RateEstimate, mean_of_runs, steady_rate
+from silodem.measure.fields import band_solid_area
 from silodem.silo.procedure import SiloRun
 from silodem.theory import BeverlooFit, fit_beverloo_free, fit_beverloo_three_halves
 from silodem.validate.records import Record, absolute, info, rel
@@ -156,9 +158,8 @@ def discharge(D_over_d: float, H_over_B: float = FILL, seed: int = 1) -> Dischar
     d = D_GRAIN
     level = float(run.events["fill_level"])
     lo, hi = 2.0 * d, level - 2.0 * d
-    inside = (snap["y"] > lo) & (snap["y"] < hi)
-    mass = cfg.material.density * math.pi * snap["radius"] ** 2 * cfg.material.thickness
-    rho_b = float(mass[inside].sum() / ((hi - lo) * cfg.silo.cell_width * cfg.material.thickness))
+    solid = band_solid_area(snap["y"], snap["radius"], lo, hi)
+    rho_b = cfg.material.density * solid / ((hi - lo) * cfg.silo.cell_width)
     return Discharge(cfg.silo.outlet_width, cfg.silo.cell_width, level, cfg.fill.n_particles,
                      r.rate, r.err, rho_b, run.state.discharged_count,
                      str(run.events.get("discharge_end_reason", "")), t, m)

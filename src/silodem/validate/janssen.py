@@ -22,7 +22,8 @@ Measured (averaged over 20 frames and five fills with different seeds):
   mobilised wall friction, with ``measure.wall_profiles``;
 * the Love-Weber stress of the grains within 2 d of each wall, in 4 d high bins: K_tensor =
   sum(sigma_xx)/sum(sigma_zz) over the column (``measure.stress``, ``binned_stress``);
-* the bulk density rho_b of the column.
+* the bulk density rho_b of the column (each disk by its area in the band,
+  ``measure.fields.band_solid_area``).
 
 Checks: K fitted to the wall profile with ``theory.fit_janssen`` (mu_w = the mobilised
 friction) agrees with K_tensor within 10 % (traction continuity: the wall's normal stress is
@@ -49,6 +50,7 @@ import numpy as np
 from silodem import theory as th
 from silodem.config import Config
 from silodem.measure import regions
+from silodem.measure.fields import band_solid_area
 from silodem.measure.reading import read_simulation
 from silodem.measure.wall_profiles import binned_stress, wall_bins, wall_stress
 from silodem.silo.procedure import SiloRun
@@ -147,9 +149,8 @@ def fill_column(seed: int) -> Column:
     floor = float(walls.ay[floors[0]])
     p = sim.particles
     lo, hi = floor + 2.0 * D, level - 2.0 * D
-    y = p.view("y")
-    inside = (y > lo) & (y < hi)
-    rho_b = float(p.view("mass")[inside].sum() / ((hi - lo) * cfg.silo.cell_width * t))
+    solid = band_solid_area(p.view("y"), p.view("radius"), lo, hi)
+    rho_b = cfg.material.density * solid / ((hi - lo) * cfg.silo.cell_width)
     return Column(level, floor, rho_b, bins.z[side], sn[side], down[side],
                   0.5 * (z_edges[:-1] + z_edges[1:]), near_sum / SAMPLES, slice_sum / SAMPLES)
 
