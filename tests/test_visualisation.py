@@ -683,6 +683,176 @@ def test_the_keys_hide_no_grain_and_no_wall(frames, color, height):
         assert not np.array_equal(with_key, without)  # (the key is drawn somewhere)
 
 
+def _hand_silo(kind: str, width: float, height: float, outlet: float, slope_deg: float,
+               name: str):
+    """Frames (filling, settled, discharge) of a silo built as build_walls builds one (a
+    ``kind`` "flat" or "hopper" cell ``width`` wide, walls ``height`` tall [m]), a block of
+    grains in it with a chain of contacts; times and grain counts as wide as a long run's."""
+    from silodem.silo.frames import Frame, Frames, WallGeometry
+
+    xl, xr = 0.5 * (width - outlet), 0.5 * (width + outlet)
+    zj = xl * math.tan(math.radians(slope_deg)) if kind == "hopper" else 0.0
+    segs = [("left_wall", 0, height, 0, zj), ("right_wall", width, zj, width, height)]
+    segs += ([("left_hopper", 0, zj, xl, 0), ("right_hopper", xr, 0, width, zj)]
+             if kind == "hopper" else
+             [("left_floor", 0, 0, xl, 0), ("right_floor", xr, 0, width, 0)])
+    segs.append(("gate", xl, 0, xr, 0))
+    walls = WallGeometry([s[0] for s in segs],
+                         *(np.array([s[k] for s in segs], dtype=float) for k in range(1, 5)))
+    r = 0.05 * min(width, height)
+    xs, ys = np.meshgrid(np.arange(r, width - r, 2 * r), np.arange(zj + r, 0.8 * height, 2 * r))
+    n = xs.size
+    zeros = np.zeros(n, np.float32)
+    particles = {"x": xs.ravel().astype(np.float32), "y": ys.ravel().astype(np.float32),
+                 "vx": zeros, "vy": zeros - 1.0, "omega": zeros,
+                 "radius": np.full(n, r, np.float32), "fx": zeros, "fy": zeros,
+                 "uid": np.arange(n)}
+    contacts = {"i": np.arange(n - 1, dtype=np.int32), "j": np.arange(1, n, dtype=np.int32),
+                "fn": np.ones(n - 1, np.float32), "fs": np.zeros(n - 1, np.float32)}
+    no_walls = {"grain": np.zeros(0, np.int32), "wall": np.zeros(0, np.int32),
+                "fn": np.zeros(0, np.float32), "fs": np.zeros(0, np.float32)}
+    frames = [Frame(t, round(t * 1000), phase, particles, contacts, no_walls,
+                    np.array([True] * (len(segs) - 1) + [phase != "discharge"]))
+              for t, phase in ((1.0, "fill"), (123.45, "settle"), (999.99, "discharge"))]
+    return Frames(frames, walls, {"discharge_start_time": 123.45, "discharge_time": 876.54},
+                  {}, name)
+
+
+_LONG_NAME = "paper-case2-hertz-hopper-slope-55deg-grain-friction-30deg-walls-10deg"
+ELLIPSIS = "\u2026"
+
+
+def _check_title(artist, title: str, name: str = "") -> None:
+    """The title as the renderer measures it: inside the figure, clear of the plot, the colour
+    bar (with its ticks and label) and the force key; at most two lines of at least 7 pt;
+    and it reads ``title`` (its line breaks where ``title`` has spaces or a comma's space, or
+    after a - or _), or ``title`` with a middle part of the ``name`` it starts with left out
+    (an ellipsis)."""
+    renderer = artist.canvas.get_renderer()
+    box = artist.text.get_window_extent(renderer)
+    figure = artist.fig.bbox
+    assert (figure.width, figure.height) == pytest.approx((artist.width_px, artist.height_px))
+    assert figure.x0 <= box.x0 and box.x1 <= figure.x1, (box, figure)
+    assert figure.y0 <= box.y0 and box.y1 <= figure.y1, (box, figure)
+    others = {"plot": artist.ax.get_window_extent(renderer),
+              "force key": artist.force_key.get_window_extent(renderer)}
+    others.update({f"colour bar {k}": ax.get_tightbbox(renderer) for k, ax in
+                   enumerate(a for a in artist.fig.axes if a is not artist.ax)})
+    for what, other in others.items():
+        assert not box.overlaps(other), (what, box, other)
+    assert box.y0 >= others["plot"].y1 + 4  # over the plot, not beside it
+    text = artist.text.get_text()
+    assert text.count("\n") <= 1 and artist.text.get_fontsize() >= 7.0
+    flat, want = "".join(text.split()), "".join(title.split())
+    if ELLIPSIS in text:  # the name's middle left out: its ends and all the rest kept
+        head, tail = flat.split(ELLIPSIS)
+        assert want.startswith(head) and want.endswith(tail), (text, title)
+        assert 10 <= len(head) and len(want) - len("".join(name.split())) + 4 <= len(tail)
+        assert len(head) + len(tail) < len(want) and title.startswith(name)
+    else:
+        assert " ".join(text.split()) == " ".join(title.split()) or (  # broken in a word
+            flat == want and text.split("\n")[0][-1] in "-_"), (text, title)
+
+
+@pytest.mark.parametrize("height", [200, 240, 300, 800])
+@pytest.mark.parametrize(("silo", "color"), [
+    (("hopper", 3.4, 6.0, 1.0, 45.0), "velocity"),  # paper-case2's silo
+    (("hopper", 1.0, 12.0, 0.3, 75.0), "force"),  # tall and narrow
+    (("flat", 1.2, 15.0, 0.3, 0.0), "coordination"),
+    (("flat", 3.4, 6.0, 1.0, 0.0), "none"),  # paper-case1's silo
+    (("flat", 20.0, 3.0, 1.0, 0.0), "velocity"),  # wide
+])
+@pytest.mark.parametrize("name", ["paper-case2", _LONG_NAME])
+def test_the_title_fits_over_the_plot_at_every_height(silo, color, height, name):
+    """The title of an animation's frames (the scenario, time, phase, grains) and of the force
+    network pictures: under about 300 px of height the figure (as wide as the silo's aspect
+    makes it) was narrower than the title, which ran off its right edge.  Measured by the
+    renderer, it lies inside the figure and clear of the plot and the keys, wrapped onto two
+    lines and smaller where it must, and the same size and lines in every frame; the frames
+    keep one size, a multiple of 16 px."""
+    from silodem.viz import draw, network
+
+    frames = _hand_silo(*silo, name)
+    artist = draw.FrameArtist(frames, color, height_px=height)
+    assert artist.width_px % 16 == 0 and artist.height_px % 16 == 0
+    looks = set()
+    for frame in frames:
+        artist.draw(frame)
+        _check_title(artist, f"{name}   t = {frame.time:6.2f} s   {frame.phase:<9}   "
+                     f"{frame.n} grains", name)
+        looks.add((artist.text.get_fontsize(), artist.text.get_text().count("\n")))
+        assert artist.rgb().shape == (artist.height_px, artist.width_px, 3)
+    assert len(looks) == 1, looks
+    if height >= 560 and silo[1] / silo[2] > 0.5 and name == "paper-case2":  # not narrow
+        assert looks == {(draw.TITLE_SIZES[0], 0)}  # room enough: one line at full size
+    if name != "paper-case2":  # (the pictures' titles have no name)
+        return
+
+    drawn = []
+
+    class Checked(draw.FrameArtist):  # each picture's title checked as it is drawn
+        def draw(self, frame, title=None):
+            super().draw(frame, title)
+            _check_title(self, title)
+            drawn.append(title)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(draw, "FrameArtist", Checked)
+        network.force_network_pngs(frames)
+        network.force_network_png(frames, "final", color=color, height_px=height)
+        frames.status = "running"  # unfinished before settling ended: the longest label
+        network.force_network_png(frames, "end-of-filling", color=color, height_px=height)
+    # (the end of filling and the discharge's one frame, the last frame, the unsettled end)
+    assert len(drawn) == 4 and "not settled" in drawn[-1]
+
+
+@pytest.mark.parametrize("height", [200, 240, 300])
+def test_the_titles_of_a_runs_pictures_and_frames_fit_at_small_heights(run_dir, frames,
+                                                                       height, monkeypatch):
+    """The quick paper-case2 run: its force network pictures ("end of filling (settled), t =
+    4.45 s (155 grains)" ran off a figure 200 to 300 px tall) and every frame of its
+    animation (the grains' count growing from none while it fills) keep their title inside
+    the figure, over the plot, at one size and on the same lines in every frame."""
+    from silodem.viz import draw, network
+
+    drawn = []
+
+    class Checked(draw.FrameArtist):
+        def draw(self, frame, title=None):
+            super().draw(frame, title)
+            if title is not None:
+                _check_title(self, title)
+            else:
+                _check_title(self, f"{frames.scenario}   t = {frame.time:6.2f} s   "
+                             f"{frame.phase:<9}   {frame.n} grains", frames.scenario)
+            drawn.append((self.text.get_fontsize(), self.text.get_text().count("\n")))
+
+    monkeypatch.setattr(draw, "FrameArtist", Checked)
+    for view in network.VIEWS:
+        network.force_network_png(run_dir, view, height_px=height)
+    drawn.clear()
+    artist = Checked(frames, "velocity", height_px=height)
+    for frame in frames:
+        artist.draw(frame)
+    assert len(drawn) == len(frames) and len(set(drawn)) == 1
+
+
+def test_a_name_too_long_for_the_title_is_shortened_in_its_middle_not_the_times():
+    """A scenario's name may be 200 characters long: at 200 px high the default title keeps
+    its time, phase and grains, and the name's two ends (where a study's runs differ) with
+    an ellipsis between them."""
+    from silodem.viz.draw import FrameArtist
+
+    name = "study-" + "x" * 180 + "-phiW-10"
+    frames = _hand_silo("hopper", 1.0, 12.0, 0.3, 75.0, name)
+    artist = FrameArtist(frames, "velocity", height_px=200)
+    artist.draw(frames[2])
+    text = artist.text.get_text()
+    assert text.startswith("study-xxx") and ELLIPSIS in text and text.endswith(
+        f"phiW-10   t = 999.99 s   discharge   {frames[2].n} grains"), text
+    _check_title(artist, f"{name}   t = 999.99 s   discharge   {frames[2].n} grains", name)
+
+
 def _relative_luminance(rgb) -> float:
     """WCAG 2 relative luminance of an sRGB colour (components 0 to 1)."""
     lin = [c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4 for c in rgb[:3]]

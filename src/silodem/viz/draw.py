@@ -12,6 +12,7 @@ from __future__ import annotations
 import io
 import math
 import numbers
+from collections.abc import Iterable
 
 import matplotlib
 
@@ -25,13 +26,28 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from silodem.report.draw import PNG_COMPRESSION, grain_disks
-from silodem.silo.frames import Frame, Frames
+from silodem.silo.frames import Frame, Frames, FramesFile
 from silodem.viz.raster import (
     RASTER_BELOW_PX,
     pixel_count_and_mean,
     pixel_index,
     pixel_max,
     raster_shape,
+)
+from silodem.viz.title import (
+    ELLIPSIS,
+    FIELD_GAP,
+    ONE_LINE_SIZES,
+    TITLE_LINES,
+    TITLE_MARGIN,
+    TITLE_PAD,
+    TITLE_SIZES,
+    TOP_MIN,
+    Ruler,
+    fit_title,
+    shortened,
+    title_lines,
+    title_tokens,
 )
 
 COLORS = ("velocity", "force", "coordination", "none")
@@ -142,11 +158,22 @@ def _settled_or_all(q: float, settled: list[np.ndarray], every) -> float:
     return top if top is not None else _positive_percentile(every(), q, 1.0)
 
 
+def most_grains(frames: Frames) -> int:
+    """The most grains in any frame (from the index of a results file's frames)."""
+    if isinstance(frames.frames, FramesFile):
+        n = np.diff(np.asarray(frames.frames.index["particle_offset"], dtype=np.int64))
+        return int(n.max()) if n.size else 0
+    return max((f.n for f in frames.frames), default=0)
+
+
 class FrameArtist:
     """Draws the frames of ``frames`` coloured by ``color`` on a figure ``height_px`` tall."""
 
     def __init__(self, frames: Frames, color: str = "velocity", height_px: int = 800,
-                 title: str | None = None) -> None:
+                 title: str | None = None, titles: Iterable[str] | None = None) -> None:
+        """``title``: the scenario's name in the default title (``draw``); ``titles``: the
+        titles ``draw`` will be given, if not the default one: the figure keeps room over the
+        plot for the longest of them (at small heights on two lines)."""
         if not isinstance(frames, Frames):
             raise TypeError(f"frames must be a run's Frames (silodem.silo.frames.read_frames); "
                              f"got a {type(frames).__name__}")
@@ -193,13 +220,13 @@ class FrameArtist:
         # a wall
         dpi = 100
         aspect = (self.xlim[1] - self.xlim[0]) / (self.ylim[1] - self.ylim[0])
-        left, bottom, top = 62, 45, 28
+        left, bottom = 62, 45
         gap = KEY_GAP
         bar_col = gap + _BAR_COLUMN if self.norm is not None else 0
         # the colour bar at least as long as its label (rotated along it) and 40 % of the plot
         bar_min = _text_length_px(_LABELS[color], 8) if self.norm is not None else 0.0
 
-        def layout(h: int) -> tuple[bool, dict, float, bool, int]:
+        def layout(h: int, top: int) -> tuple[bool, dict, float, bool, int]:
             """For a figure h px tall: (grains drawn as pixels, the key's legend arguments,
             its height [px], key beside the bar, right margin [px])."""
             plot_h = h - bottom - top
@@ -213,19 +240,55 @@ class FrameArtist:
             right = round((bar_col + key_col if beside else max(bar_col, key_col)) + 8)
             return raster, key_kw, key_h, beside, right
 
-        h = _even16(height_px)
-        self.raster, key_kw, key_h, beside, right = layout(h)
-        for _ in range(3):  # (a lower figure may draw pixels, whose key differs: once)
-            widest_plot = WIDTH_PX_MAX - left - right - 16  # (room for the rounding to 16 px)
-            if aspect * (h - bottom - top) <= widest_plot:
+        # the title: room over the plot for the longest title to be drawn (the default one
+        # with the run's widest time, phase and grain count), on one line, else on two
+        self._ruler = ruler = Ruler()
+        n_most, t_last = most_grains(frames), float(np.max(frames.times, initial=0.0))
+        widest_phase = max(("fill", "settle", "discharge"),
+                           key=lambda ph: ruler.width(f"{ph:<9}", TITLE_SIZES[0]))
+        longest = [title_tokens(t) for t in titles or ()] or \
+            [self._default_tokens(self.title, t_last, widest_phase, n_most)]
+        for lines in range(1, TITLE_LINES + 1):
+            top = max(TOP_MIN, math.ceil(TITLE_PAD + ruler.height(lines) + TITLE_MARGIN))
+            h = _even16(height_px)
+            self.raster, key_kw, key_h, beside, right = layout(h, top)
+            for _ in range(3):  # (a lower figure may draw pixels, whose key differs: once)
+                widest_plot = WIDTH_PX_MAX - left - right - 16  # (room for rounding to 16 px)
+                if aspect * (h - bottom - top) <= widest_plot:
+                    break
+                # a wide silo: a lower figure, not a wider one
+                h = max(96, 16 * int((widest_plot / aspect + bottom + top) // 16))
+                self.raster, key_kw, key_h, beside, right = layout(h, top)
+            plot_h = h - bottom - top
+            plot_w = aspect * plot_h
+            w = _even16(left + plot_w + right)
+            self._title_lines_max = lines
+            # from the plot's left edge where the title fits there on one line at full size
+            for x0 in (left, TITLE_MARGIN):
+                self._title_x0, self._title_room = x0, w - x0 - TITLE_MARGIN
+                fitted = [fit_title(t, self._title_room, lines, ruler) for t in longest]
+                # (on one line no smaller than ONE_LINE_SIZES, or on the lines reserved)
+                fits = all(f is not None and (lines == TITLE_LINES or f[0] >= ONE_LINE_SIZES[-1])
+                           for f in fitted)
+                if fits and (x0 != left or all(f == (TITLE_SIZES[0], []) for f in fitted)):
+                    break
+            if fits:
                 break
-            # a wide silo: a lower figure, not a wider one
-            h = max(96, 16 * int((widest_plot / aspect + bottom + top) // 16))
-            self.raster, key_kw, key_h, beside, right = layout(h)
+        # the default title's size and lines for every frame (a frame's is no wider) and, if
+        # it does not fit even so, the scenario's name shortened to fit (both its ends kept:
+        # the runs of a study differ at the end)
+        def shown(k: int) -> str:  # k characters of the name: its middle left out
+            name = self.title
+            return name if k == len(name) else \
+                name[:(k + 1) // 2] + ELLIPSIS + name[len(name) - k // 2:]
+
+        k, self._default_fit = shortened(
+            lambda k: self._default_tokens(shown(k), t_last, widest_phase, n_most),
+            len(self.title), self._title_room, self._title_lines_max, ruler)
+        self._title_name = shown(k)
         self.height_px = h
-        plot_h = h - bottom - top
-        plot_w = aspect * plot_h
-        self.width_px = w = _even16(left + plot_w + right)
+        self.width_px = w
+        self._title_y0 = bottom + plot_h + TITLE_PAD
         diameter_px = 2.0 * r_max * plot_h / (self.ylim[1] - self.ylim[0])
         self.raster_shape = raster_shape(plot_h, plot_w, diameter_px)
         self.fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi, facecolor="white")
@@ -249,6 +312,12 @@ class FrameArtist:
                                      (bar_top - bar_bottom) / h))
             cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
             cb.set_label(_LABELS[color], fontsize=8)
+            if bar_min > bar_top - bar_bottom:  # a low figure: a label longer than the bar,
+                # moved down from the bar's middle to end under the title, over the figure's
+                # bottom where it can (it is centred on the bar, ends sticking out)
+                middle = min(max(0.5 * (bar_top + bar_bottom), 4 + 0.5 * bar_min),
+                             plot_top + 4 - 0.5 * bar_min)
+                cb.ax.yaxis.label.set_y((middle - bar_bottom) / (bar_top - bar_bottom))
             cb.ax.tick_params(labelsize=7)
             if color == "coordination":
                 cb.set_ticks(range(_MAX_COORD + 1))
@@ -256,7 +325,9 @@ class FrameArtist:
         self.wall_lines = [ax.plot([walls.ax[k], walls.bx[k]], [walls.ay[k], walls.by[k]],
                                    color="k", lw=1.6, solid_capstyle="round")[0]
                            for k in range(len(walls))]
-        self.text = ax.set_title("", fontsize=9, loc="left")
+        # the title over the plot, its bottom TITLE_PAD px over it (set by draw)
+        self.text = self.fig.text(self._title_x0 / w, self._title_y0 / h, "", ha="left",
+                                  va="bottom", fontsize=TITLE_SIZES[0], parse_math=False)
         self._artists: list = []
 
     def _key_arguments(self, raster: bool) -> dict:
@@ -289,9 +360,41 @@ class FrameArtist:
             on = bool(frame.walls_active[k]) if k < frame.walls_active.size else True
             line.set_linestyle("-" if on else ":")
             line.set_alpha(1.0 if on else 0.5)
-        self.text.set_text(title if title is not None else
-                           f"{self.title}   t = {frame.time:6.2f} s   {frame.phase:<9}   "
-                           f"{frame.n} grains")
+        self._set_title(frame, title)
+
+    # --- the title ----------------------------------------------------------------------------
+    @staticmethod
+    def _default_tokens(name: str, time: float, phase: str, n: int
+                        ) -> list[tuple[str, str, int]]:
+        """The default title's pieces: on one line "name   t = time s   phase   n grains"."""
+        head = title_tokens(name)
+        head[-1] = (head[-1][0], FIELD_GAP, 0)
+        return [*head, (f"t = {time:6.2f} s", FIELD_GAP, 0), (f"{phase:<9}", FIELD_GAP, 0),
+                (f"{n} grains", "", 3)]
+
+    def _set_title(self, frame: Frame, title: str | None) -> None:
+        """Set the title's text and size: the default one (``title`` None) at the size and
+        with the line breaks fixed for the run where the frame's fits them (it does unless
+        a font draws some digits wider), any other to fit (``title.fit_title``), shortened with
+        an ellipsis where even two lines of 7 pt are too few."""
+        room, lines, ruler = self._title_room, self._title_lines_max, self._ruler
+        fit = None
+        if title is None:
+            tokens = self._default_tokens(self._title_name, frame.time, frame.phase, frame.n)
+            fit = self._default_fit
+            if fit is not None and any(ruler.width(x, fit[0]) > room
+                                       for x in title_lines(tokens, fit[1])):
+                fit = None
+            title = "".join(p + s for p, s, _ in tokens)
+        if fit is None:
+            def shown(k: int) -> list[tuple[str, str, int]]:
+                return title_tokens(title if k == len(title) else title[:k] + ELLIPSIS)
+
+            k, fit = shortened(shown, len(title), room, lines, ruler)
+            tokens = shown(k)
+        size, breaks = fit if fit is not None else (TITLE_SIZES[-1], [])
+        self.text.set_fontsize(size)
+        self.text.set_text("\n".join(title_lines(tokens, breaks)))
 
     def _draw_disks(self, frame: Frame, x: np.ndarray, y: np.ndarray, r: np.ndarray) -> None:
         """The grains of ``frame`` as disks to scale, its contacts as lines whose width grows

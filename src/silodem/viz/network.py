@@ -66,7 +66,8 @@ def force_network_png(results_h5: Path | str | Frames, which: str | float = "end
 
     frames = _frames(results_h5)
     frame = select_frame(frames, which)
-    return _png(FrameArtist(frames, color, height_px=height_px), frame, which, frames)
+    artist = FrameArtist(frames, color, height_px=height_px, titles=_layout_titles(frames))
+    return _png(artist, frame, which, frames)
 
 
 def _frames(results_h5: Path | str | Frames) -> Frames:
@@ -87,15 +88,33 @@ def _frames(results_h5: Path | str | Frames) -> Frames:
         raise ValueError(str(exc)) from None
 
 
+_UNSETTLED = "last frame saved, not settled (unfinished run)"
+
+
+def _title(label: str, time: float, n: int) -> str:
+    return f"{label + ', ' if label else ''}t = {time:.2f} s ({n} grains)"
+
+
+def _layout_titles(frames: Frames) -> list[str]:
+    """The longest titles a picture of ``frames`` may have (the label of each moment the run
+    has, with its last time and most grains): the figure keeps room for them, the same for
+    every moment, so that a picture is the same drawn alone or with the others."""
+    from silodem.viz.draw import most_grains
+
+    time, n = float(frames.times.max()), most_grains(frames)
+    labels = {_UNSETTLED if v in ("end-of-filling", "settled") and not frames.settled else label
+              for v, label in _LABEL.items()}
+    return [_title(label, time, n) for label in sorted(labels)]
+
+
 def _png(artist, frame: Frame, which: str | float, frames: Frames) -> bytes:
     """PNG bytes of ``frame`` drawn by ``artist``, titled with the moment ``which`` (of
     ``frames``: the "end of filling" of a run stopped before settling ended is its last
     frame, and says so)."""
     label = _LABEL.get(which, "") if isinstance(which, str) else ""
     if which in ("end-of-filling", "settled") and not frames.settled:
-        label = "last frame saved, not settled (unfinished run)"
-    artist.draw(frame, title=f"{label + ', ' if label else ''}t = {frame.time:.2f} s "
-                f"({frame.n} grains)")
+        label = _UNSETTLED
+    artist.draw(frame, title=_title(label, frame.time, frame.n))
     return artist.png()
 
 
@@ -109,7 +128,7 @@ def force_network_pngs(results_h5: Path | str | Frames) -> dict[str, bytes]:
     frames = _frames(results_h5)
     if len(frames) == 0:  # (as force_network_png says; the report takes it as no pictures)
         raise ValueError("the run has no frames")
-    artist = FrameArtist(frames, "none", height_px=700)
+    artist = FrameArtist(frames, "none", height_px=700, titles=_layout_titles(frames))
     out, drawn = {}, set()
     for view in VIEWS:
         try:
