@@ -1429,3 +1429,20 @@ def test_a_janssen_k_above_1_is_flagged_after_filling_and_noted_during_discharge
         f"3.1 +- 1.8 ({poor}; {fill_note})")
     assert _janssen_K(dataclasses.replace(j, K=3.1, K_err=NAN), "fill") == (
         f"3.1 +- n/a ({poor})")  # no error (an exact two-bin fit): not judged
+
+
+def test_grains_lost_through_a_wall_are_counted_in_the_key_numbers(synth):
+    """A run that lost grains through a wall (paper-case1 --quick: 65 of its 166) says so in
+    the key numbers, out of n_poured; one that lost none (the synthetic run) has no such row."""
+    from silodem.report.key_numbers import LOST
+
+    a, _ = synth
+    assert not any(label == LOST for label, _, _ in a.numbers)
+    b = copy.copy(a)
+    b.res = copy.copy(a.res)
+    b.res.events = {**a.res.events, "lost_count": 65, "n_poured": 166}
+    b.numbers = []
+    add_numbers(b)
+    assert _number(b, LOST) == "65 of the 166 poured (39 %)"
+    rows = [label for label, _, _ in b.numbers]
+    assert rows.index(LOST) < rows.index("switch zone")  # before the numbers it qualifies

@@ -94,6 +94,22 @@ def change_text(pct: float, err: float) -> str:
     return text
 
 
+LOST = ("grains lost through a wall (pushed through by too soft contacts: the numbers below "
+        "describe the grains that stayed)")
+
+
+def lost_row(a: Analysis) -> None:
+    """Into ``a.numbers``: how many grains the run lost through a wall (``/events``
+    ``lost_count``, of ``n_poured``), when it lost any: the warnings say it as it came, and
+    the table, read without them, says it once."""
+    lost = int(a.res.events.get("lost_count", 0) or 0)
+    if lost <= 0:
+        return
+    poured = int(a.res.events.get("n_poured", 0) or 0)
+    share = f" of the {poured} poured ({100.0 * lost / poured:.0f} %)" if poured > 0 else ""
+    a.numbers.append((LOST, f"{lost}{share}", "-"))
+
+
 def add_numbers(a: Analysis) -> None:
     """Into ``a.numbers``: the key numbers, (quantity, value, unit) rows."""
     n = a.numbers
@@ -103,6 +119,7 @@ def add_numbers(a: Analysis) -> None:
     if a.res.cfg.silo.kind == "hopper":
         n.append(("hopper half-angle from the vertical alpha (= 90 - theta)",
                   f"{g['alpha']:.3g}", "deg"))
+    lost_row(a)
     surface = ("free surface after filling (mean top of the grain columns, one diameter "
                "wide; the run's fill level is the mean top of its 5 highest grains)")
     why = no_settled_fill(a)  # an n/a says what is missing
