@@ -593,6 +593,7 @@ def test_plain_columns_copy_the_run(synth):
     _check(s, {"junction_z": Z_J, "fill_level": 1.25, "discharged_fraction": 0.75,
                "dt": 1.5e-4, "bulk_density": RHO_B})
     assert (s["n_poured"], s["steps"], s["discharge_end_reason"]) == (150, 12345, "fraction")
+    assert s["lost_count"] == 0  # the file has no lost_count: no grain was lost
 
 
 def _number(a, start: str) -> str:
@@ -1151,6 +1152,7 @@ def test_real_run_table_row_matches_a_recomputation(real):
                                  and exp["dead_fraction"] < 0.01 else "funnel flow")
     ev = raw["events"]
     assert (s["n_poured"], s["steps"]) == (int(ev["n_poured"]), int(raw["attrs"]["steps"]))
+    assert s["lost_count"] == int(ev.get("lost_count", 0))
     assert s["discharge_end_reason"] == str(ev["discharge_end_reason"])
     # conservation: the discharged fraction is the mass that left over the initial mass
     assert s["discharged_fraction"] == pytest.approx(
@@ -1192,7 +1194,7 @@ DOC_COLUMNS = [
     "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",
     "window_emptied_start_pct", "window_emptied_end_pct",
     "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level",
-    "bulk_density", "n_poured",
+    "bulk_density", "n_poured", "lost_count",
     "discharged_fraction", "discharge_end_reason", "steps", "dt"]
 
 

@@ -89,6 +89,7 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("fill_level", "m", "fill level after settling: mean of the 5 highest grain tops (events)"),
     ("bulk_density", "kg/m^3", "bulk density rho_b of the settled packing under the free surface"),
     ("n_poured", "-", "grains poured"),
+    ("lost_count", "-", "grains lost through a wall (too soft contacts), 0 when none"),
     ("discharged_fraction", "-", "mass fraction that left the silo"),
     ("discharge_end_reason", "", "what ended the discharge: fraction, time or clog"),
     ("steps", "-", "time steps"),
@@ -179,7 +180,7 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # flow pattern) of the grains there as the gate opened, not those lost through a wall before;
 # 7: nor those lost through a wall after (measure.discharge.lost_grains; in a file written
 # before the flag of those lost before, the grains below the outlet at the opening); the bulk
-# density by each disk's area in its band, not whole grains by their centres.
+# density by each disk's area in its band, not whole grains by their centres; lost_count.
 ANALYSIS_VERSION = 7
 
 
@@ -196,7 +197,7 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
     out: dict[str, Any] = {c: NAN for c, _, _ in COLUMNS}
     out.update(junction_z=as_float(a.geom.get("z_j")), fill_level=as_float(ev.get("fill_level")),
                bulk_density=as_float(a.rho_b),
-               n_poured=int(ev.get("n_poured", 0)),
+               n_poured=int(ev.get("n_poured", 0)), lost_count=int(ev.get("lost_count", 0)),
                discharged_fraction=as_float(ev.get("discharged_fraction")),
                discharge_end_reason=str(ev.get("discharge_end_reason", "")),
                steps=int(res.attrs.get("steps", 0)), dt=as_float(res.attrs.get("dt")),
