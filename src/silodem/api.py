@@ -161,7 +161,8 @@ def _frame(group: dict[str, Any] | None, what: str) -> pd.DataFrame:
 
 class RunResults:
     """One run's results (``open_results``): the config, events and warnings, and its data
-    as DataFrames (SI units, compressive stresses positive, per unit thickness t)."""
+    as DataFrames (SI units, compressive stresses positive; masses, forces and energies of
+    the slab of thickness t, not per metre of it)."""
 
     def __init__(self, raw: _Raw) -> None:
         self._raw = raw
