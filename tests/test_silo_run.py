@@ -420,13 +420,28 @@ def test_a_grain_pushed_under_the_floor_after_the_gate_opens_is_lost_not_dischar
     assert flow.lost_later.sum() == 1
 
 
-def test_below_outlet_is_the_outlet_span_and_its_room():
-    """The tiny hopper's outlet spans x = 0.4-0.8 m; with 0.1 m of room a grain under the silo
-    at 0.31-0.89 m came through it, one at 0.29 or 0.91 m did not."""
+def test_came_through_outlet_traces_the_fall_back_to_the_outlet():
+    """The tiny hopper's outlet spans x = 0.4-0.8 m; with 0.1 m of room a grain that crossed
+    z = 0 at 0.31-0.89 m came through it, one at 0.29 or 0.91 m (under a hopper wall) did
+    not.  Grains at rest under the outlet line are judged where they are.  A grain at
+    z = -0.2 m falling at vz = -3 m/s under g = 10 crossed z = 0 s before, z = vz s + g s^2/2:
+    s = (3 - sqrt(9 - 4)) / 10 = 0.0764 s; at vx = -2 m/s it was 0.153 m further right: seen
+    at x = 0.70 m it crossed at 0.853 m (in), at x = 0.76 m at 0.913 m (out).  Without gravity
+    a grain at vz = -2 m/s went straight, s = 0.1 s."""
     from measure_helpers import tiny_hopper_config
 
     shape = silo_shape(tiny_hopper_config())
     assert (shape.outlet_left, shape.outlet_right) == pytest.approx((0.4, 0.8))
-    got = shape.below_outlet(np.array([0.29, 0.31, 0.6, 0.89, 0.91, -0.5, 1.5]), 0.1)
+    x = np.array([0.29, 0.31, 0.6, 0.89, 0.91, -0.5, 1.5])
+    zero = np.zeros(x.size)
+    got = shape.came_through_outlet(x, zero - 0.01, zero, zero, 9.81, 0.1)
     np.testing.assert_array_equal(got, [False, True, True, True, False, False, False])
+    s = (3.0 - math.sqrt(9.0 - 4.0)) / 10.0
+    assert 0.70 + 2.0 * s == pytest.approx(0.853, abs=1e-3)  # the premise of the numbers
+    got = shape.came_through_outlet([0.70, 0.76], [-0.2, -0.2], [-2.0, -2.0], [-3.0, -3.0],
+                                    10.0, 0.1)
+    np.testing.assert_array_equal(got, [True, False])
+    got = shape.came_through_outlet([0.78, 0.62], [-0.2, -0.2], [-1.5, 1.2], [-2.0, -2.0],
+                                    0.0, 0.1)  # crossed at 0.93 (out) and 0.50 (in)
+    np.testing.assert_array_equal(got, [False, True])
     assert outlet_room(tiny_hopper_config()) == pytest.approx(2 * 0.055)

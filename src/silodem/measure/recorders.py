@@ -201,6 +201,7 @@ class _FlowPart:
         self.delay, self.window = m.discharge_delay, m.window
         self.d = regions.mean_diameter(cfg)
         self.room = outlet_room(cfg)  # beside the outlet's span [m]
+        self.g = cfg.gravity  # [m/s^2]
         cell = regions.grid_cell(cfg)
         self.x_edges, self.z_edges = regions.grid_edges(shape, cell)
         self.mfi_band = (np.nan, np.nan)  # set when the gate opens, from the fill level
@@ -254,7 +255,7 @@ class _FlowPart:
 
     def record(self, run: SiloRun | None, rd: Reading) -> None:
         """One sample ``rd`` after the gate opened: the tracked grains absent from it or with
-        their centre below the outlet (z < 0 within ``SiloShape.below_outlet``) have left, at
+        their centre below the outlet (z < 0, ``SiloShape.came_through_outlet``) have left, at
         this sample's time after the opening unless they had left before; the others' largest
         displacement grows.  The grains lost (before the discharge, or through a wall since)
         are not followed.  (``run`` is read only for the snapshot in the middle of the
@@ -268,7 +269,8 @@ class _FlowPart:
         idx = order[pos] if rd.n else pos
         present = (rd.uid[idx] == self.uid0) if rd.n else np.zeros(self.uid0.size, bool)
         if rd.n:  # under the silo: left through the outlet, or pushed through a wall (``lose``)
-            present &= (rd.z[idx] >= 0.0) | ~self.shape.below_outlet(rd.x[idx], self.room)
+            present &= (rd.z[idx] >= 0.0) | ~self.shape.came_through_outlet(
+                rd.x[idx], rd.z[idx], rd.vx[idx], rd.vz[idx], self.g, self.room)
         followed = ~(self.lost | self.lost_later)
         gone = ~present & np.isnan(self.exit_time) & followed
         self.exit_time[gone] = t

@@ -28,8 +28,8 @@ GATE = "gate"
 
 def outlet_room(cfg: Config) -> float:
     """Room [m] each side of the outlet's span where a grain under the silo still counts as
-    come through it (``SiloShape.below_outlet``): 2 largest radii, as grains leave with a
-    converging, inward horizontal speed and fall 4 radii before they are removed."""
+    come through it (``SiloShape.came_through_outlet``): 2 largest radii, for the grains
+    knocked sideways by others in the falling stream."""
     return 2.0 * cfg.material.radius_max
 
 
@@ -52,12 +52,24 @@ class SiloShape:
         right = self.outlet_right + (self.width - self.outlet_right) * f
         return self.outlet_left * (1.0 - f), right
 
-    def below_outlet(self, x: np.ndarray, room: float) -> np.ndarray:
-        """True where a grain under the silo (z < 0) at x [m] can have come through the outlet:
-        x within the outlet's span widened by ``room`` [m] each side.  A grain under the floor
-        or beside the walls elsewhere was pushed through a wall."""
-        x = np.asarray(x, dtype=float)
-        return (x >= self.outlet_left - room) & (x <= self.outlet_right + room)
+    def came_through_outlet(self, x: np.ndarray, z: np.ndarray, vx: np.ndarray,
+                            vz: np.ndarray, g: float, room: float) -> np.ndarray:
+        """True where a grain under the silo (z < 0) at (x, z) [m] moving at (vx, vz) [m/s] can
+        have come through the outlet: its free fall under gravity ``g`` [m/s^2] traced back to
+        z = 0 (the time s since then from z = vz s + g s^2 / 2) crossed it within the outlet's
+        span widened by ``room`` [m] each side.  A grain under the floor elsewhere, or beside
+        the walls, was pushed through a wall.  (Tracing back takes out the sideways drift of a
+        grain that left the outlet slanting; collisions in the falling stream are what the
+        room is for.)"""
+        x, z, vx, vz = (np.asarray(v, dtype=float) for v in (x, z, vx, vz))
+        below = np.minimum(z, 0.0)
+        if g > 0.0:
+            s = (-vz - np.sqrt(np.maximum(vz * vz + 2.0 * g * below, 0.0))) / g  # (the root
+            # with the grain going down at z = 0)
+        else:  # no gravity: a straight line back
+            s = np.where(vz < 0.0, below / np.where(vz < 0.0, vz, -1.0), 0.0)
+        x0 = x - vx * np.maximum(s, 0.0)
+        return (x0 >= self.outlet_left - room) & (x0 <= self.outlet_right + room)
 
     def outline(self) -> list[tuple[float, float]]:
         """Corners of the silo's inside [m], anticlockwise from the outlet's left edge (the

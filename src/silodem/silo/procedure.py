@@ -351,7 +351,8 @@ class SiloRun:
     def _remove_escaped(self) -> None:
         """Remove grains that left the silo other than through the open outlet (pushed through
         a wall by too soft contacts, or thrown out): far beside or above the silo, or under
-        it while the gate is closed or away from the open outlet (``SiloShape.below_outlet``);
+        it while the gate is closed or not come through the open outlet
+        (``SiloShape.came_through_outlet``);
         the recorders are told first (``Recorder.grains_lost``).  One warning names the first
         loss, and a second, rewritten at each later loss, holds the running total."""
         p, shape, st = self.sim.particles, self.shape, self.state
@@ -360,7 +361,8 @@ class SiloRun:
         out = (x < -margin) | (x > shape.width + margin) | (y > shape.wall_top + 20.0)
         under = y < self.z_remove
         if st.phase == "discharge":
-            under &= ~shape.below_outlet(x, outlet_room(self.cfg))
+            under &= ~shape.came_through_outlet(x, y, p.view("vx"), p.view("vy"),
+                                                self.cfg.gravity, outlet_room(self.cfg))
         out |= under
         if not np.any(out):
             return
