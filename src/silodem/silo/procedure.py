@@ -352,9 +352,9 @@ class SiloRun:
         """Remove grains that left the silo other than through the open outlet (pushed through
         a wall by too soft contacts, or thrown out): far beside or above the silo, or under
         it while the gate is closed or not come through the open outlet
-        (``SiloShape.came_through_outlet``);
-        the recorders are told first (``Recorder.grains_lost``).  One warning names the first
-        loss, and a second, rewritten at each later loss, holds the running total."""
+        (``SiloShape.came_through_outlet``); the recorders are told first
+        (``Recorder.grains_lost``).  One warning names the first loss, and a second, rewritten
+        at each later loss, holds the running total."""
         p, shape, st = self.sim.particles, self.shape, self.state
         x, y = p.view("x"), p.view("y")
         margin = 1.0 + 4.0 * self.cfg.material.radius_max
