@@ -668,6 +668,7 @@ def test_the_keys_hide_no_grain_and_no_wall(frames, color, height):
         assert len(bars) == (0 if color == "none" else 1)
         if bars:
             boxes["colour bar"] = bars[0].get_window_extent(renderer)
+        _check_bar_label(artist)
         for name, box in boxes.items():
             assert not box.overlaps(plot), name
             assert box.x0 >= 0 and box.y0 >= 0, name
@@ -754,6 +755,57 @@ def _check_title(artist, title: str, name: str = "") -> None:
             flat == want and text.split("\n")[0][-1] in "-_"), (text, title)
 
 
+def _check_bar_label(artist) -> None:
+    """The colour bar's label (rotated along the bar), as the renderer draws it: inside the
+    figure, clear of the title, the plot, the force key and the bar's tick labels; its words
+    all there, on at most two lines of at least 7 pt."""
+    from silodem.viz.draw import _LABELS
+
+    bars = [a for a in artist.fig.axes if a is not artist.ax]
+    if not bars:  # (color "none": no colour bar)
+        return
+    artist.rgb()  # (the label is placed as the figure is drawn)
+    renderer = artist.canvas.get_renderer()
+    label = bars[0].yaxis.label
+    box = label.get_window_extent(renderer)
+    assert 0 <= box.x0 and box.x1 <= artist.width_px, (box, artist.width_px)
+    assert 0 <= box.y0 and box.y1 <= artist.height_px, (box, artist.height_px)
+    others = {"title": artist.text, "plot": artist.ax, "force key": artist.force_key}
+    others.update({f"tick {t.get_text()}": t for t in bars[0].get_yticklabels()})
+    for what, other in others.items():
+        assert not box.overlaps(other.get_window_extent(renderer)), (what, box)
+    assert " ".join(label.get_text().split()) == _LABELS[artist.color]
+    assert label.get_text().count("\n") <= 1 and label.get_fontsize() >= 7.0
+
+
+@pytest.mark.parametrize("height", [200, 240, 256, 300, 800])
+@pytest.mark.parametrize("color", ["velocity", "force", "coordination"])
+@pytest.mark.parametrize("name", ["paper-case2", _LONG_NAME])
+def test_the_colour_bars_label_fits_at_every_height(color, height, name):
+    """The colour bar's label runs along the bar, from the figure's bottom up to under the
+    title at most: under about 290 px of height the force and coordination labels (250 px at
+    8 pt) were longer than that and ran off the figure's bottom.  Measured by the renderer,
+    it lies inside the figure, clear of the title (on two lines with a long name), the plot,
+    the force key and the ticks, smaller (7 pt) or on two lines where one line of 8 pt is too
+    long, the same in every frame; a figure with room for it keeps it on one line at 8 pt."""
+    from silodem.viz import draw
+
+    frames = _hand_silo("hopper", 3.4, 6.0, 1.0, 45.0, name)  # paper-case2's silo
+    artist = draw.FrameArtist(frames, color, height_px=height)
+    assert artist.width_px % 16 == 0 and artist.height_px % 16 == 0
+    looks = set()
+    for frame in frames:
+        artist.draw(frame)
+        _check_bar_label(artist)
+        label = artist.fig.axes[1].yaxis.label
+        box = label.get_window_extent(artist.canvas.get_renderer())
+        looks.add((label.get_text(), label.get_fontsize(), tuple(box.bounds)))
+        assert artist.rgb().shape == (artist.height_px, artist.width_px, 3)
+    assert len(looks) == 1, looks
+    if height >= 300 and name == "paper-case2":  # room enough: as it always was
+        assert looks.pop()[:2] == (draw._LABELS[color], 8.0)
+
+
 @pytest.mark.parametrize("height", [200, 240, 300, 800])
 @pytest.mark.parametrize(("silo", "color"), [
     (("hopper", 3.4, 6.0, 1.0, 45.0), "velocity"),  # paper-case2's silo
@@ -769,7 +821,8 @@ def test_the_title_fits_over_the_plot_at_every_height(silo, color, height, name)
     makes it) was narrower than the title, which ran off its right edge.  Measured by the
     renderer, it lies inside the figure and clear of the plot and the keys, wrapped onto two
     lines and smaller where it must, and the same size and lines in every frame; the frames
-    keep one size, a multiple of 16 px."""
+    keep one size, a multiple of 16 px; the colour bar's label fits too (``_check_bar_label``).
+    """
     from silodem.viz import draw, network
 
     frames = _hand_silo(*silo, name)
@@ -780,6 +833,7 @@ def test_the_title_fits_over_the_plot_at_every_height(silo, color, height, name)
         artist.draw(frame)
         _check_title(artist, f"{name}   t = {frame.time:6.2f} s   {frame.phase:<9}   "
                      f"{frame.n} grains", name)
+        _check_bar_label(artist)
         looks.add((artist.text.get_fontsize(), artist.text.get_text().count("\n")))
         assert artist.rgb().shape == (artist.height_px, artist.width_px, 3)
     assert len(looks) == 1, looks
@@ -794,6 +848,7 @@ def test_the_title_fits_over_the_plot_at_every_height(silo, color, height, name)
         def draw(self, frame, title=None):
             super().draw(frame, title)
             _check_title(self, title)
+            _check_bar_label(self)
             drawn.append(title)
 
     with pytest.MonkeyPatch.context() as mp:

@@ -9,7 +9,9 @@ fixed over all the frames of a run, so frames (and the report's pictures) compar
 
 from __future__ import annotations
 
+import functools
 import io
+import itertools
 import math
 import numbers
 from collections.abc import Iterable
@@ -103,7 +105,13 @@ def key_forces(force_scale: float, raster: bool = False) -> list[float]:
 
 KEY_GAP = 14  # px between the plot, the colour bar and the force key
 _BAR_WIDTH = 16  # px: the colour bar
-_BAR_COLUMN = 92  # px: the colour bar with its ticks and its label, rotated
+_BAR_COLUMN = 92  # px: the colour bar with its ticks and its label, rotated, on one line
+# the colour bar's label, rotated along the bar: on one line at 8 pt where the figure has room
+# for it, else smaller or on more lines (``bar_label``); its ends at least _LABEL_END px over the
+# figure's bottom and at most that over the plot's top (TITLE_PAD under the title)
+_LABEL_SIZES = (8.0, 7.0)  # pt, largest first (7: the tick labels' size)
+_LABEL_LINES = 3  # at most
+_LABEL_END = 4
 
 
 def _legend_size_px(kw: dict) -> tuple[float, float]:
@@ -115,12 +123,41 @@ def _legend_size_px(kw: dict) -> tuple[float, float]:
     return float(box.width), float(box.height)
 
 
-def _text_length_px(text: str, fontsize: float) -> float:
-    """Length [px at 100 dpi] of one line of ``text`` at ``fontsize`` [pt]."""
+@functools.lru_cache(maxsize=256)
+def _text_size_px(text: str, fontsize: float) -> tuple[float, float]:
+    """(width, height) [px at 100 dpi] of ``text`` (its lines as a figure's text sets them)
+    at ``fontsize`` [pt]."""
     fig = Figure(figsize=(4, 4), dpi=100)
     canvas = FigureCanvasAgg(fig)
-    return float(fig.text(0, 0, text, fontsize=fontsize).get_window_extent(
-        canvas.get_renderer()).width)
+    box = fig.text(0, 0, text, fontsize=fontsize).get_window_extent(canvas.get_renderer())
+    return float(box.width), float(box.height)
+
+
+def bar_label(text: str, room: float) -> tuple[str, float, float, float]:
+    """The colour bar's label ``text`` set to run at most ``room`` px along the bar: (its
+    lines, font size [pt], length and thickness [px]).  On one line at the largest of
+    ``_LABEL_SIZES`` it fits at, else on two lines (then up to ``_LABEL_LINES``) at the largest
+    size they fit at, broken between words: before a bracket, as "coordination number" over
+    "(contacts per grain) [-]", where that fits, else where the longest line is shortest.
+    Where nothing fits (a very low figure), the shortest of them."""
+    words = text.split(" ")
+    shortest = None
+    for lines in range(1, min(_LABEL_LINES, len(words)) + 1):
+        for size in _LABEL_SIZES:
+            fits = []
+            for breaks in itertools.combinations(range(1, len(words)), lines - 1):
+                cut = [0, *breaks, len(words)]
+                set_as = "\n".join(" ".join(words[a:b]) for a, b in itertools.pairwise(cut))
+                length, thickness = _text_size_px(set_as, size)
+                if length <= room:  # (first the fewest breaks not before a bracket)
+                    fits.append((sum(words[k][0] not in "([" for k in breaks), length,
+                                 set_as, thickness))
+                if shortest is None or length < shortest[2]:
+                    shortest = (set_as, size, length, thickness)
+            if fits:
+                _, length, set_as, thickness = min(fits)
+                return set_as, size, length, thickness
+    return shortest
 
 
 def _even16(px: float) -> int:
@@ -222,14 +259,20 @@ class FrameArtist:
         aspect = (self.xlim[1] - self.xlim[0]) / (self.ylim[1] - self.ylim[0])
         left, bottom = 62, 45
         gap = KEY_GAP
-        bar_col = gap + _BAR_COLUMN if self.norm is not None else 0
         # the colour bar at least as long as its label (rotated along it) and 40 % of the plot
-        bar_min = _text_length_px(_LABELS[color], 8) if self.norm is not None else 0.0
+        bar_min, label_w = _text_size_px(_LABELS[color], _LABEL_SIZES[0]) \
+            if self.norm is not None else (0.0, 0.0)
 
-        def layout(h: int, top: int) -> tuple[bool, dict, float, bool, int]:
+        def layout(h: int, top: int) -> tuple[bool, dict, float, bool, int, tuple, int]:
             """For a figure h px tall: (grains drawn as pixels, the key's legend arguments,
-            its height [px], key beside the bar, right margin [px])."""
+            its height [px], key beside the bar, right margin [px], the colour bar's label
+            (``bar_label``), the colour bar's column [px])."""
             plot_h = h - bottom - top
+            # the label between the figure's bottom and the title: where it does not fit on
+            # one line at 8 pt (under about 290 px) smaller or on more lines, the column wider
+            label = bar_label(_LABELS[color], h - top) if self.norm is not None else None
+            bar_col = gap + _BAR_COLUMN + max(0, math.ceil(label[3] - label_w)) \
+                if label is not None else 0
             # grains under RASTER_BELOW_PX across even at their largest: cells of pixels
             raster = 2.0 * r_max * plot_h / (self.ylim[1] - self.ylim[0]) < RASTER_BELOW_PX
             key_kw = self._key_arguments(raster)
@@ -238,7 +281,7 @@ class FrameArtist:
                 plot_h - key_h - gap < max(0.4 * plot_h, bar_min)
             key_col = gap + key_w + 8
             right = round((bar_col + key_col if beside else max(bar_col, key_col)) + 8)
-            return raster, key_kw, key_h, beside, right
+            return raster, key_kw, key_h, beside, right, label, bar_col
 
         # the title: room over the plot for the longest title to be drawn (the default one
         # with the run's widest time, phase and grain count), on one line, else on two
@@ -251,14 +294,14 @@ class FrameArtist:
         for lines in range(1, TITLE_LINES + 1):
             top = max(TOP_MIN, math.ceil(TITLE_PAD + ruler.height(lines) + TITLE_MARGIN))
             h = _even16(height_px)
-            self.raster, key_kw, key_h, beside, right = layout(h, top)
+            self.raster, key_kw, key_h, beside, right, label, bar_col = layout(h, top)
             for _ in range(3):  # (a lower figure may draw pixels, whose key differs: once)
                 widest_plot = WIDTH_PX_MAX - left - right - 16  # (room for rounding to 16 px)
                 if aspect * (h - bottom - top) <= widest_plot:
                     break
                 # a wide silo: a lower figure, not a wider one
                 h = max(96, 16 * int((widest_plot / aspect + bottom + top) // 16))
-                self.raster, key_kw, key_h, beside, right = layout(h, top)
+                self.raster, key_kw, key_h, beside, right, label, bar_col = layout(h, top)
             plot_h = h - bottom - top
             plot_w = aspect * plot_h
             w = _even16(left + plot_w + right)
@@ -311,12 +354,13 @@ class FrameArtist:
             cax = self.fig.add_axes(((plot_right + gap) / w, bar_bottom / h, _BAR_WIDTH / w,
                                      (bar_top - bar_bottom) / h))
             cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
-            cb.set_label(_LABELS[color], fontsize=8)
-            if bar_min > bar_top - bar_bottom:  # a low figure: a label longer than the bar,
+            set_as, size, length, _ = label
+            cb.set_label(set_as, fontsize=size)
+            if length > bar_top - bar_bottom:  # a low figure: a label longer than the bar,
                 # moved down from the bar's middle to end under the title, over the figure's
-                # bottom where it can (it is centred on the bar, ends sticking out)
-                middle = min(max(0.5 * (bar_top + bar_bottom), 4 + 0.5 * bar_min),
-                             plot_top + 4 - 0.5 * bar_min)
+                # bottom (it is centred on the bar, ends sticking out)
+                middle = min(max(0.5 * (bar_top + bar_bottom), _LABEL_END + 0.5 * length),
+                             plot_top + _LABEL_END - 0.5 * length)
                 cb.ax.yaxis.label.set_y((middle - bar_bottom) / (bar_top - bar_bottom))
             cb.ax.tick_params(labelsize=7)
             if color == "coordination":
