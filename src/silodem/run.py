@@ -52,7 +52,8 @@ class RunSummary:
         ]
         if "discharge_end_reason" in e:
             out.append(
-                f"discharge: {100 * e['discharged_fraction']:.1f}% of the mass left in "
+                f"discharge: {100 * e['discharged_fraction']:.1f}% of the mass left through the "
+                f"outlet in "
                 f"{e['discharge_time']:.2f} s (ended by: {e['discharge_end_reason']})"
             )
         shown = self.warnings_shown if shown_above else frozenset()

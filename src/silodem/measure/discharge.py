@@ -120,7 +120,7 @@ def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
               if "lost_before_discharge" in flow else z0 < 0.0)
     during = (np.asarray(flow["lost_during_discharge"], dtype=bool)
               if "lost_during_discharge" in flow else np.zeros(z0.size, bool))
-    return before, during
+    return before, during & ~before  # (a file that flagged a grain twice: lost before)
 
 
 def dead_fraction(dead: npt.ArrayLike, lost: npt.ArrayLike | None = None) -> float:

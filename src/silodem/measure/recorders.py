@@ -184,14 +184,20 @@ class _ProfilesPart:
             _dataset(pg, key, a[key], "Pa", components="xx,zz,xz; compression positive")
 
 
-def lost_before_discharge(shape, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+def lost_before_discharge(shape, x: np.ndarray, z: np.ndarray, room: float) -> np.ndarray:
     """True for the grains whose centre (x, z) [m] lies outside the silo when the gate opens:
-    below the outlet (z < 0) or beyond a wall at its height (``regions.edge_distance`` < 0);
-    soft contacts push such grains through a wall while filling (``silo.procedure`` removes
-    them only once they are far out), and they did not discharge."""
+    under the floor (z < 0 away from the outlet: not within its span widened by ``room`` [m],
+    the rule by which ``silo.procedure`` tells a discharged grain, ``SiloShape.
+    came_through_outlet``, here for grains at rest) or, above it, beyond a wall at its height
+    (``regions.edge_distance`` < 0); soft contacts push such grains through a wall while
+    filling (the procedure removes them only once they are far out), and they will not
+    discharge.  A grain sunk into the gate (z < 0 over the outlet) falls through the outlet
+    when it opens: it is not lost."""
     x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
     left, right = regions.edge_distance(shape, x, z)
-    return (z < 0.0) | (left < 0.0) | (right < 0.0)
+    at_rest = np.zeros(x.shape)
+    over_outlet = shape.came_through_outlet(x, z, at_rest, at_rest, 0.0, room)
+    return np.where(z < 0.0, ~over_outlet, (left < 0.0) | (right < 0.0))
 
 
 class _FlowPart:
@@ -236,7 +242,7 @@ class _FlowPart:
         self.mfi_band = (lo, lo + height)
         self.uid0 = np.asarray(uid, dtype=np.int64).copy()
         self.x0, self.z0, self.r0 = (np.asarray(v, dtype=float).copy() for v in (x, z, r))
-        self.lost = lost_before_discharge(self.shape, self.x0, self.z0)
+        self.lost = lost_before_discharge(self.shape, self.x0, self.z0, self.room)
         self.lost_later = np.zeros(self.uid0.size, dtype=bool)
         self.exit_time = np.full(self.uid0.size, np.nan)
         self.max_disp = np.where(self.lost, np.nan, 0.0)
@@ -248,7 +254,7 @@ class _FlowPart:
         and they are followed no more."""
         if not np.isfinite(self.t_open):
             return
-        hit = np.isin(self.uid0, uids)
+        hit = np.isin(self.uid0, uids) & ~self.lost  # (one lost before is not lost twice)
         self.lost_later |= hit
         self.exit_time[hit] = np.nan
         self.max_disp[hit] = np.nan
@@ -336,7 +342,7 @@ class _FlowPart:
             self.lost = np.array(state["flow.lost"], dtype=bool)
         else:  # a checkpoint written before the flag: from the grains' places at the opening,
             # and what was recorded of those grains undone (they had the first exit time)
-            self.lost = lost_before_discharge(self.shape, self.x0, self.z0)
+            self.lost = lost_before_discharge(self.shape, self.x0, self.z0, self.room)
             self.exit_time[self.lost] = np.nan
             self.max_disp = np.where(self.lost, np.nan, self.max_disp)
         self.lost_later = (np.array(state["flow.lost_later"], dtype=bool)
@@ -369,9 +375,9 @@ class _FlowPart:
                  "which the grain left (NaN: still inside, or lost through a wall)")
         _dataset(f, "max_displacement", self.max_disp, "m", meaning="largest distance from "
                  "its place at the gate opening (NaN: lost through a wall)")
-        _dataset(f, "lost_before_discharge", self.lost, meaning="the grain's centre was below "
-                 "the outlet (z < 0) or beyond a wall when the gate opened: lost through a "
-                 "wall while filling, not discharged")
+        _dataset(f, "lost_before_discharge", self.lost, meaning="the grain's centre was under "
+                 "the floor (z < 0 away from the outlet) or beyond a wall when the gate "
+                 "opened: lost through a wall while filling, not discharged")
         _dataset(f, "lost_during_discharge", self.lost_later, meaning="the grain left through "
                  "a wall after the gate opened (pushed through it), not through the outlet")
         grid = f.create_group("grid")

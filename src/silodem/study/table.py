@@ -90,7 +90,8 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("bulk_density", "kg/m^3", "bulk density rho_b of the settled packing under the free surface"),
     ("n_poured", "-", "grains poured"),
     ("lost_count", "-", "grains lost through a wall (too soft contacts), 0 when none"),
-    ("discharged_fraction", "-", "mass fraction that left the silo"),
+    ("discharged_fraction", "-", ("share of the mass at the gate's opening that left through "
+     "the outlet")),
     ("discharge_end_reason", "", "what ended the discharge: fraction, time or clog"),
     ("steps", "-", "time steps"),
     ("dt", "s", "time step"),
