@@ -187,17 +187,15 @@ class _ProfilesPart:
 def lost_before_discharge(shape, x: np.ndarray, z: np.ndarray, room: float) -> np.ndarray:
     """True for the grains whose centre (x, z) [m] lies outside the silo when the gate opens:
     under the floor (z < 0 away from the outlet: not within its span widened by ``room`` [m],
-    the rule by which ``silo.procedure`` tells a discharged grain, ``SiloShape.
-    came_through_outlet``, here for grains at rest) or, above it, beyond a wall at its height
-    (``regions.edge_distance`` < 0); soft contacts push such grains through a wall while
-    filling (the procedure removes them only once they are far out), and they will not
+    ``SiloShape.over_outlet``, the rule by which ``silo.procedure`` tells a discharged grain,
+    ``SiloShape.came_through_outlet``, for a grain at rest) or, above it, beyond a wall at its
+    height (``regions.edge_distance`` < 0); soft contacts push such grains through a wall
+    while filling (the procedure removes them only once they are far out), and they will not
     discharge.  A grain sunk into the gate (z < 0 over the outlet) falls through the outlet
     when it opens: it is not lost."""
     x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
     left, right = regions.edge_distance(shape, x, z)
-    at_rest = np.zeros(x.shape)
-    over_outlet = shape.came_through_outlet(x, z, at_rest, at_rest, 0.0, room)
-    return np.where(z < 0.0, ~over_outlet, (left < 0.0) | (right < 0.0))
+    return np.where(z < 0.0, ~shape.over_outlet(x, room), (left < 0.0) | (right < 0.0))
 
 
 class _FlowPart:

@@ -68,8 +68,12 @@ class SiloShape:
             # with the grain going down at z = 0)
         else:  # no gravity: a straight line back
             s = np.where(vz < 0.0, below / np.where(vz < 0.0, vz, -1.0), 0.0)
-        x0 = x - vx * np.maximum(s, 0.0)
-        return (x0 >= self.outlet_left - room) & (x0 <= self.outlet_right + room)
+        return self.over_outlet(x - vx * np.maximum(s, 0.0), room)
+
+    def over_outlet(self, x: np.ndarray, room: float) -> np.ndarray:
+        """True where x [m] lies within the outlet's span widened by ``room`` [m] each side."""
+        x = np.asarray(x, dtype=float)
+        return (x >= self.outlet_left - room) & (x <= self.outlet_right + room)
 
     def outline(self) -> list[tuple[float, float]]:
         """Corners of the silo's inside [m], anticlockwise from the outlet's left edge (the

@@ -9,7 +9,6 @@ fixed over all the frames of a run, so frames (and the report's pictures) compar
 
 from __future__ import annotations
 
-import functools
 import io
 import itertools
 import math
@@ -45,9 +44,11 @@ from silodem.viz.title import (
     TITLE_PAD,
     TITLE_SIZES,
     TOP_MIN,
-    Ruler,
     fit_title,
+    lines_height,
     shortened,
+    text_size,
+    text_width,
     title_lines,
     title_tokens,
 )
@@ -123,16 +124,6 @@ def _legend_size_px(kw: dict) -> tuple[float, float]:
     return float(box.width), float(box.height)
 
 
-@functools.lru_cache(maxsize=256)
-def _text_size_px(text: str, fontsize: float) -> tuple[float, float]:
-    """(width, height) [px at 100 dpi] of ``text`` (its lines as a figure's text sets them)
-    at ``fontsize`` [pt]."""
-    fig = Figure(figsize=(4, 4), dpi=100)
-    canvas = FigureCanvasAgg(fig)
-    box = fig.text(0, 0, text, fontsize=fontsize).get_window_extent(canvas.get_renderer())
-    return float(box.width), float(box.height)
-
-
 def bar_label(text: str, room: float) -> tuple[str, float, float, float]:
     """The colour bar's label ``text`` set to run at most ``room`` px along the bar: (its
     lines, font size [pt], length and thickness [px]).  On one line at the largest of
@@ -148,7 +139,7 @@ def bar_label(text: str, room: float) -> tuple[str, float, float, float]:
             for breaks in itertools.combinations(range(1, len(words)), lines - 1):
                 cut = [0, *breaks, len(words)]
                 set_as = "\n".join(" ".join(words[a:b]) for a, b in itertools.pairwise(cut))
-                length, thickness = _text_size_px(set_as, size)
+                length, thickness = text_size(set_as, size)
                 if length <= room:  # (first the fewest breaks not before a bracket)
                     fits.append((sum(words[k][0] not in "([" for k in breaks), length,
                                  set_as, thickness))
@@ -260,7 +251,7 @@ class FrameArtist:
         left, bottom = 62, 45
         gap = KEY_GAP
         # the colour bar at least as long as its label (rotated along it) and 40 % of the plot
-        bar_min, label_w = _text_size_px(_LABELS[color], _LABEL_SIZES[0]) \
+        bar_min, label_w = text_size(_LABELS[color], _LABEL_SIZES[0]) \
             if self.norm is not None else (0.0, 0.0)
 
         def layout(h: int, top: int) -> tuple[bool, dict, float, bool, int, tuple, int]:
@@ -285,14 +276,13 @@ class FrameArtist:
 
         # the title: room over the plot for the longest title to be drawn (the default one
         # with the run's widest time, phase and grain count), on one line, else on two
-        self._ruler = ruler = Ruler()
         n_most, t_last = most_grains(frames), float(np.max(frames.times, initial=0.0))
         widest_phase = max(("fill", "settle", "discharge"),
-                           key=lambda ph: ruler.width(f"{ph:<9}", TITLE_SIZES[0]))
+                           key=lambda ph: text_width(f"{ph:<9}", TITLE_SIZES[0]))
         longest = [title_tokens(t) for t in titles or ()] or \
             [self._default_tokens(self.title, t_last, widest_phase, n_most)]
         for lines in range(1, TITLE_LINES + 1):
-            top = max(TOP_MIN, math.ceil(TITLE_PAD + ruler.height(lines) + TITLE_MARGIN))
+            top = max(TOP_MIN, math.ceil(TITLE_PAD + lines_height(lines) + TITLE_MARGIN))
             h = _even16(height_px)
             self.raster, key_kw, key_h, beside, right, label, bar_col = layout(h, top)
             for _ in range(3):  # (a lower figure may draw pixels, whose key differs: once)
@@ -309,7 +299,7 @@ class FrameArtist:
             # from the plot's left edge where the title fits there on one line at full size
             for x0 in (left, TITLE_MARGIN):
                 self._title_x0, self._title_room = x0, w - x0 - TITLE_MARGIN
-                fitted = [fit_title(t, self._title_room, lines, ruler) for t in longest]
+                fitted = [fit_title(t, self._title_room, lines) for t in longest]
                 # (on one line no smaller than ONE_LINE_SIZES, or on the lines reserved)
                 fits = all(f is not None and (lines == TITLE_LINES or f[0] >= ONE_LINE_SIZES[-1])
                            for f in fitted)
@@ -327,7 +317,7 @@ class FrameArtist:
 
         k, self._default_fit = shortened(
             lambda k: self._default_tokens(shown(k), t_last, widest_phase, n_most),
-            len(self.title), self._title_room, self._title_lines_max, ruler)
+            len(self.title), self._title_room, self._title_lines_max)
         self._title_name = shown(k)
         self.height_px = h
         self.width_px = w
@@ -421,12 +411,12 @@ class FrameArtist:
         with the line breaks fixed for the run where the frame's fits them (it does unless
         a font draws some digits wider), any other to fit (``title.fit_title``), shortened with
         an ellipsis where even two lines of 7 pt are too few."""
-        room, lines, ruler = self._title_room, self._title_lines_max, self._ruler
+        room, lines = self._title_room, self._title_lines_max
         fit = None
         if title is None:
             tokens = self._default_tokens(self._title_name, frame.time, frame.phase, frame.n)
             fit = self._default_fit
-            if fit is not None and any(ruler.width(x, fit[0]) > room
+            if fit is not None and any(text_width(x, fit[0]) > room
                                        for x in title_lines(tokens, fit[1])):
                 fit = None
             title = "".join(p + s for p, s, _ in tokens)
@@ -434,7 +424,7 @@ class FrameArtist:
             def shown(k: int) -> list[tuple[str, str, int]]:
                 return title_tokens(title if k == len(title) else title[:k] + ELLIPSIS)
 
-            k, fit = shortened(shown, len(title), room, lines, ruler)
+            k, fit = shortened(shown, len(title), room, lines)
             tokens = shown(k)
         size, breaks = fit if fit is not None else (TITLE_SIZES[-1], [])
         self.text.set_fontsize(size)

@@ -10,6 +10,7 @@ matplotlib's renderer, as the figure draws the text.
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Iterable
 
@@ -56,74 +57,81 @@ def title_lines(tokens: list[tuple[str, str, int]], breaks: Iterable[int]) -> li
     return [*lines, line.rstrip()]
 
 
-class Ruler:
-    """Measures titles [px at 100 dpi] as the figure's text draws them (no math parsed)."""
+@functools.cache
+def _scratch_text():
+    """A text on a scratch figure, and its renderer, to measure text with."""
+    fig = Figure(figsize=(4, 4), dpi=100)
+    return fig.text(0, 0, "", parse_math=False, va="bottom"), FigureCanvasAgg(fig).get_renderer()
 
-    def __init__(self) -> None:
-        fig = Figure(figsize=(4, 4), dpi=100)
-        self._renderer = FigureCanvasAgg(fig).get_renderer()
-        self._text = fig.text(0, 0, "", parse_math=False, va="bottom")
-        self._widths: dict[tuple[str, float], float] = {}
 
-    def _box(self, text: str, size: float):
-        self._text.set_text(text)
-        self._text.set_fontsize(size)
-        return self._text.get_window_extent(self._renderer)
+@functools.lru_cache(maxsize=4096)
+def text_size(text: str, size: float) -> tuple[float, float]:
+    """(width, height) [px at 100 dpi] of ``text`` (its lines as a figure's text sets them,
+    no math parsed) at ``size`` [pt]; (0, 0) for no text."""
+    if not text:
+        return 0.0, 0.0
+    scratch, renderer = _scratch_text()
+    scratch.set_text(text)
+    scratch.set_fontsize(size)
+    box = scratch.get_window_extent(renderer)
+    return float(box.width), float(box.height)
 
-    def width(self, line: str, size: float) -> float:
-        if (line, size) not in self._widths:
-            self._widths[line, size] = float(self._box(line, size).width) if line else 0.0
-        return self._widths[line, size]
 
-    def height(self, lines: int, size: float = TITLE_SIZES[0]) -> float:
-        return float(self._box("\n".join(["Ag"] * lines), size).height)
+def text_width(line: str, size: float) -> float:
+    """Width [px] of one line of text at ``size`` [pt] (``text_size``)."""
+    return text_size(line, size)[0]
+
+
+def lines_height(lines: int, size: float = TITLE_SIZES[0]) -> float:
+    """Height [px] of ``lines`` lines of text at ``size`` [pt] (``text_size``)."""
+    return text_size("\n".join(["Ag"] * lines), size)[1]
 
 
 def _second_line_at(tokens: list[tuple[str, str, int]], level: int, room: float,
-                    size: float, ruler: Ruler) -> int | None:
+                    size: float) -> int | None:
     """The first token that can start a second line (the break before it at most ``level``)
     with both lines no wider than ``room`` [px] at ``size`` [pt]: the name alone over the
     time, phase and grains, a moment's label over its time; None if there is none."""
     for k in range(1, len(tokens)):
         if tokens[k - 1][2] <= level and \
-                all(ruler.width(x, size) <= room for x in title_lines(tokens, [k])):
+                all(text_width(x, size) <= room for x in title_lines(tokens, [k])):
             return k
     return None
 
 
-def fit_title(tokens: list[tuple[str, str, int]], room: float, max_lines: int,
-               ruler: Ruler) -> tuple[float, list[int]] | None:
+def fit_title(tokens: list[tuple[str, str, int]], room: float,
+              max_lines: int) -> tuple[float, list[int]] | None:
     """(font size [pt], line breaks) to set ``tokens`` in at most ``max_lines`` (1 or 2)
     lines no wider than ``room`` [px]: one line at the largest of ``ONE_LINE_SIZES`` it fits
     at, else two (broken between fields, else words, else inside words) at the largest of
     ``TITLE_SIZES``, else (one line allowed) one line at a smaller size; None if none fits."""
     for size in ONE_LINE_SIZES:
-        if ruler.width(title_lines(tokens, [])[0], size) <= room:
+        if text_width(title_lines(tokens, [])[0], size) <= room:
             return size, []
     if max_lines >= 2:
         for level in (0, 1, 2):
             for size in TITLE_SIZES:
-                k = _second_line_at(tokens, level, room, size, ruler)
+                k = _second_line_at(tokens, level, room, size)
                 if k is not None:
                     return size, [k]
     for size in TITLE_SIZES[len(ONE_LINE_SIZES):]:
-        if ruler.width(title_lines(tokens, [])[0], size) <= room:
+        if text_width(title_lines(tokens, [])[0], size) <= room:
             return size, []
     return None
 
 
-def shortened(make, longest: int, room: float, max_lines: int, ruler: Ruler
-               ) -> tuple[int, tuple[float, list[int]] | None]:
+def shortened(make, longest: int, room: float,
+              max_lines: int) -> tuple[int, tuple[float, list[int]] | None]:
     """(k, fit) for the largest k <= ``longest`` whose tokens ``make(k)`` fit
     (``fit_title``; k = 0 when none does, with its fit or None)."""
-    fit = fit_title(make(longest), room, max_lines, ruler)
+    fit = fit_title(make(longest), room, max_lines)
     if fit is not None:
         return longest, fit
     lo, hi = 0, longest - 1
     while lo < hi:  # (fitting grows no worse as k falls)
         mid = (lo + hi + 1) // 2
-        if fit_title(make(mid), room, max_lines, ruler) is None:
+        if fit_title(make(mid), room, max_lines) is None:
             hi = mid - 1
         else:
             lo = mid
-    return lo, fit_title(make(lo), room, max_lines, ruler)
+    return lo, fit_title(make(lo), room, max_lines)
