@@ -5,7 +5,8 @@ Tolerance kinds:
 
 * ``"rel"``  passes when |got - expected| <= tolerance * |expected|;
 * ``"abs"``  passes when |got - expected| <= tolerance (in the record's unit);
-* ``"info"`` a number reported, not judged (fitted constants, diagnostics): always passes.
+* ``"info"`` a number reported, not judged (fitted constants, diagnostics): never fails the
+  run (``passed`` is True), and its JSON ``pass`` is null, since nothing was checked.
 """
 
 from __future__ import annotations
@@ -44,7 +45,8 @@ class Record:
         return err <= self.tolerance
 
     def to_dict(self) -> dict:
-        """JSON-ready: NaN and inf become None."""
+        """JSON-ready: NaN and inf become None; ``pass`` is None for an info record (not
+        judged), so that a reader counting passes counts only the checks."""
         def clean(v):
             if v is None:
                 return None
@@ -53,7 +55,8 @@ class Record:
 
         return {"case": self.case, "quantity": self.quantity, "expected": clean(self.expected),
                 "got": clean(self.got), "tolerance": clean(self.tolerance),
-                "tolerance_kind": self.kind, "unit": self.unit, "pass": self.passed,
+                "tolerance_kind": self.kind, "unit": self.unit,
+                "pass": None if self.kind == "info" else self.passed,
                 "note": self.note}
 
 
