@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from study_helpers import GRID, fake_plan, heat_map
 
-from silodem.study.plan import key_unit
+from silodem.study.plan import key_unit, label_of
 from silodem.study.report import (
     HEATMAPS,
     SIGNED_CMAP,
@@ -144,6 +144,16 @@ def test_tick_labels_carry_the_grid_keys_units():
     assert key_unit("settle.criterion") == ""  # a choice (its description names [J])
     assert key_unit("discharge.enabled") == ""  # a bool
     assert key_unit("base") == ""
+
+
+def test_a_runs_name_carries_the_units_of_its_grid_values():
+    """The runs table and each run's description name a run by its grid values with the
+    units of the Config's descriptions ([deg], [m]); a choice and the seed have none."""
+    point = {"silo.hopper_angle_from_horizontal_deg": 45.0, "silo.outlet_width": 0.4,
+             "material.contact_model": "hertz_mindlin"}
+    assert label_of(point, 3) == ("theta=45 deg, outlet_width=0.4 m, "
+                                  "contact_model=hertz_mindlin, seed 3")
+    assert label_of(point) == "theta=45 deg, outlet_width=0.4 m, contact_model=hertz_mindlin"
 
 
 def test_the_runs_table_keeps_one_line_per_run(tmp_path):

@@ -550,7 +550,7 @@ def test_grid_values_that_quick_makes_one_run_are_refused(tmp_path):
                     '"fill.n_particles" = [200, 201]\n', encoding="utf-8")
     full = expand(load_study(str(path)))
     assert [run.cfg.fill.n_particles for run in full.runs] == [200, 201]
-    with pytest.raises(InputError, match=r"n_particles = 200.* and .*n_particles = 201.*"
+    with pytest.raises(InputError, match=r"n_particles=200.* and .*n_particles=201.*"
                                          r"same config once --quick has shrunk them"):
         expand(load_study(str(path)), quick=True)
 

@@ -141,8 +141,10 @@ def slug_of(point: dict[str, Any], seed: int) -> str:
 
 
 def label_of(point: dict[str, Any], seed: int | None = None) -> str:
+    """A run's name for people: 'theta=45 deg, phiP=10 deg, seed 1' (each grid value with its
+    unit, as the heat maps' labels; :func:`value_label`)."""
     names = nicknames(list(point))
-    text = ", ".join(f"{names[k]} = {format_value(v)}" for k, v in point.items())
+    text = ", ".join(value_label(names[k], key_unit(k), v) for k, v in point.items())
     return text + (f", seed {seed}" if seed is not None else "")
 
 
