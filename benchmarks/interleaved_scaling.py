@@ -1,5 +1,6 @@
 """Cost per particle-step against N, with the sizes run in turns in one process, so that
-every size sees the same speed of the machine (docs/performance.md, thirty-first session).
+every size sees the same speed of the machine (docs/performance.md, "Cost per particle-step
+against N").
 
     python benchmarks/interleaved_scaling.py [--copies 1 3 10 30 100] [--steps 1000]
                                              [--turn 50] [--settle 3000] [--threads 1]

@@ -1,7 +1,7 @@
 """What the lanes of ``engine/lanes.py`` are worth: the scaling silo with the step's arrays in
 their lanes (``LANE_BYTES`` as built) against all in one lane (``LANE_BYTES = 0``: every array
 at one offset within a 4 KB page, as plain numpy arrays of 128 KB or more lie), alternating,
-one process per run, 1 thread (docs/performance.md, thirtieth session).
+one process per run, 1 thread (docs/performance.md, "Cost per particle-step against N").
 
     python benchmarks/lanes_ab.py [--copies 1 10 100] [--rounds 3] [--settle 3000]
                                   [--steps 1000]

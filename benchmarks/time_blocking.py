@@ -1,5 +1,5 @@
 """What blocking in time could give the one-thread step, measured at a fixed neighbour list
-(docs/performance.md, "Cost per particle-step against N"; thirty-fifth session).
+(docs/performance.md, "Cost per particle-step against N").
 
     python benchmarks/time_blocking.py [--copies 1 10 100] [--levels 4 8] [--rounds 6]
                                        [--grains-per-strip 2000] [--same-copies]

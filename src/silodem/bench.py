@@ -108,8 +108,8 @@ def build(nx: int, ny: int, seed: int = 12345, skin: float = 0.05,
     identical to round-off for thousands of steps (3000 from the lattice), and then every cell
     row repeats one silo's pattern of touching and apart pairs ``copies`` times, which the
     branch predictor learns: 100 such copies ran the step faster per grain than one silo
-    (docs/performance.md, thirty-fifth session).  Returns the simulation, the width of one
-    silo [m] and the top of the lattice [m]."""
+    (docs/performance.md, "Cost per particle-step against N").  Returns the simulation, the
+    width of one silo [m] and the top of the lattice [m]."""
     x0, y0, width, top = deck_lattice(nx, ny)
     rng = np.random.default_rng(seed)
     radii = [0.5 * (0.18 + 0.04 * rng.random(x0.size)) for _ in range(copies)]

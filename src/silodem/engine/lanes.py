@@ -10,7 +10,7 @@ serves every allocation above its mmap threshold (128 KB to start with: numpy ar
 every large array starts at the same offset modulo 4 KB. Ten or more streams then compete
 for the 8 ways of one set, and a line is evicted before its 8 grains are used.
 
-Measured (thirtieth session, ``docs/performance.md``, 1 thread): in the packed scaling silo
+Measured (commit 033e476, ``docs/performance.md``, 1 thread): in the packed scaling silo
 the step at 1e5-1e6 grains cost 72-83 core-ns per particle-step with the arrays in one set
 and 54-61 in lanes, against 50-52 at 1e4 grains (arrays below 128 KB, which lay at
 scattered offsets on the heap before the lanes too).  This is the cache-set conflict that
