@@ -82,6 +82,22 @@ def test_steady_rate_without_a_record_is_nan():
         assert np.isnan(steady_rate(t, m).rate)
 
 
+def test_no_rate_from_two_grains_before_an_arch():
+    """Two grains out, then an arch: the mass between 15 % and 75 % of its final value is the
+    one plateau of the first grain, whose fitted slope was round-off (-6.5e-14 kg/s in a
+    clogged run, and a Beverloo C of -3.4e-16 from it). No grain left in the interval: no
+    rate.  A third grain makes the interval hold a step, and the rate is the fitted slope."""
+    t = np.linspace(0.0, 2.0, 201)
+    two = np.where(t >= 0.3, 23.79, 0.0) + np.where(t >= 0.38, 28.69, 0.0)
+    assert np.isnan(steady_rate(t, two).rate)
+    three = np.where(t >= 0.3, 20.0, 0.0) + np.where(t >= 0.5, 20.0, 0.0) + \
+        np.where(t >= 0.7, 20.0, 0.0)
+    est = steady_rate(t, three)
+    sel = (three >= 0.15 * 60.0) & (three <= 0.75 * 60.0)
+    assert est.rate == pytest.approx(np.polyfit(t[sel], three[sel], 1)[0], rel=1e-12)
+    assert est.rate > 0
+
+
 def test_flow_rate_series_differentiates_a_parabola_exactly():
     """A centred difference of m = a t^2 over any window is the exact derivative 2 a t at the
     window's centre; near the ends the window is cut and centred elsewhere: there the rate is

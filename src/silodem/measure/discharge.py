@@ -5,6 +5,9 @@
   after the gate opens and the emptying end are left out); its uncertainty is the standard
   error of the slopes of ``blocks`` consecutive blocks of that interval (batch means), which,
   unlike the residuals of one fit, is not fooled by the correlation of successive samples.
+  No rate (NaN) when no grain left within that interval: the mass there is one plateau (two
+  grains out before an arch, the first between ``lo`` and ``hi`` of the total), whose slope
+  is round-off, not a flow.
 * Mass flow index MFI = v_wall / v_axis [-]: mean vertical velocity of the grains within one
   diameter of the walls over that on the axis, in a band above the junction (the floor of a
   flat silo), while the free surface is well above the band.  Mass flow when MFI exceeds a
@@ -60,6 +63,8 @@ def steady_rate(t: npt.ArrayLike, m: npt.ArrayLike, lo: float = 0.15, hi: float 
     if sel.sum() < 3:
         return nan
     ts, ms = t[sel], m[sel]
+    if np.ptp(ms) == 0.0:  # one plateau: no grain left in the interval, no flow to fit
+        return nan
     rate = float(np.polyfit(ts, ms, 1)[0])
     edges = np.linspace(ts[0], ts[-1], blocks + 1)
     slopes = []
