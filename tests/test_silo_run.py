@@ -222,6 +222,32 @@ def test_paper_case1_stiffness_warns_with_the_numbers():
     assert not SiloRun(load_config("paper-case2")).warnings
 
 
+def test_tangential_springs_too_soft_to_mobilise_friction_are_warned():
+    """Table 1's k_s = 1e3 N/m with k_n raised to 2e7 N/m (the overlap advice alone): a
+    grain-grain contact of k_s/2 = 500 N/m reaches mu F = tan(45 deg) F only after F / 500 N/m
+    of elastic sliding, about 20 m.  The warning says so and names the k_s, mu times the k_n
+    recommended, that brings it under 1 % of the radius; with it there is no warning."""
+    sets = ["material.kn=2e7", "walls.kn=2e7"]
+    est = estimate_overlap(load_config("paper-case1", sets))
+    assert not est.too_soft and est.soft_shear
+    mu_g, mu_w = 1.0, math.tan(math.radians(26.5))
+    assert est.slip == pytest.approx(max(mu_g * est.contact_force / 500.0,
+                                         mu_w * est.contact_force / 500.0), rel=1e-12)
+    assert est.slip == pytest.approx(20.1, abs=0.05)
+    need = 2 * est.contact_force / (0.01 * 0.1)  # k_n for 1 % of r = 0.1 m, times mu_g = 1
+    assert est.shear_keys == (("material.ks", pytest.approx(need)),
+                              ("walls.ks", pytest.approx(need)))
+    run = SiloRun(load_config("paper-case1", sets))
+    assert any(w.startswith("soft tangential contacts: ") and "material.ks >= 2e+07 and "
+               "walls.ks >= 2e+07 N/m" in w for w in run.warnings), run.warnings
+    stiff = estimate_overlap(load_config("paper-case1", [*sets, "material.ks=2e7",
+                                                          "walls.ks=2e7"]))
+    assert not stiff.soft_shear and stiff.slip_fraction == pytest.approx(0.01, rel=0.02)
+    assert "material.ks >= 2e+07" in estimate_overlap(load_config("paper-case1")).warning()
+    assert not estimate_overlap(load_config("paper-case2")).soft_shear  # k_s = k_n = 5e6 N/m
+    assert estimate_overlap(load_config("paper-case2-hertz")).slip == 0.0  # Mindlin: not judged
+
+
 @pytest.mark.parametrize(("scenario", "sets", "named", "not_named"), [
     ("paper-case2", ["material.kn=1e8", "walls.kn=1e3"], "a wall stiffness walls.kn >=",
      "material.kn"),

@@ -12,6 +12,11 @@
 * Hertz-Mindlin time step: dt_crit of the tangent stiffnesses at the largest of that overlap,
   the overlap of an impact after a fall from the top of the walls, and 1 % of r_max
   (``materials.design_overlaps``, ``materials.linearised``).
+* Tangential stiffness (linear law): a contact carrying F slides once its tangential spring
+  holds mu F, after an elastic tangential displacement mu F / k_s,contact.  A k_s far below
+  k_n (Table 1's 1e3 N/m beside a k_n raised to 2e7 N/m: about 20 m) leaves the friction
+  unmobilised, and the grains behave as frictionless in shear: warned, like the overlap, above
+  5 % of the mean radius, with the k_s that keeps it under 1 %.
 * Values that are each valid but give no usable run together (``check_numbers``, before
   anything is written): stiffnesses out of range, a time step that is zero or not finite,
   more than ``MAX_STEPS`` steps, a loose fill that does not fit; and lengths so small
@@ -91,10 +96,28 @@ class OverlapEstimate:
     hertz: bool = False
     # the keys of the grains' and the walls' stiffness (modulus) below ``recommended``
     soft_keys: tuple[str, ...] = ()
+    # linear law: the elastic tangential displacement at the Coulomb limit, mu F / k_s,contact,
+    # the larger of grain-grain and grain-wall [m], over the mean radius [-]; and each
+    # tangential stiffness below the one that keeps it under 1 % (key, that value [N/m])
+    slip: float = 0.0
+    slip_fraction: float = 0.0
+    shear_keys: tuple[tuple[str, float], ...] = ()
 
     @property
     def too_soft(self) -> bool:
         return self.overlap_fraction > WARN_OVERLAP
+
+    @property
+    def soft_shear(self) -> bool:
+        return self.slip_fraction > WARN_OVERLAP
+
+    def shear_advice(self) -> str:
+        keys = " and ".join(f"{key} >= {value:.2g}" for key, value in self.shear_keys)
+        f = self.slip_fraction
+        size = f"{f:.3g} x" if f >= 1.0 else f"{100 * f:.2g}% of"
+        return (f"a contact reaches its friction limit only after ~{self.slip:.3g} m of elastic "
+                f"sliding, mu F_n / k_s ({size} the mean radius): before that the grains shear as "
+                f"if frictionless; {keys} N/m keeps that under {100 * TARGET_OVERLAP:.0f}%")
 
     def warning(self) -> str:
         what, unit = ("Young's modulus", "Pa") if self.hertz else ("stiffness", "N/m")
@@ -109,7 +132,15 @@ class OverlapEstimate:
             f"contact forces ~{self.contact_force:.3g} N and overlaps ~{self.overlap:.3g} m = "
             f"{100 * self.overlap_fraction:.3g}% of the mean radius; "
             f"{advice} keeps them under {100 * TARGET_OVERLAP:.0f}%"
+            + (f"; and {self.shear_advice()}" if self.soft_shear else "")
         )
+
+    def shear_warning(self) -> str:
+        """The warning of a linear law whose overlaps are fine but whose tangential springs
+        are so soft that friction is hardly mobilised."""
+        return (f"soft tangential contacts: with contact forces ~{self.contact_force:.3g} N at "
+                f"the bottom of the expected {self.fill_height:.2f} m of grains, "
+                f"{self.shear_advice()}")
 
 
 def estimate_overlap(cfg: Config) -> OverlapEstimate:
@@ -147,8 +178,17 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
                                                             w.young_modulus)) if c.hertz
              else (("material.kn", m.kn), ("walls.kn", w.kn)))
     soft = tuple(key for key, value in given if value < recommended)
+    slip, shear = 0.0, ()
+    if not c.hertz:  # (Mindlin's tangential stiffness follows the modulus and the overlap)
+        mu_g = math.tan(math.radians(m.friction_deg))  # (mu_w: tan phi_P, above)
+        slip = max(mu_g * force / c.grain_ks, mu_w * force / c.wall_ks)
+        # each side's k_s at mu times the k_n recommended: contacts of k_s/2 at least hold
+        # mu F within 1 % of the radius, as the k_n's hold F
+        need = max(mu_g, mu_w) * recommended
+        shear = tuple((f"{side}.ks", need) for side, ks in (("material", m.ks), ("walls", w.ks))
+                      if ks < need)
     return OverlapEstimate(fill_height, sigma_v, force, overlap, overlap / r_mean, recommended,
-                           c.hertz, soft)
+                           c.hertz, soft, slip, slip / r_mean, shear)
 
 
 # --- values that give no usable run together, and arrays too large -------------------------------

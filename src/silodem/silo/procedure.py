@@ -130,6 +130,8 @@ class SiloRun:
         self.overlap_estimate = estimate_overlap(cfg)
         if self.overlap_estimate.too_soft:
             self.warnings.append(self.overlap_estimate.warning())
+        elif self.overlap_estimate.soft_shear:
+            self.warnings.append(self.overlap_estimate.shear_warning())
         self.warnings += [w for rec in self.recorders if (w := rec.volume_warning(self))]
 
     @property
