@@ -10,6 +10,7 @@ from silodem.config import Config, Discharge, Fill, Material, Settle, Silo, Wall
 from silodem.measure.reading import read_simulation
 from silodem.measure.wall_profiles import (
     peak_in_zone,
+    rises_past,
     wall_bins,
     wall_force_from_profile,
     wall_stress,
@@ -95,3 +96,19 @@ def test_bins_cut_each_wall_into_equal_lengths_and_the_peak_is_found_in_its_zone
     assert bins.normal[0].tolist() == [1.0, 0.0]  # left wall drawn downwards: inside at +x
     assert peak_in_zone([0, 1, 2, 3], [5, 9, 7, 20], 0.5, 2.5) == (9.0, 1.0)
     assert np.isnan(peak_in_zone([0, 1], [1, 2], 5, 6)[0])
+
+
+def test_a_zones_largest_value_is_named_a_peak_only_where_it_is_one():
+    """A profile rising down a hopper to a closed gate (36 kPa at the bottom; the audit's
+    case 2) has its zone maximum at the zone's lower edge: the profile goes on rising below
+    it.  A bump inside the zone is a peak; an unordered or NaN-holed profile is read in z."""
+    z = [0.25, 0.65, 1.05, 1.45, 1.85]
+    rising = [36e3, 27e3, 18.4e3, 2.5e3, 16e3]
+    v, at = peak_in_zone(z, rising, 1.0, 1.9)
+    assert (v, at) == (18.4e3, 1.05) and rises_past(z, rising, at) == "below"
+    assert rises_past(z, [1, 2, 9, 4, 3], 1.05) is None
+    assert rises_past(z, [1, 2, 4, 9, 30], 1.45) == "above"
+    assert rises_past(z[::-1], [3, 4, 9, 2, 1], 1.05) is None
+    assert rises_past(z, [1, np.nan, 9, np.nan, 3], 1.05) is None
+    assert rises_past(z, [10, np.nan, 9, np.nan, 3], 1.05) == "below"
+    assert rises_past(z, rising, 7.0) is None

@@ -132,3 +132,26 @@ def peak_in_zone(z: npt.ArrayLike, values: npt.ArrayLike, z_lo: float,
         return float("nan"), float("nan")
     k = np.argmax(np.where(sel, v, -np.inf))
     return float(v[k]), float(z[k])
+
+
+def rises_past(z: npt.ArrayLike, values: npt.ArrayLike, z_peak: float) -> str | None:
+    """Whether the largest value of a zone at ``z_peak`` [m] is a local peak of the whole
+    profile: None if it is (no neighbouring point, in or out of the zone, holds more), else
+    "below" or "above", the side on which the profile goes on rising past it (a zone's edge
+    on a stress that keeps growing, e.g. down a hopper wall over a closed gate).  NaN points
+    are skipped; a ``z_peak`` not among ``z`` gives None."""
+    z = np.asarray(z, dtype=float)
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v) & np.isfinite(z)
+    z, v = z[ok], v[ok]
+    order = np.argsort(z)
+    z, v = z[order], v[order]
+    at = np.flatnonzero(z == z_peak)
+    if at.size == 0:
+        return None
+    k = int(at[0])
+    if k > 0 and v[k - 1] > v[k]:
+        return "below"
+    if k + 1 < z.size and v[k + 1] > v[k]:
+        return "above"
+    return None

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from silodem import theory as th
+from silodem.measure.wall_profiles import rises_past
 from silodem.report import eurocode
 from silodem.report.analysis import (
     BATCHES,
@@ -110,6 +111,21 @@ def lost_row(a: Analysis) -> None:
     a.numbers.append((LOST, f"{lost}{share}", "-"))
 
 
+def _peak_note(edge, z: float) -> str:
+    """What the switch zone's largest wall stress at ``z`` [m] is: on the hopper wall or not,
+    and whether the profile (``edge``: z, sigma_n, on_vertical) goes on rising past the zone,
+    so that the largest value is the zone's edge on a growing stress, not a local peak."""
+    k = np.flatnonzero(edge.z == z)
+    hopper = k.size > 0 and not bool(edge.on_vertical[k[0]])
+    where = " (hopper wall)" if hopper else ""
+    past = rises_past(edge.z, edge.sigma_n, z)
+    if past is None:
+        return where
+    return (f"{where}: the zone's {'lower' if past == 'below' else 'upper'} edge on a stress "
+            f"that goes on rising {'down' if past == 'below' else 'up'} the wall, not a local "
+            "peak")
+
+
 def add_numbers(a: Analysis) -> None:
     """Into ``a.numbers``: the key numbers, (quantity, value, unit) rows."""
     n = a.numbers
@@ -136,7 +152,7 @@ def add_numbers(a: Analysis) -> None:
         if key in a.peaks:
             v, z = a.peaks[key]
             n.append((f"switch-zone peak of the wall normal stress, {label}",
-                      f"{pascals(v)} at z = {_fmt(z, 3)} m", "Pa"))
+                      f"{pascals(v)} at z = {_fmt(z, 3)} m{_peak_note(a.edge[key], z)}", "Pa"))
     for key, label in a.labels.items():
         if key in a.mu_mobilised:
             what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
