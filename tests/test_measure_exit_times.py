@@ -317,3 +317,48 @@ def test_a_grain_sunk_into_the_gate_falls_through_the_outlet_and_a_lost_one_is_l
              "lost_during_discharge": np.array([True, True])}  # (a file written before)
     before, during = lost_grains(twice)
     assert before.tolist() == [True, False] and during.tolist() == [False, True]
+
+
+def test_the_dead_zone_is_read_up_to_the_discharge_windows_end():
+    """The tiny config's discharge window ends 0.2 + 0.3 = 0.5 s after the opening.  Grain 20
+    creeps 0.03 m by then and is drawn 0.4 m down after it; 21 moves 0.06 m (more than
+    R = 0.05 m) within the window; 22 stays within 0.01 m and leaves at +0.8 s.  Up to the
+    window's end 20 and 22 are dead; over the whole discharge none is (the old reading, kept
+    for a results.h5 without the window's record).  A checkpoint's copy goes on the same."""
+    from silodem.report.analysis import _dead_zone
+
+    cfg, shape = _tiny()
+    places = {20: (0.60, 1.00), 21: (0.60, 1.20), 22: (0.60, 0.80)}
+    uid = np.array(list(places))
+    x, z = np.array(list(places.values())).T
+    samples = [_reading(T_OPEN + 0.3, [20, 21, 22], [0.6, 0.6, 0.6], [0.98, 1.14, 0.79]),
+               _reading(T_OPEN + 0.5, [20, 21, 22], [0.6, 0.6, 0.6], [0.97, 1.10, 0.80]),
+               _reading(T_OPEN + 0.8, [20, 21], [0.6, 0.6], [0.60, 0.90])]
+    flow, copy, old = (_FlowPart(cfg, shape) for _ in range(3))
+    flow.begin(T_OPEN, uid, x, z, np.full(3, R), fill_level=1.3)
+    flow.record(None, samples[0])  # (+0.3 s: before the snapshot in the window's middle)
+    state = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in flow.state().items()}
+    copy.restore(state)
+    old.restore({k: v for k, v in state.items() if k != "flow.window_disp"})
+    for part in (flow, copy, old):
+        part.snapshot = "taken"  # (there is no run to take the snapshot of)
+    for rd in samples[1:]:
+        for part in (flow, copy, old):
+            part.record(None, rd)
+    np.testing.assert_allclose(flow.window_disp, [0.03, 0.10, 0.01], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(flow.max_disp, [0.40, 0.30, 0.01], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(flow.exit_time, [np.nan, np.nan, 0.8], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(copy.window_disp, flow.window_disp)
+    np.testing.assert_array_equal(old.window_disp, flow.window_disp)  # = max_disp in the window
+    np.testing.assert_array_equal(dead_zone(flow.exit_time, flow.window_disp, R, 0.5),
+                                  [True, False, True])
+    np.testing.assert_array_equal(dead_zone(flow.exit_time, flow.max_disp, R),
+                                  [False, False, False])
+    f = {"exit_time": flow.exit_time, "max_displacement": flow.max_disp,
+         "max_displacement_window": flow.window_disp,
+         "@attrs": {"window_start": 0.2, "window": 0.3}}
+    dead, to = _dead_zone(f, R)
+    assert dead.tolist() == [True, False, True] and to == "the discharge window's end"
+    del f["max_displacement_window"]
+    dead, to = _dead_zone(f, R)
+    assert dead.tolist() == [False, False, False] and to == "the run's end"

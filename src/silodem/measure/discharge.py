@@ -12,8 +12,11 @@
   diameter of the walls over that on the axis, in a band above the junction (the floor of a
   flat silo), while the free surface is well above the band.  Mass flow when MFI exceeds a
   threshold (0.3: Johanson's index as used by Ketterhagen et al. 2009, Powder Technol. 195).
-* Dead zone: grains that were in the silo when the gate opened, never left and never moved
-  more than a mean grain radius from their place.
+* Dead zone: grains that were in the silo when the gate opened and, up to the end of the
+  discharge window (the horizon of the velocity field and the MFI), neither left nor moved
+  more than a mean grain radius from their place.  Over the whole discharge, run until the
+  silo is 90 % empty, the stagnant grains of a funnel flow creep and are finally pulled
+  along as the last of the flow passes them: by then none had stayed within a radius.
 """
 
 from __future__ import annotations
@@ -109,9 +112,14 @@ def mass_flow_index(v_wall: npt.ArrayLike, v_axis: npt.ArrayLike, level: npt.Arr
 
 
 def dead_zone(exit_time: npt.ArrayLike, max_displacement: npt.ArrayLike,
-              radius: float) -> np.ndarray:
-    """True for the grains that never left and never moved more than ``radius`` [m]."""
-    return np.isnan(np.asarray(exit_time)) & (np.asarray(max_displacement) < radius)
+              radius: float, horizon: float = np.inf) -> np.ndarray:
+    """True for the grains that had not left by ``horizon`` [s after the gate opened] (exit
+    time NaN or later) and never moved more than ``radius`` [m] up to it
+    (``max_displacement`` [m], the largest distance from the grain's place at the opening up
+    to the horizon)."""
+    exit_time = np.asarray(exit_time, dtype=float)
+    stayed = np.isnan(exit_time) | (exit_time > horizon)
+    return stayed & (np.asarray(max_displacement) < radius)
 
 
 def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -212,6 +212,7 @@ class _FlowPart:
         self.t_open = np.nan
         self.uid0 = np.zeros(0, dtype=np.int64)
         self.x0 = self.z0 = self.r0 = self.exit_time = self.max_disp = np.zeros(0)
+        self.window_disp = np.zeros(0)  # max_disp as it stood at the discharge window's end
         self.lost = np.zeros(0, dtype=bool)  # lost before the discharge (``begin``)
         self.lost_later = np.zeros(0, dtype=bool)  # lost through a wall after (``lose``)
         shape2 = (self.x_edges.size - 1, self.z_edges.size - 1)
@@ -244,6 +245,7 @@ class _FlowPart:
         self.lost_later = np.zeros(self.uid0.size, dtype=bool)
         self.exit_time = np.full(self.uid0.size, np.nan)
         self.max_disp = np.where(self.lost, np.nan, 0.0)
+        self.window_disp = self.max_disp.copy()
 
     def lose(self, uids: np.ndarray) -> None:
         """The grains ``uids`` left through a wall after the gate opened (the procedure's
@@ -256,6 +258,7 @@ class _FlowPart:
         self.lost_later |= hit
         self.exit_time[hit] = np.nan
         self.max_disp[hit] = np.nan
+        self.window_disp[hit] = np.nan
 
     def record(self, run: SiloRun | None, rd: Reading) -> None:
         """One sample ``rd`` after the gate opened: the tracked grains absent from it or with
@@ -283,6 +286,8 @@ class _FlowPart:
             k = idx[present]
             disp = np.hypot(rd.x[k] - self.x0[present], rd.z[k] - self.z0[present])
             self.max_disp[present] = np.maximum(self.max_disp[present], disp)
+            if t <= self.delay + self.window:  # the dead zone's horizon (``dead_zone``)
+                self.window_disp[present] = self.max_disp[present]
         if rd.n == 0:
             return
         if self.in_window(rd):
@@ -319,6 +324,7 @@ class _FlowPart:
         out: dict[str, Any] = {"flow.t_open": self.t_open, "flow.uid0": self.uid0,
                                "flow.x0": self.x0, "flow.z0": self.z0, "flow.r0": self.r0,
                                "flow.exit_time": self.exit_time, "flow.max_disp": self.max_disp,
+                               "flow.window_disp": self.window_disp,
                                "flow.lost": self.lost, "flow.lost_later": self.lost_later,
                                "flow.grid": self.grid, "flow.grid_samples": self.grid_samples,
                                "flow.mfi": _stack(self.mfi_rows, (6,)),
@@ -343,6 +349,9 @@ class _FlowPart:
             self.lost = lost_before_discharge(self.shape, self.x0, self.z0, self.room)
             self.exit_time[self.lost] = np.nan
             self.max_disp = np.where(self.lost, np.nan, self.max_disp)
+        # a checkpoint written before the window's own record: the largest displacement so
+        # far, which bounds it from above (a grain called dead is dead; a few may be missed)
+        self.window_disp = np.array(state.get("flow.window_disp", self.max_disp), dtype=float)
         self.lost_later = (np.array(state["flow.lost_later"], dtype=bool)
                            if "flow.lost_later" in state else np.zeros(self.uid0.size, bool))
         self.grid_samples = int(state["flow.grid_samples"])
@@ -373,6 +382,10 @@ class _FlowPart:
                  "which the grain left (NaN: still inside, or lost through a wall)")
         _dataset(f, "max_displacement", self.max_disp, "m", meaning="largest distance from "
                  "its place at the gate opening (NaN: lost through a wall)")
+        _dataset(f, "max_displacement_window", self.window_disp, "m", meaning="largest "
+                 "distance from its place at the gate opening up to the end of the discharge "
+                 "window (window_start + window after the opening), the dead zone's horizon "
+                 "(NaN: lost through a wall)")
         _dataset(f, "lost_before_discharge", self.lost, meaning="the grain's centre was under "
                  "the floor (z < 0 away from the outlet) or beyond a wall when the gate "
                  "opened: lost through a wall while filling, not discharged")

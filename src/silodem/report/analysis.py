@@ -482,6 +482,22 @@ def wall_stress_at(edge: EdgeProfile, z: float) -> float:
     return float(edge.sigma_n[k[0]]) if k.size else float("nan")
 
 
+DEAD_TO = "the discharge window's end"  # the dead zone's horizon, in words
+
+
+def _dead_zone(f: dict, radius: float) -> tuple[np.ndarray, str]:
+    """The dead zone (``measure.discharge.dead_zone``) up to the end of the discharge window,
+    and that horizon in words; a results.h5 written before that record has only the whole
+    discharge's displacements, and its dead zone is read over the whole discharge, as it was
+    then."""
+    if "max_displacement_window" not in f:
+        return dis.dead_zone(f["exit_time"], f["max_displacement"], radius), "the run's end"
+    at = f["@attrs"]
+    horizon = float(at["window_start"]) + float(at["window"])
+    return (dis.dead_zone(f["exit_time"], f["max_displacement_window"], radius, horizon),
+            DEAD_TO)
+
+
 def _flow(a: Analysis, shape) -> None:
     res, cfg = a.res, a.res.cfg
     ts = res.group("timeseries")
@@ -504,7 +520,7 @@ def _flow(a: Analysis, shape) -> None:
         return
     band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
     mi = f["mass_flow_index"]
-    dead = dis.dead_zone(f["exit_time"], f["max_displacement"], 0.5 * a.geom["d"])
+    dead, dead_to = _dead_zone(f, 0.5 * a.geom["d"])
     dead_frac = dis.dead_fraction(dead, np.logical_or(*dis.lost_grains(f)))
     if np.isfinite(rate.rate):
         mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
@@ -513,7 +529,7 @@ def _flow(a: Analysis, shape) -> None:
     else:  # no steady flow to classify: the velocities of grains at rest are noise
         mfi = float("nan")
         pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
-    a.flow.update(mfi=mfi, dead=dead, dead_fraction=dead_frac, pattern=pattern,
+    a.flow.update(mfi=mfi, dead=dead, dead_to=dead_to, dead_fraction=dead_frac, pattern=pattern,
                   mfi_band=(band_lo, band_hi))
     if np.isfinite(rate.rate) and np.isfinite(a.rho_b):
         a.flow["beverloo_C"] = th.beverloo_2d_C(rate.rate, cfg.silo.outlet_width, a.geom["d"],

@@ -8,7 +8,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from silodem.measure.discharge import lost_grains
-from silodem.report.analysis import Analysis
+from silodem.report.analysis import DEAD_TO, Analysis
 from silodem.report.draw import (
     draw_force_network,
     draw_grains,
@@ -159,8 +159,9 @@ def lost_note(before: int, during: int) -> str:
 
 
 def fig_dead_zones(a: Analysis) -> Figure | None:
-    """The grains at the gate opening coloured by the time they left; the dead zone (never
-    left, never moved more than a grain radius) in black; the grains lost through a wall,
+    """The grains at the gate opening coloured by the time they left; the dead zone (neither
+    left nor moved more than a grain radius up to the discharge window's end,
+    ``measure.discharge.dead_zone``) in black, whenever they left; the grains lost through a wall,
     before the gate opened or after (``measure.discharge.lost_grains``), as dashed outlines,
     neither left nor dead."""
     f = a.res.group("measure", "flow")
@@ -172,8 +173,8 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
     exit_t = f["exit_time"]
     before, during = lost_grains(f)
     lost = before | during
-    left = np.isfinite(exit_t) & ~lost
     dead = a.flow.get("dead", np.zeros(exit_t.size, bool)) & ~lost
+    left = np.isfinite(exit_t) & ~lost & ~dead
     stayed = ~left & ~dead & ~lost
     draw_grains(ax, {k: v[stayed] for k, v in p.items()}, color="#cccccc", edge="#999999")
     draw_grains(ax, {k: v[dead] for k, v in p.items()}, color="k", edge="k")
@@ -185,9 +186,10 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
     draw_walls(ax, a.res.group("walls"), np.ones(len(a.res.group("walls")["ax"]), bool))
     silo_axes(ax, a.geom)
     note = f"\ndashed: {lost_note(int(before.sum()), int(during.sum()))}" if lost.any() else ""
-    ax.set_title(f"when each grain left the silo\nblack: dead zone "
-                 f"({100 * a.flow.get('dead_fraction', 0):.1f} % of the grains), grey: still "
-                 f"inside at the end{note}", fontsize=9)
+    to = a.flow.get("dead_to", DEAD_TO)
+    ax.set_title(f"when each grain left the silo\nblack: dead zone, at rest to {to} "
+                 f"({100 * a.flow.get('dead_fraction', 0):.1f} % of the grains)\n"
+                 f"grey: still inside at the end{note}", fontsize=9)
     if left.any():
         fig.colorbar(pc, ax=ax, shrink=0.6, label="exit time after the gate opened [s]")
     return fig

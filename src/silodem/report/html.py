@@ -117,7 +117,9 @@ FIGURES = [
                "design by its slope and wall friction.", ff.fig_velocity),
     FigureSpec("dead_zones", "",
                "Grains at the gate opening coloured by the time they left the silo; the dead "
-               "zone (never left, never moved a grain radius) in black.", ff.fig_dead_zones),
+               "zone in black: the grains that neither left nor moved a grain radius from "
+               "the gate opening to the end of the discharge window (the velocity field's), "
+               "whether or not the emptying silo drew them out later.", ff.fig_dead_zones),
 ]
 
 

@@ -16,6 +16,7 @@ from silodem.measure.wall_profiles import rises_past
 from silodem.report import eurocode
 from silodem.report.analysis import (
     BATCHES,
+    DEAD_TO,
     UNSETTLED,
     Analysis,
     above_coulomb,
@@ -253,7 +254,8 @@ def add_numbers(a: Analysis) -> None:
     if "pattern" in f:
         where = mfi_where(a)
         n.append((f"mass flow index v_wall / v_axis, {where}", _fmt(f["mfi"], 3), "-"))
-        n.append(("dead-zone fraction of the grains", _fmt(f["dead_fraction"], 3), "-"))
+        n.append((f"dead-zone fraction of the grains (at rest to {f.get('dead_to', DEAD_TO)})",
+                  _fmt(f["dead_fraction"], 3), "-"))
         threshold = a.res.cfg.measure.mass_flow_index_threshold
         label = (f"flow pattern, measured: mass flow if v_wall / v_axis >= {threshold:g} "
                  f"({where}) and no dead zone; not Jenike's hopper design chart")

@@ -83,7 +83,8 @@ COLUMNS: list[tuple[str, str, str]] = [
      "discharge window starts")),
     ("window_emptied_end_pct", "%", "the same when the discharge window ends"),
     ("mass_flow_index", "-", "v_wall / v_axis above the junction"),
-    ("dead_fraction", "-", "fraction of the grains in a dead zone"),
+    ("dead_fraction", "-", ("fraction of the grains in a dead zone (at rest to the end of "
+                            "the discharge window)")),
     ("flow_pattern", "", "mass flow, funnel flow, clogged, or unknown (MFI not measured)"),
     ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
     ("fill_level", "m", "fill level after settling: mean of the 5 highest grain tops (events)"),
@@ -181,8 +182,10 @@ def switch_series(folder: Path | str) -> SwitchSeries | None:
 # flow pattern) of the grains there as the gate opened, not those lost through a wall before;
 # 7: nor those lost through a wall after (measure.discharge.lost_grains; in a file written
 # before the flag of those lost before, the grains below the outlet at the opening); the bulk
-# density by each disk's area in its band, not whole grains by their centres; lost_count.
-ANALYSIS_VERSION = 7
+# density by each disk's area in its band, not whole grains by their centres; lost_count;
+# 8: no steady rate from a plateau (a run clogged after two grains); the dead zone up to the
+# discharge window's end, where results.h5 has max_displacement_window.
+ANALYSIS_VERSION = 8
 
 
 def summarise_run(folder: Path | str) -> dict[str, Any]:
