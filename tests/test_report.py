@@ -480,11 +480,34 @@ def test_legends_of_the_stress_and_contact_figures_hide_no_data(run_dir):
     a = analyse(load_results(run_dir))
     figs = {"fig2": fs.fig_coordination(a), "fig3a": fs.fig_horizontal(a, "fill"),
             "fig3b": fs.fig_vertical(a, "fill"), "fig6": fs.fig_horizontal(a, "discharge"),
-            "fig7": fs.fig_evolution(a)}
+            "vertical_discharge": fs.fig_vertical(a, "discharge"), "fig7": fs.fig_evolution(a)}
     for name, fig in figs.items():
         assert fig is not None, name
         assert fig.legends or any(ax.get_legend() for ax in fig.axes), name
         assert _legend_covers(fig) == [], name
+
+
+def test_vertical_stress_during_discharge_draws_that_windows_strips(run_dir):
+    """The vertical-stress figure of the discharge window draws that window's near-wall and
+    cross-section sigma_zz, with the near-wall profile after filling in grey, and names the
+    window's times."""
+    from silodem.report import figures_stress as fs
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    a = analyse(load_results(run_dir))
+    ax = fs.fig_vertical(a, "discharge").axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    dis, fill = a.strips["discharge"], a.strips["fill"]
+    near = lines["sigma_zz near the walls (Love-Weber strips)"]
+    np.testing.assert_array_equal(near.get_xdata(), dis["near_zz"])
+    np.testing.assert_array_equal(near.get_ydata(), dis["z"])
+    np.testing.assert_array_equal(lines["sigma_zz, mean over the cross-section"].get_xdata(),
+                                  dis["slice_zz"])
+    grey = lines[f"sigma_zz near the walls, {a.labels['fill']}"]
+    np.testing.assert_array_equal(grey.get_xdata(), fill["near_zz"])
+    t0, t1 = a.windows["discharge"]
+    assert ax.get_title().endswith(f"{a.labels['discharge']} (t = {t0:.2f}-{t1:.2f} s)")
 
 
 def test_settled_and_final_pictures_have_a_force_colour_bar(run_dir, monkeypatch, tmp_path):

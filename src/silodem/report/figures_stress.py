@@ -244,23 +244,30 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
 
 
 def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
-    """Fig. 3b: vertical stress along the wall after filling (Love-Weber)."""
+    """Fig. 3b (after filling) and its counterpart during discharge: vertical stress along
+    the wall (Love-Weber), the discharge's with the profile after filling in grey."""
     s = a.strips.get(key)
     if s is None:
         return None
     fig = Figure(figsize=(7.5, 7.5), dpi=100)
     ax = fig.subplots()
     _zone(ax, a)
+    if key == "discharge" and "fill" in a.strips:
+        f = a.strips["fill"]
+        ax.plot(f["near_zz"], f["z"], color="0.6", lw=1, marker=".",
+                label=f"sigma_zz near the walls, {a.labels['fill']}")
     ax.plot(s["near_zz"], s["z"], color="k", lw=1.8, marker="o", ms=4,
             label="sigma_zz near the walls (Love-Weber strips)")
     ax.plot(s["slice_zz"], s["z"], color="#2ca02c", lw=1.4, marker="s", ms=3,
             label="sigma_zz, mean over the cross-section")
     _janssen_curves(ax, a, key, "v")
-    _hopper_curves(ax, a, "v")
+    _hopper_curves(ax, a, "v", key)
     ax.set_xlabel("vertical stress sigma_v [Pa]")
     ax.set_xlim(left=0)
     _z_axis(ax, a)
-    ax.set_title(f"Vertical stress along the silo wall, {a.labels['fill']}", fontsize=10)
+    t0, t1 = a.windows.get(key, (np.nan, np.nan))
+    when = f" (t = {t0:.2f}-{t1:.2f} s)" if key == "discharge" else ""
+    ax.set_title(f"Vertical stress along the silo wall, {a.labels[key]}{when}", fontsize=10)
     legend_below(fig, ax)
     return fig
 

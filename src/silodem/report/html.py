@@ -104,6 +104,13 @@ FIGURES = [
                "Wall friction along the silo wall, against its fully mobilised value "
                "tan(phi_P) sigma_n: Janssen's theory assumes full mobilisation.",
                fs.fig_wall_shear),
+    FigureSpec("vertical_discharge", "",
+               "Vertical stress along the silo wall during discharge (time average over the "
+               "discharge window; the paper's Fig. 3b is of the filled silo): "
+               "Love-Weber sigma_zz near the walls and over the cross-section, with the "
+               "near-wall profile {fill}, Janssen's sigma_v (K refitted), the hydrostatic line "
+               "and, in a hopper silo, Walker's hopper solutions with the discharge window's q.",
+               lambda a: fs.fig_vertical(a, "discharge")),
     FigureSpec("discharge_rate", "",
                "Discharged mass and mass flow rate; the steady rate is the slope between 15 % "
                "and 75 % of the discharged mass, its error the standard error of 5 block "
