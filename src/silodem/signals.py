@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 
@@ -30,7 +31,9 @@ def noted_signals(*, hold: bool) -> Iterator[list[int]]:
     ``hold=False``: each signal that has a Python handler also goes to that handler at once
     (raising KeyboardInterrupt or ``errors.Terminated``); SIG_DFL and SIG_IGN keep what they
     do.  Drawing with matplotlib, such a KeyboardInterrupt was sometimes raised inside a
-    weakref callback, where Python drops it: the note still says the signal came.
+    weakref callback, where Python drops it: the note still says the signal came, and
+    ``sys.unraisablehook`` keeps quiet about it (it printed "Exception ignored in ..." and a
+    traceback of ``Terminated`` before the command's one line).
 
     ``hold=True``: nothing acts inside the block; after it, each signal that came is raised
     again, once, SIGTERM first, under the handler it had.  Raised in the middle of
@@ -53,12 +56,33 @@ def noted_signals(*, hold: bool) -> Iterator[list[int]]:
             before[signum](signum, frame)
 
     try:
-        with handled_by(note, before):
+        with handled_by(note, before), _quiet_about_interrupts(not hold):
             yield noted
     finally:
         if hold:
             for s in sorted(set(noted), reverse=True):  # SIGTERM (15) first: the stronger
                 signal.raise_signal(s)
+
+
+@contextlib.contextmanager
+def _quiet_about_interrupts(quiet: bool) -> Iterator[None]:
+    """While the block runs (if ``quiet``), a KeyboardInterrupt that Python cannot raise (in
+    a callback, a finaliser) is dropped without its "Exception ignored" report; any other
+    such exception is reported as before."""
+    if not quiet:
+        yield
+        return
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
 
 
 @contextlib.contextmanager
