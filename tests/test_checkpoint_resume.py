@@ -774,3 +774,35 @@ def test_checkpoints_disabled_write_none_but_keep_results_fresh(tmp_path):
     assert not (out / "checkpoint.h5").exists()
     with h5py.File(out / "results.h5") as h5:
         assert h5.attrs["status"] == "interrupted"
+
+
+def test_a_folder_a_run_is_writing_is_refused_to_a_second_run_and_to_a_resume(tmp_path):
+    """A resume started while the run in its folder was still going ran beside it, both
+    exited 0, and results.h5 named frame segments one of them had removed (an audit).  While
+    a process holds the folder (here this test, as a run would), a new run there and a resume
+    of it end in one line and exit code 2, touching nothing; once it lets go, the resume
+    goes on and ends bit-identical."""
+    from silodem.run_folder import folder_lock
+
+    out = tmp_path / "run"
+    proc = start(*run_args(out))
+    stderr = signal_when(proc, signal.SIGINT, lambda: (wait_for_file(out / "checkpoint.h5",
+                                                                     proc), time.sleep(0.2)))
+    assert proc.returncode == 130, stderr[-2000:]
+
+    def refused(*args: str) -> None:
+        before = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
+        with folder_lock(out):
+            result = cli(*args)
+        assert result.returncode == 2, result.stderr[-2000:]
+        assert "Traceback" not in result.stderr
+        assert result.stderr.strip().splitlines()[-1] == (
+            f"error: {out} is in use by another silodem run; wait for it to end, or give "
+            "another folder")
+        assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == before
+
+    refused("run", "--resume", str(out))
+    result = cli("run", "--resume", str(out))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert not (out / "checkpoint.h5").exists()
+    refused(*run_args(out))  # a new run over the finished one (its files replaced otherwise)

@@ -18,7 +18,7 @@ from silodem.config import Config
 from silodem.errors import InputError, RunInterrupted, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.run_folder import ANIMATIONS, clear_previous_run, ended_unstable
+from silodem.run_folder import ANIMATIONS, clear_previous_run, ended_unstable, folder_lock
 from silodem.safety import RunGuard
 from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
@@ -131,13 +131,22 @@ def run_simulation(cfg: Config, out_dir: Path | str, *, threads: int | None = No
     """Run ``cfg`` and write its results folder ``out_dir``; return a summary.
 
     Checkpoints, SIGINT/SIGTERM and unstable runs: see ``silodem.safety`` and
-    docs/reliability.md.  ``resume_from``: continue from this checkpoint (resume_simulation)."""
-    from silodem.scenario_files import config_to_toml
-
+    docs/reliability.md.  ``resume_from``: continue from this checkpoint (resume_simulation).
+    The folder is locked while the run writes there (``run_folder.folder_lock``): a second
+    run, or resume, of it is refused."""
     check_numbers(cfg)
     _set_threads(threads)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with folder_lock(out):  # (before anything in the folder is touched)
+        return _run_in(cfg, out, progress, resume_from)
+
+
+def _run_in(cfg: Config, out: Path, progress: bool,
+            resume_from: LoadedCheckpoint | None) -> RunSummary:
+    """run_simulation's body, in the folder ``out`` it holds the lock of."""
+    from silodem.scenario_files import config_to_toml
+
     if resume_from is None:
         clear_previous_run(out)
     else:  # an animation of the run so far would stay beside the finished run's results

@@ -5,10 +5,15 @@ folder of an earlier one replaces (docs/reliability.md, "A new run in a used fol
 (an unstable run's checkpoint.h5 too, :func:`ended_unstable`), and refuses, removing nothing,
 files of those names that no silodem run wrote (:func:`check_replaceable`);
 :func:`replacing_note` says what a new run replaces; :func:`remove_partial_saves` removes the
-temporary files of saves that a SIGKILL cut short."""
+temporary files of saves that a SIGKILL cut short; :func:`folder_lock` keeps a second run (a
+resume of the same folder, say) out of a folder while a run writes there."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -130,3 +135,23 @@ def remove_partial_saves(out: Path) -> None:
     for name in (*_RUN_FILES, CHECKPOINT_NAME, "config.toml"):
         (out / f".{name}.tmp").unlink(missing_ok=True)
 
+
+
+
+@contextlib.contextmanager
+def folder_lock(out: Path) -> Iterator[None]:
+    """Hold an exclusive ``flock`` on the folder ``out`` itself while the block runs;
+    InputError, at once, when another process holds it.  A ``silodem run --resume DIR``
+    started while the run in DIR was still going ran beside it: both exited 0, and
+    results.h5 named frame segment files that one of them had removed.  The lock goes with
+    the process (the kernel releases it however the process ends), and leaves no file."""
+    fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError(f"{out} is in use by another silodem run; wait for it to end, "
+                             "or give another folder") from None
+        yield
+    finally:
+        os.close(fd)  # (releases the lock)
