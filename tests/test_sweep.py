@@ -1125,3 +1125,27 @@ def test_a_scheduler_that_cannot_be_reached_makes_no_study_folder(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: cannot reach the Dask scheduler")
     assert not out.exists()
+
+
+def test_a_sweep_into_a_folder_that_is_not_a_studys_is_refused(tmp_path, capsys):
+    """`sweep --out` into a single run's folder replaced its report.html and put the study's
+    figures among the run's (an audit). A folder holding what a study writes (report.html,
+    results.csv, figures/) without a study.toml is refused in one line, exit code 2, and
+    left as it was; an empty folder, or a study's own, is taken."""
+    run = tmp_path / "a-run"
+    (run / "figures").mkdir(parents=True)
+    (run / "report.html").write_text("the run's report")
+    (run / "config.toml").write_text("# the run's\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "paper-study", "--quick", "--out", str(run)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"error: --out {run} holds report.html (+1 more), which a study")
+    assert sorted(p.name for p in run.iterdir()) == ["config.toml", "figures", "report.html"]
+    assert (run / "report.html").read_text() == "the run's report"
+    from silodem.study.execute import check_study_folder
+
+    check_study_folder(tmp_path / "empty")  # (missing: made later)
+    (run / "study.toml").write_text("# a study's folder\n")
+    check_study_folder(run)

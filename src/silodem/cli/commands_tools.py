@@ -77,6 +77,7 @@ def sweep(
     from silodem.errors import RunInterrupted, Terminated
     from silodem.study import expand, load_study, run_study
     from silodem.study.execute import (
+        check_study_folder,
         check_workers,
         default_workers,
         is_finished,
@@ -100,6 +101,7 @@ def sweep(
                                                                            else ""))
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file, not a folder")
+    check_study_folder(out_dir)  # (before anything is said or written)
     where = (f"the Dask scheduler at {scheduler}" if scheduler is not None else
              f"a local cluster of {workers_phrase(workers or default_workers())}")
     console = Console(soft_wrap=True)

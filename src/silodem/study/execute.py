@@ -245,10 +245,28 @@ def check_workers(workers: int | None, what: str = "workers", *, local: bool = F
             "scheduler and workers on other machines and pass its address as the scheduler")
 
 
+STUDY_FILES = ("study.toml", "results.csv", "report.html", "figures")  # what a study writes
+
+
+def check_study_folder(out_dir: Path) -> None:
+    """InputError if ``out_dir`` holds files a study writes (report.html, results.csv,
+    figures/) but is no study's folder (no study.toml, which every study writes first): a
+    sweep there replaced a single run's report.html and put its figures among the run's."""
+    if (out_dir / "study.toml").is_file():
+        return
+    found = [name for name in STUDY_FILES[1:] if (out_dir / name).exists()]
+    if found:
+        more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
+        raise InputError(f"--out {out_dir} holds {found[0]}{more}, which a study there would "
+                         "replace, but it is not a study's folder (no study.toml); give a new "
+                         "or empty folder, or move those files")
+
+
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
     """Create the study folder, save the study file, return the runs still to do."""
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file, not a folder")
+    check_study_folder(out_dir)
     try:
         (out_dir / "runs").mkdir(parents=True, exist_ok=True)
     except OSError as exc:
