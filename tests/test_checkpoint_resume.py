@@ -181,13 +181,18 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
         assert h5.attrs["status"] == "interrupted"
     assert_partial_results_are_a_prefix(out, ref)
     if sig == signal.SIGINT:  # the same code path resumes either: do it once
-        # an animation of the run so far (silodem animate's default name) stayed beside the
-        # finished run's results
-        (out / "animation.gif").write_bytes(b"the run so far")
+        # the pictures of the run so far (silodem animate's and plot's) stayed beside the
+        # finished run's results, its report still calling the run unfinished
+        (out / "figures").mkdir()
+        for name in ("animation.gif", "report.html", "settled.png", "figures/fig2.png"):
+            (out / name).write_bytes(b"the run so far")
+        (out / "notes.txt").write_text("mine")
         result = cli("run", "--resume", str(out))
         assert result.returncode == 0, result.stderr[-2000:]
         assert_same_as_reference(out, ref)
-        assert not (out / "animation.gif").exists()
+        for name in ("animation.gif", "report.html", "settled.png", "figures/fig2.png"):
+            assert not (out / name).exists(), name  # (SETS: no report, no pictures)
+        assert (out / "notes.txt").read_text() == "mine"
 
 
 def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_save(reference,

@@ -18,7 +18,7 @@ from silodem.config import Config
 from silodem.errors import InputError, RunInterrupted, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.run_folder import ANIMATIONS, clear_previous_run, ended_unstable, folder_lock
+from silodem.run_folder import clear_previous_run, ended_unstable, folder_lock, remove_pictures
 from silodem.safety import RunGuard
 from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
@@ -149,9 +149,8 @@ def _run_in(cfg: Config, out: Path, progress: bool,
 
     if resume_from is None:
         clear_previous_run(out)
-    else:  # an animation of the run so far would stay beside the finished run's results
-        for name in ANIMATIONS:
-            (out / name).unlink(missing_ok=True)
+    else:  # pictures of the run so far would stay beside the finished run's results
+        remove_pictures(out)
     toml_text = config_to_toml(cfg)
     write_text(out / "config.toml", toml_text)
     guard = RunGuard(out, toml_text, cfg, resume_from)

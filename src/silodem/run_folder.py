@@ -125,6 +125,20 @@ def clear_previous_run(out: Path) -> None:
     remove_written(out / "vtk")
 
 
+def remove_pictures(out: Path) -> None:
+    """Remove the pictures of an interrupted run drawn so far (``silodem plot`` and
+    ``animate`` on it: report.html, settled.png, final.png, figures/*.png, the animations
+    under their default names), before a resume: they stayed beside the finished run's
+    results, the report's banner still saying "Unfinished run ... continue it with ..." when
+    the run drew no report of its own (``measure.report = false``)."""
+    for name in ("report.html", "settled.png", "final.png", *ANIMATIONS):
+        (out / name).unlink(missing_ok=True)
+    figures = out / "figures"
+    if figures.is_dir():
+        for png in figures.glob("*.png"):
+            png.unlink(missing_ok=True)
+
+
 def remove_partial_saves(out: Path) -> None:
     """Remove the temporary files (``atomic.atomic_file``'s ``.NAME.tmp``) of results.h5,
     checkpoint.h5, config.toml and the run's other files (``_RUN_FILES``: pictures, report,
