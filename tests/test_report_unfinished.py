@@ -321,3 +321,45 @@ def test_the_fill_window_ends_at_the_settled_snapshot_else_the_settle_events(tmp
     with h5py.File(folder / "results.h5", "r+") as h5:
         del h5["events"].attrs["settle_time"]
     assert analyse(load_results(folder)).windows["fill"] == (first, last)
+
+
+def test_the_advice_for_an_unstable_a_checkpointless_and_a_study_folder_is_what_works(
+        stopped, tmp_path, capsys):
+    """An audit's misleading hints.  For an unstable run `plot` said 'continue it with silodem
+    run --resume', which only repeats the failure (the checkpoint keeps the failing config);
+    a stopped run with no checkpoint was 'nothing to resume (give the results folder of an
+    interrupted run)', though it is one; `plot` of a study's folder advised `silodem run
+    --out` into it, which is refused."""
+    unstable = tmp_path / "unstable"
+    shutil.copytree(stopped, unstable)
+    with h5py.File(unstable / "results.h5", "r+") as h5:
+        h5.attrs["status"] = "unstable"
+    code, _, err = _plot(unstable, capsys)
+    assert code == 0
+    assert err.strip().endswith(f"'silodem run --resume {unstable}' only repeats it to the same "
+                                "failure; mend the config and start it again")
+    page = _text((unstable / "report.html").read_text(encoding="utf-8"))
+    assert (f"silodem run --resume {unstable.resolve()} only repeats it to the same failure "
+            "(the checkpoint keeps the run's config): mend the config and start the run "
+            "again.") in page
+    assert "Continue it with" not in page
+
+    bare = tmp_path / "bare"
+    shutil.copytree(stopped, bare)
+    (bare / "checkpoint.h5").unlink()
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", str(bare)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and len(err) == 1
+    assert err[0].endswith(f"the run in {bare} stopped (interrupted) with no checkpoint.h5 to "
+                           "go on from (checkpoint.enabled false, or none written yet): it "
+                           "cannot be resumed; start it again")
+
+    study = tmp_path / "study"
+    (study / "runs").mkdir(parents=True)
+    (study / "study.toml").write_text("# a study\n")
+    code, _, err = _plot(study, capsys)
+    assert code == 2
+    assert err.splitlines() == [(f"error: {study} is a study's folder: its report is "
+                                f"{study / 'report.html'}, and each run's folder is under "
+                                f"{study / 'runs'}")]

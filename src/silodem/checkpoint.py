@@ -330,6 +330,19 @@ class LoadedCheckpoint:
                                 "run; its data is dropped")
 
 
+def _results_status(folder: Path) -> str | None:
+    """The ``status`` of the results.h5 a silodem run wrote in ``folder`` (None: no such file,
+    or not silodem's)."""
+    try:
+        with h5py.File(folder / "results.h5", "r") as h5:
+            if "silodem_version" not in h5.attrs:
+                return None
+            status = h5.attrs.get("status", "complete")
+    except OSError:
+        return None
+    return status.decode(errors="replace") if isinstance(status, bytes) else str(status)
+
+
 def _results_complete(folder: Path) -> bool:
     try:
         with h5py.File(folder / "results.h5", "r") as h5:
@@ -349,6 +362,12 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
             if _results_complete(where):
                 raise CheckpointError(f"the run in {where} has finished (results.h5 is complete);"
                                       " there is nothing to resume")
+            status = _results_status(where)
+            if status is not None:  # a run's results.h5, stopped, with no checkpoint kept
+                raise CheckpointError(f"the run in {where} stopped ({status}) with no "
+                                      f"{CHECKPOINT_NAME} to go on from (checkpoint.enabled "
+                                      "false, or none written yet): it cannot be resumed; "
+                                      "start it again")
             raise CheckpointError(f"no {CHECKPOINT_NAME} in {where}: nothing to resume (give the "
                                   "results folder of an interrupted run)")
     elif where.exists():

@@ -130,6 +130,10 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
             raise InputError(f"{folder} holds no results.h5 but the {CHECKPOINT} of an "
                              f"unfinished run: continue it with 'silodem run --resume "
                              f"{folder}' (it writes results.h5 as it goes)")
+        if (folder / "study.toml").is_file():  # ('silodem sweep --out' made it)
+            raise InputError(f"{folder} is a study's folder: its report is "
+                             f"{folder / 'report.html'}, and each run's folder is under "
+                             f"{folder / 'runs'}")
         raise InputError(f"{folder} holds no results.h5 (run 'silodem run --out {folder}' first)")
     try:
         with h5py.File(path, "r") as h5:

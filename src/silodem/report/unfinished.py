@@ -42,8 +42,12 @@ def note_line(a: Analysis, folder: Path | str) -> str | None:
     folder = Path(folder)
     status = str(a.res.attrs.get("status"))
     command = resume_command(folder)
-    then = (f"continue it with '{command}'" if command else
-            f"{folder} holds no {CHECKPOINT} to continue it from")
+    if command and status == "unstable":  # (its checkpoint is the last good state)
+        then = (f"'{command}' only repeats it to the same failure; mend the config and start "
+                "it again")
+    else:
+        then = (f"continue it with '{command}'" if command else
+                f"{folder} holds no {CHECKPOINT} to continue it from")
     return (f"silodem: {folder} holds an unfinished run ({_how(status)[1]} "
             f"{stopped_at(a.res)}): its report covers what was reached; {then}")
 
@@ -91,9 +95,11 @@ def banner_html(a: Analysis) -> str:
     if status == "unstable" and (res.folder / DIAGNOSTIC).is_file():
         text.append(f"{folder / DIAGNOSTIC} says what went wrong.")
     command = resume_command(folder)
-    if command:
-        when = ("Once the cause is mended, continue" if status == "unstable" else
-                "Once it no longer runs, continue" if status == "running" else "Continue")
+    if command and status == "unstable":  # the checkpoint: the last good state, its config
+        text.append(f"{command} only repeats it to the same failure (the checkpoint keeps the "
+                    "run's config): mend the config and start the run again.")
+    elif command:
+        when = "Once it no longer runs, continue" if status == "running" else "Continue"
         text.append(f"{when} it with: {command}")
     else:
         text.append(f"The folder holds no {CHECKPOINT} to continue it from.")
