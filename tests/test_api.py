@@ -158,6 +158,8 @@ def test_tables_are_the_datasets_of_results_h5(res):
             name = raw.decode()
             assert np.array_equal(m[f"{name}_coordination"].to_numpy(),
                                   h5["measure/circles/coordination"][:, n], equal_nan=True)
+            assert np.array_equal(m[f"{name}_porosity"].to_numpy(),
+                                  h5["measure/circles/porosity"][:, n], equal_nan=True)
             for k, comp in enumerate(("xx", "zz", "xz")):
                 assert np.array_equal(m[f"{name}_sigma_{comp}"].to_numpy(), circles[:, n, k],
                                       equal_nan=True), (name, comp)

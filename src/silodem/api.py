@@ -217,8 +217,9 @@ class RunResults:
 
     def measurements(self) -> pd.DataFrame:
         """The measurement samples (every measure.interval): time, step, phase, the junction
-        band's coordination number and stress, and each circle's coordination number and
-        stress (``<circle>_coordination``, ``<circle>_sigma_xx`` / ``_zz`` / ``_xz`` [Pa])."""
+        band's coordination number and stress, and each circle's coordination number, porosity
+        and stress (``<circle>_coordination``, ``<circle>_porosity`` [-], ``<circle>_sigma_xx``
+        / ``_zz`` / ``_xz`` [Pa])."""
         m = self._raw.group("measure")
         if m is None:
             raise InputError("this run recorded no measurements (measure recorder absent, or "
@@ -231,6 +232,8 @@ class RunResults:
         c = m["circles"]
         for n, name in enumerate(str(x) for x in c["name"]):
             df[f"{name}_coordination"] = c["coordination"][:, n]
+            if "porosity" in c:
+                df[f"{name}_porosity"] = c["porosity"][:, n]
             for k, comp in enumerate(("xx", "zz", "xz")):
                 df[f"{name}_sigma_{comp}"] = c["stress"][:, n, k]
         return df
