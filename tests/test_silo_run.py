@@ -373,6 +373,42 @@ def test_a_pour_cut_short_by_its_rate_says_so_not_that_there_was_no_room():
     assert [w for w in run.warnings if w.startswith("pouring stopped")] == [expected]
 
 
+def test_a_pour_cut_short_by_a_full_silo_says_so_not_that_the_rate_was_low():
+    """1800 grains asked of the quick silo (0.36 x 5000) at 250 grains/s for 4 s: the rate
+    lets in 1000, but fewer than half of those find room once the silo is full to the pouring
+    band (an audit: the warning blamed the rate, 'pours only about 3.75e+03 in that time',
+    with 176 grains placed)."""
+    cfg = quick_variant(load_config("paper-case2", ["fill.n_particles=5000", "fill.max_time=4"]))
+    run = SiloRun(cfg)
+    while run.state.phase == "fill":
+        run.advance_chunk()
+    placed = run.events["n_poured"]
+    assert placed < 0.5 * 250 * 4
+    assert [w for w in run.warnings if w.startswith("pouring stopped")] == [
+        (f"pouring stopped after fill.max_time = 4.0 s with {placed} of 1800 grains placed: no "
+        "room in the pouring band: the silo is full up to it")]
+
+
+def test_the_key_numbers_give_the_pouring_rate_reached():
+    """fill.rate is an upper bound: paper-case2 asks 250 grains/s and its 430 grains took
+    5.15 s, 430 / 5.15 = 83.5 grains/s.  A loose fill (placed at once) has no such row."""
+    from types import SimpleNamespace
+
+    from silodem.report.key_numbers import _pour_row
+
+    cfg = load_config("paper-case2")
+    a = SimpleNamespace(res=SimpleNamespace(cfg=cfg, events={"n_poured": 430,
+                                                             "fill_time": 5.15}), numbers=[])
+    _pour_row(a)
+    assert a.numbers == [(("grains poured, time the filling took, mean rate (fill.rate = 250 "
+                          "grains/s is an upper bound)"), "430 in 5.15 s: 83.5 grains/s", "-")]
+    loose = SimpleNamespace(res=SimpleNamespace(cfg=load_config("paper-case2",
+                                                                ["fill.method=loose"]),
+                                                events=a.res.events), numbers=[])
+    _pour_row(loose)
+    assert loose.numbers == []
+
+
 def test_progress_rate_leaves_out_the_time_before_the_first_report(monkeypatch):
     """The first progress line's rate counted the kernels' compilation (600 steps/s in a run
     that went at 40,000): it is NaN there, and after it the steps since the first report over

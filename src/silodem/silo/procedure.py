@@ -173,9 +173,10 @@ class SiloRun:
         self._advance(self._steps(BATCH_INTERVAL))
         elapsed = self.sim.time - st.phase_start
         if st.placed < f.n_particles and elapsed > f.max_time:
-            why = (f"fill.rate = {f.rate:g} grains/s pours only about "
-                   f"{f.rate * f.max_time:.3g} in that time" if f.rate * f.max_time < f.n_particles
-                   else "no room in the pouring band")
+            allowed = f.rate * f.max_time  # what the rate lets in at most
+            why = ("no room in the pouring band: the silo is full up to it"
+                   if st.placed < 0.5 * min(allowed, f.n_particles) else
+                   f"fill.rate = {f.rate:g} grains/s pours only about {allowed:.3g} in that time")
             self.warnings.append(
                 f"pouring stopped after fill.max_time = {f.max_time} s with {st.placed} of "
                 f"{f.n_particles} grains placed: {why}"
