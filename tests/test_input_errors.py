@@ -61,6 +61,18 @@ def test_too_many_grains_is_refused_naming_the_limit(capsys):
     assert_names(line, "fill.n_particles", "10000000")
 
 
+def test_a_stop_fraction_above_1_needs_reinsertion(capsys):
+    """Without re-insertion at most the whole mass leaves: stop_fraction = 1.5 could never be
+    reached (the run would go on to max_time); with it the mass passes more than once."""
+    line = refused(capsys, "show", "--set", "discharge.stop_fraction=1.5")
+    assert_names(line, "discharge.stop_fraction (1.5) above 1 needs discharge.reinsert = true")
+    line = refused(capsys, "show", "--set", "discharge.stop_fraction=1001", "--set",
+                   "discharge.reinsert=true")
+    assert_names(line, "discharge.stop_fraction", "1000")
+    cfg = load_config("paper-case2", ["discharge.stop_fraction=1.5", "discharge.reinsert=true"])
+    assert cfg.discharge.stop_fraction == 1.5
+
+
 @pytest.mark.parametrize("value", ["nan", "inf", "-inf", "+inf"])
 @pytest.mark.parametrize("key", ["material.kn", "time.dt", "gravity"])
 def test_non_finite_numbers_are_refused(capsys, key, value):

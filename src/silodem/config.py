@@ -237,21 +237,36 @@ class Settle(_Strict):
         return self
 
 
+MAX_STOP_FRACTION = 1000.0  # with re-insertion: the mass may pass this many times [-]
+
+
 class Discharge(_Strict):
     """Discharge: the gate under the outlet is withdrawn."""
 
     enabled: bool = Field(True, description="run the discharge phase")
     stop_fraction: float = Field(
-        0.9, gt=0, le=1, description="stop when this fraction of the mass in the silo at "
-        "the gate's opening, less any mass lost through a wall since, has left through the "
-        "outlet [-]"
+        0.9, gt=0, le=MAX_STOP_FRACTION, description="stop when this fraction of the mass in "
+        "the silo at the gate's opening, less any mass lost through a wall since, has left "
+        "through the outlet [-]; above 1 (the mass passing more than once) with reinsert only"
     )
     max_time: float = Field(30.0, gt=0, description="stop after this discharge time [s] "
                             "(checked every 0.05 s of simulated time)")
     clog_time: float = Field(
         2.0, gt=0, description="no grain leaving for this long [s] means a clog (arch)"
     )
-    reinsert: bool = Field(False, description="re-insert discharged grains at the top")
+    reinsert: bool = Field(False, description="re-insert discharged grains at the top; a grain "
+                           "counts in stop_fraction each time it leaves, so a steady flow "
+                           "runs until stop_fraction (up to 1000) times the mass has passed, "
+                           "or max_time")
+
+    @model_validator(mode="after")
+    def _check(self) -> Discharge:
+        if self.stop_fraction > 1.0 and not self.reinsert:
+            raise ValueError(
+                f"discharge.stop_fraction ({self.stop_fraction}) above 1 needs "
+                "discharge.reinsert = true: without re-insertion at most the whole mass leaves"
+            )
+        return self
 
 
 class TimeStep(_Strict):
