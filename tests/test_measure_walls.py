@@ -9,6 +9,7 @@ import pytest
 from silodem.config import Config, Discharge, Fill, Material, Settle, Silo, WallMaterial
 from silodem.measure.reading import read_simulation
 from silodem.measure.wall_profiles import (
+    bottom_load,
     peak_in_zone,
     rises_past,
     wall_bins,
@@ -112,3 +113,19 @@ def test_a_zones_largest_value_is_named_a_peak_only_where_it_is_one():
     assert rises_past(z, [1, np.nan, 9, np.nan, 3], 1.05) is None
     assert rises_past(z, [10, np.nan, 9, np.nan, 3], 1.05) == "below"
     assert rises_past(z, rising, 7.0) is None
+
+
+def test_the_bottom_load_sums_the_floor_and_gate_bins_over_their_spans():
+    """Bins of a wall, the left floor (0.2 m and 0.3 m spans), the gate (0.4 m) and the right
+    floor (0.3 m), at 1000, 2000, 3000 and 4000 Pa on a slab 0.5 m thick: F = 0.5 (200 + 600
+    + 1200 + 1200) = 1600 N over 1.2 m of bottom, p = 1600 / (0.5 x 1.2) = 2666.7 Pa; the
+    wall's bin and a NaN bin are not counted; without a bottom bin, NaN."""
+    names = ["left_wall", "left_floor", "gate", "right_floor"]
+    s0 = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.5])
+    s1 = np.array([1.0, 0.2, 0.5, 0.4, 0.3, 0.9])
+    wall = np.array([0, 1, 1, 2, 3, 3])
+    normal = np.array([9e9, 1000.0, 2000.0, 3000.0, 4000.0, np.nan])
+    force, pressure = bottom_load(normal, s0, s1, wall, names, 0.5)
+    assert force == pytest.approx(1600.0, rel=1e-12)
+    assert pressure == pytest.approx(1600.0 / 0.6, rel=1e-12)
+    assert all(np.isnan(bottom_load(normal[:1], s0[:1], s1[:1], wall[:1], names, 0.5)))

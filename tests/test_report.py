@@ -113,6 +113,34 @@ def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):
         assert ax.get_ylim()[1] >= peak
     label = fs.fig_horizontal(a, "fill").axes[0].get_xlabel()
     assert label == "horizontal stress sigma_h on the wall [Pa]"
+    _assert_bottom_load(a, ("left_floor", "right_floor", "gate"))
+
+
+def _assert_bottom_load(a, bottom: tuple[str, ...]) -> None:
+    """The key number's load on the bottom after filling (the binned wall pressures, averaged
+    over the last measure.window of settling) is the vertical force the bottom's wall contacts
+    of the settled state exert, within 2 % (a fill at rest); and, Newton's law at rest, all
+    the walls' contacts together carry the fill's weight m g within 1 %.  The row gives the
+    share of that weight."""
+    with h5py.File(a.res.folder / "results.h5") as h5:
+        names = [n.decode() for n in h5["walls/name"][()]]
+        wall, fy = h5["settled/wall_contacts/wall"][()], h5["settled/wall_contacts/fy"][()]
+        radius = h5["settled/particles/radius"][()]
+    m = a.res.cfg.material
+    weight = float(np.sum(m.density * np.pi * radius**2 * m.thickness)) * a.res.cfg.gravity
+    on_bottom = float(fy[np.isin(wall, [names.index(n) for n in bottom])].sum())
+    assert fy.sum() == pytest.approx(weight, rel=0.01)
+    assert a.bottom[0] == pytest.approx(on_bottom, rel=0.02)
+    row = next(v for q, v, _ in a.numbers if q.startswith("load on "))
+    share = 100 * a.bottom[0] / (float(a.res.events["initial_mass"]) * a.res.cfg.gravity)
+    assert row == f"{a.bottom[0]:,.0f} ({share:.3g} %)"
+
+
+def test_the_closed_gate_carries_what_the_hopper_walls_do_not(run_dir):
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    _assert_bottom_load(analyse(load_results(run_dir)), ("gate",))
 
 
 def test_plot_re_renders_from_results_without_running(run_dir, tmp_path):

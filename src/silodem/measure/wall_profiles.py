@@ -155,3 +155,25 @@ def rises_past(z: npt.ArrayLike, values: npt.ArrayLike, z_peak: float) -> str | 
     if k + 1 < z.size and v[k + 1] > v[k]:
         return "above"
     return None
+
+
+BOTTOM_WALLS = ("left_floor", "right_floor", "gate")  # what carries a silo from below
+
+
+def bottom_load(normal: npt.ArrayLike, s0: npt.ArrayLike, s1: npt.ArrayLike,
+                wall: npt.ArrayLike, names: list[str], thickness: float) -> tuple[float, float]:
+    """(force [N], mean pressure [Pa]) of the grains on the silo's bottom: the floor pieces
+    and the gate of a flat silo, the gate of a hopper silo (``BOTTOM_WALLS`` among ``names``),
+    from the time-averaged normal pressure of each wall bin ``normal`` [Pa] over its span
+    s1 - s0 [m] (bins of walls ``wall``, indices into ``names``) and the slab thickness t
+    [m]: F = t sum p_i (s1_i - s0_i), p = F / (t sum (s1_i - s0_i)).  (nan, nan) without
+    such a bin (a gate already withdrawn is one)."""
+    ids = [k for k, name in enumerate(names) if name in BOTTOM_WALLS]
+    sel = np.isin(np.asarray(wall), ids)
+    span = (np.asarray(s1, dtype=float) - np.asarray(s0, dtype=float))[sel]
+    p = np.asarray(normal, dtype=float)[sel]
+    ok = np.isfinite(p)
+    if not ok.any() or span[ok].sum() <= 0:
+        return float("nan"), float("nan")
+    force = float(thickness * np.sum(p[ok] * span[ok]))
+    return force, force / (thickness * float(span[ok].sum()))

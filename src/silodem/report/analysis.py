@@ -17,7 +17,7 @@ from silodem import theory as th
 from silodem.measure import discharge as dis
 from silodem.measure import regions
 from silodem.measure.fields import band_solid_area
-from silodem.measure.wall_profiles import peak_in_zone
+from silodem.measure.wall_profiles import bottom_load, peak_in_zone
 from silodem.report import eurocode
 from silodem.report.load import Results
 from silodem.report.numbers import percent_change, percent_change_error
@@ -66,6 +66,8 @@ class Analysis:
     wall_at_fill_peak_err: float = float("nan")  # the error of its change [%]
     flow: dict[str, Any] = field(default_factory=dict)
     en1991_4: dict[str, Any] = field(default_factory=dict)  # the standard's wall loads
+    # after filling: (force [N], mean pressure [Pa]) on the floor and the closed gate
+    bottom: tuple[float, float] = (float("nan"), float("nan"))
     numbers: list[tuple[str, str, str]] = field(default_factory=list)  # key_numbers.add_numbers
 
     @property
@@ -214,6 +216,16 @@ def _edge(res: Results, mask: np.ndarray) -> EdgeProfile | None:
     return EdgeProfile(z, sn, td, vl, {s: (v[0], v[1]) for s, v in sides.items()})
 
 
+def _bottom(res: Results, mask: np.ndarray) -> tuple[float, float]:
+    """(force [N], mean pressure [Pa]) on the silo's bottom over the window ``mask``
+    (``wall_profiles.bottom_load``)."""
+    m = res.group("measure", "wall_bins")
+    if m is None or not mask.any() or "s0" not in m or "s1" not in m:
+        return float("nan"), float("nan")
+    return bottom_load(m["normal"][mask].mean(axis=0), m["s0"], m["s1"], m["wall"],
+                       list(res.group("walls")["name"]), res.cfg.material.thickness)
+
+
 def _strips(res: Results, mask: np.ndarray) -> dict[str, np.ndarray] | None:
     p = res.group("measure", "profiles")
     if p is None or not mask.any():
@@ -253,6 +265,8 @@ def analyse(res: Results) -> Analysis:
         strips = _strips(res, mask)
         if strips is not None:
             a.strips[key] = strips
+    if "fill" in masks:
+        a.bottom = _bottom(res, masks["fill"])
     _fit_theory(a, shape)
     eurocode.add_loads(a, eurocode.highest_wall_contact(settled, shape.width, d))
     _evolution_change(a, masks)

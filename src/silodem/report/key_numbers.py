@@ -143,6 +143,35 @@ def _pour_row(a: Analysis) -> None:
     a.numbers.append((label, value, "-"))
 
 
+def _bottom_rows(a: Analysis) -> None:
+    """The load of the fill on the silo's bottom after filling (the floor and the closed
+    gate; a hopper silo's gate), with its share of the fill's weight (the walls carry the
+    rest); in a flat silo its mean pressure against Janssen's sigma_v at the floor (K fitted,
+    mu_w = tan phi_P) and the hydrostatic rho_b g h."""
+    force, pressure = a.bottom
+    weight = float(a.res.events.get("initial_mass", np.nan)) * a.geom["g"]
+    if not np.isfinite(force):
+        return
+    flat = a.res.cfg.silo.kind == "flat"
+    what = "the floor and the closed gate" if flat else "the closed gate"
+    share = (f" ({_fmt(100 * force / weight, 3)} %)" if np.isfinite(weight) and weight > 0
+             else "")
+    label = (f"load on {what} after filling, slot of thickness t = {_fmt(a.geom['t'], 3)} m "
+             "(its share of the fill's weight m g; the walls carry the rest)")
+    a.numbers.append((label, f"{pascals(force)}{share}", "N"))
+    depth = a.surface["fill"]
+    if not flat or "fill" not in a.janssen or not np.isfinite(depth):
+        return
+    g = a.geom
+    jan = th.janssen_sigma_v(depth, a.rho_b, g["g"], g["B"], a.janssen["fill"].K,
+                             g["mu_wall"])
+    label = ("mean pressure on the bottom after filling / Janssen sigma_v at the floor (K "
+             "fitted, mu_w = tan phi_P) / hydrostatic rho_b g h")
+    value = (f"{pascals(pressure)} / {pascals(float(jan))} / "
+             f"{pascals(a.rho_b * g['g'] * depth)}")
+    a.numbers.append((label, value, "Pa"))
+
+
 def add_numbers(a: Analysis) -> None:
     """Into ``a.numbers``: the key numbers, (quantity, value, unit) rows."""
     n = a.numbers
@@ -193,6 +222,7 @@ def add_numbers(a: Analysis) -> None:
                    "can carry: this profile does not follow Janssen's law")
         value = f"{_janssen_K(j, 'fill')}, {mu}"
         n.append(("Janssen free fit after filling: K, mu_w", value, "-"))
+    _bottom_rows(a)
     if "fill" in a.janssen and "fill" in a.peaks:
         v, z = a.peaks["fill"]
         # Janssen is the cell's theory: a peak on the hopper walls is set against the cell's
