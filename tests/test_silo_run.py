@@ -8,6 +8,7 @@ import math
 import h5py
 import numpy as np
 import pytest
+from measure_helpers import tiny_hopper_config
 
 import silodem.jit
 from silodem.config import Config
@@ -287,6 +288,35 @@ def test_grains_lost_through_soft_walls_are_all_counted():
     totals = [w for w in run.warnings if w.startswith("grains lost in all: ")]
     assert len(totals) == 1
     assert totals[0].startswith(f"grains lost in all: {lost} grain(s) (")
+
+
+def test_a_hopper_lined_otherwise_than_the_cell_has_its_own_wall_friction():
+    """walls.hopper_friction_deg = 10 under a cell of 30 deg: the two hopper walls carry
+    mu = tan 10 deg, the cell walls and the gate tan 30 deg; unset, every wall has the cell's.
+    The report's hopper theory (Walker, EN 1991-4's hopper loads) reads the hopper's."""
+    sets = ["walls.friction_deg=30"]
+    lined = build_walls(load_config("paper-case2", [*sets, "walls.hopper_friction_deg=10"]))
+    mu = dict(zip(lined.names, lined.mu))
+    assert mu["left_hopper"] == mu["right_hopper"] == pytest.approx(math.tan(math.radians(10)))
+    for name in ("left_wall", "right_wall", "gate"):
+        assert mu[name] == pytest.approx(math.tan(math.radians(30)))
+    same = build_walls(load_config("paper-case2", sets))
+    assert set(np.round(same.mu, 12)) == {round(math.tan(math.radians(30)), 12)}
+    flat = load_config("paper-case1", ["walls.hopper_friction_deg=10"])  # no hopper: no effect
+    assert set(np.round(build_walls(flat).mu, 12)) == {round(math.tan(math.radians(26.5)), 12)}
+
+
+def test_the_hopper_theory_reads_the_hopper_walls_friction(tmp_path):
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    cfg = tiny_hopper_config()
+    cfg = cfg.model_copy(update={"walls": cfg.walls.model_copy(
+        update={"hopper_friction_deg": 12.0})})
+    run_simulation(cfg, tmp_path, progress=False)
+    a = analyse(load_results(tmp_path))
+    assert a.geom["mu_wall"] == pytest.approx(math.tan(math.radians(24.0)))
+    assert a.hopper["fill"]["mu"] == pytest.approx(math.tan(math.radians(12.0)))
 
 
 def test_geometry_places_the_junction_where_the_paper_has_it():

@@ -151,6 +151,15 @@ class WallMaterial(_Strict):
     young_modulus: float | None = _law_field("wall", "young_modulus")
     poisson_ratio: float | None = _law_field("wall", "poisson_ratio")
     friction_deg: float = Field(ge=0, lt=90, description="grain-wall friction angle phi_P [deg]")
+    hopper_friction_deg: float | None = Field(
+        None, ge=0, lt=90, description="grain-wall friction angle of the two hopper walls "
+        "phi_Ph [deg] (a hopper lined otherwise than the cell); unset: friction_deg")
+
+    def hopper_mu(self) -> float:
+        """tan of the hopper walls' friction angle [-]: hopper_friction_deg, else
+        friction_deg."""
+        deg = self.friction_deg if self.hopper_friction_deg is None else self.hopper_friction_deg
+        return math.tan(math.radians(deg))
 
 
 class Silo(_Strict):

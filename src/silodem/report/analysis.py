@@ -247,7 +247,8 @@ def analyse(res: Results) -> Analysis:
     geom = {"B": shape.width, "z_j": shape.junction, "D": cfg.silo.outlet_width,
             "top": shape.wall_top, "alpha": alpha, "apex": apex, "d": d,
             "t": cfg.material.thickness, "g": cfg.gravity,
-            "mu_wall": math.tan(math.radians(cfg.walls.friction_deg))}
+            "mu_wall": math.tan(math.radians(cfg.walls.friction_deg)),
+            "mu_hopper": cfg.walls.hopper_mu()}
     settled, dsnap = res.snapshot("settled"), res.snapshot("discharge")
     surface = {"fill": surface_height(settled, shape.width, d),
                "discharge": surface_height(dsnap, shape.width, d)}
@@ -355,7 +356,7 @@ def _walker(a: Analysis, key: str) -> dict[str, Any]:
     H = g["z_j"] + g["apex"]
     z = np.linspace(0.0, g["z_j"], 60)
     h = z + g["apex"]
-    mu_h = g["mu_wall"]
+    mu_h = g["mu_hopper"]
     hop = {"z": z, "q": q, "H": H, "mu": mu_h,
            "planar": th.hopper_sigma_v(h, H, q, gamma, g["alpha"], mu_h, 1.0, True),
            "conical": th.hopper_sigma_v(h, H, q, gamma, g["alpha"], mu_h, 1.0, False)}

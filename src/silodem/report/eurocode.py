@@ -96,7 +96,7 @@ def hopper_loads(a: Analysis, K: float, p_vft: float) -> dict[str, Any]:
     do not apply (a shallow hopper needs K < 1); no "p_ne" when F_e does not exist (phi_i <
     phi_wh)."""
     g = a.geom
-    beta, mu_h = g["alpha"], g["mu_wall"]
+    beta, mu_h = g["alpha"], g["mu_hopper"]
     out: dict[str, Any] = {"kind": th.en1991_4_hopper_kind(beta, K, mu_h), "K": K,
                            "p_vft": p_vft, "phi_i": th.en1991_4_phi_i_from_K(K)}
     z = np.linspace(0.0, g["z_j"], 60)

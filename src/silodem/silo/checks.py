@@ -180,7 +180,8 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
     soft = tuple(key for key, value in given if value < recommended)
     slip, shear = 0.0, ()
     if not c.hertz:  # (Mindlin's tangential stiffness follows the modulus and the overlap)
-        mu_g = math.tan(math.radians(m.friction_deg))  # (mu_w: tan phi_P, above)
+        mu_g = math.tan(math.radians(m.friction_deg))
+        mu_w = max(mu_w, w.hopper_mu()) if s.kind == "hopper" else mu_w  # (the cell's above)
         slip = max(mu_g * force / c.grain_ks, mu_w * force / c.wall_ks)
         # each side's k_s at mu times the k_n recommended: contacts of k_s/2 at least hold
         # mu F within 1 % of the radius, as the k_n's hold F

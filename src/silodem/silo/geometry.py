@@ -129,8 +129,9 @@ def build_walls(cfg: Config) -> Walls:
     walls.add("left_wall", (0.0, top), (0.0, zj), kn, ks, mu, one_sided=True)
     walls.add("right_wall", (B, zj), (B, top), kn, ks, mu, one_sided=True)
     if shape.kind == "hopper":
-        walls.add("left_hopper", (0.0, zj), (xl, 0.0), kn, ks, mu, one_sided=True)
-        walls.add("right_hopper", (xr, 0.0), (B, zj), kn, ks, mu, one_sided=True)
+        mu_h = cfg.walls.hopper_mu()  # (walls.hopper_friction_deg, else the cell's)
+        walls.add("left_hopper", (0.0, zj), (xl, 0.0), kn, ks, mu_h, one_sided=True)
+        walls.add("right_hopper", (xr, 0.0), (B, zj), kn, ks, mu_h, one_sided=True)
     else:
         walls.add("left_floor", (0.0, 0.0), (xl, 0.0), kn, ks, mu, one_sided=True)
         walls.add("right_floor", (xr, 0.0), (B, 0.0), kn, ks, mu, one_sided=True)

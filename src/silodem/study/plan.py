@@ -154,7 +154,8 @@ def label_of(point: dict[str, Any], seed: int | None = None) -> str:
 LATER_KEYS = {("material", "contact_model"): "linear", ("material", "young_modulus"): None,
               ("material", "poisson_ratio"): None, ("walls", "young_modulus"): None,
               ("walls", "poisson_ratio"): None, ("measure", "field_kernel"): "box",
-              ("measure", "field_width"): None, ("measure", "angle_of_repose_deg"): None}
+              ("measure", "field_width"): None, ("measure", "angle_of_repose_deg"): None,
+              ("walls", "hopper_friction_deg"): None}
 
 
 def config_hash(cfg: Config) -> str:
