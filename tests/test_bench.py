@@ -51,6 +51,22 @@ def test_bench_json_reports_the_deck_lattice_and_its_throughput():
     assert isinstance(out["machine"]["cpu"], str) and out["machine"]["cpu"]
 
 
+def test_bench_says_each_stage_on_stderr_and_keeps_stdout_for_the_json():
+    """A bench of 2e5 grains printed nothing for its minute of settling (an audit): each
+    stage is now said on stderr as it begins, with the grains and steps, while stdout holds
+    the JSON alone."""
+    proc = subprocess.run([sys.executable, "-m", "silodem", "bench", "--n", "400", "--steps",
+                           "40", "--settle", "60", "--json"], check=False, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    nx, ny = lattice_size(400)
+    assert proc.stderr.splitlines() == [
+        f"silodem bench: building the silo ({nx} x {ny} lattice)...",
+        f"silodem bench: {out['n']} grains: 60 untimed steps (the kernels compile here)...",
+        "silodem bench: 40 timed steps..."]
+
+
 def test_bench_rows_widens_the_deck_silo_to_n_grains():
     """--rows NY keeps the deck's column height and widens the silo: the deck's fill region
     0.2 <= y <= 0.352 NY - 0.4 holds the lattice rows y = 0.22 (k + 1/2), 29 of them at

@@ -36,6 +36,7 @@ import shutil
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from importlib import resources
 from pathlib import Path
@@ -174,12 +175,14 @@ def widened_size(n: int, rows: int) -> int:
 
 
 def run_silodem(n: int, threads: int, steps: int, settle: int,
-                rows: int | None = None, copies: int = 1) -> BenchResult:
+                rows: int | None = None, copies: int = 1,
+                say: Callable[[str], None] = lambda text: None) -> BenchResult:
     """Throughput of silodem on the benchmark silo of about ``n`` grains.  ``rows`` fixes the
     deck's NY (column height) and widens the silo instead; ``copies`` puts that many such
     silos side by side (N = copies x n), so that every N is in the same flow state (used for
     the cost-per-particle-step scaling; the default, NY = 2 NX and one silo, matches
-    ``--lammps``)."""
+    ``--lammps``).  ``say`` is told each stage as it begins (the command line's progress,
+    outside the timed steps)."""
     import numba
 
     numba.set_num_threads(threads)
@@ -187,7 +190,9 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
         nx, ny = lattice_size(n)
     else:
         nx, ny = widened_size(n, rows), rows
+    say(f"building the silo ({nx} x {ny} lattice{f', {copies} copies' if copies > 1 else ''})")
     sim, _, top = build(nx, ny, copies=copies)
+    say(f"{sim.particles.n} grains: {settle} untimed steps (the kernels compile here)")
     advance(sim, top, settle)
     builds = sim.neighbors.rebuilds
     build_time = [0.0]
@@ -199,6 +204,7 @@ def run_silodem(n: int, threads: int, steps: int, settle: int,
         build_time[0] += time.perf_counter() - t
 
     sim.neighbors.rebuild = timed_rebuild  # this run only: time the list builds
+    say(f"{steps} timed steps")
     t0 = time.perf_counter()
     advance(sim, top, steps)
     seconds = time.perf_counter() - t0
@@ -272,14 +278,18 @@ def run_lammps(nx: int, ny: int, ranks: int, steps: int, settle: int) -> BenchRe
 
 
 def bench(n: int, threads: int, steps: int, settle: int, lammps: bool,
-          rows: int | None = None) -> list[BenchResult]:
+          rows: int | None = None,
+          say: Callable[[str], None] = lambda text: None) -> list[BenchResult]:
     """silodem's run, and with ``lammps`` the deck's on the same lattice (NX, NY).  ``rows``:
-    the deck's NY, the silo widened to about ``n`` grains (``run_silodem``)."""
+    the deck's NY, the silo widened to about ``n`` grains (``run_silodem``); ``say``: told
+    each stage as it begins."""
     if lammps:
         lammps_command(threads)  # installed? (before minutes of silodem's run)
-    results = [run_silodem(n, threads, steps, settle, rows=rows)]
+    results = [run_silodem(n, threads, steps, settle, rows=rows, say=say)]
     if lammps:
         r = results[0]
+        say(f"LAMMPS on the same lattice: {settle} untimed and {steps} timed steps "
+            f"({threads} rank{'s' if threads > 1 else ''})")
         results.append(run_lammps(r.nx, r.ny, threads, steps, settle))
     return results
 

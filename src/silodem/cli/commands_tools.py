@@ -196,8 +196,13 @@ def bench(
     check_threads(threads)
     from silodem import bench as benchmark
 
+    err = Console(stderr=True, soft_wrap=True)
+
+    def say(text: str) -> None:  # (stderr: --json's stdout holds the JSON alone)
+        err.print(f"silodem bench: {text}...", markup=False, highlight=False)
+
     try:
-        results = benchmark.bench(n, threads, steps, settle, lammps, rows=rows)
+        results = benchmark.bench(n, threads, steps, settle, lammps, rows=rows, say=say)
     except benchmark.LammpsFailed as exc:  # (a traceback before)
         fail(f"error: {exc}", 1)
     if as_json:
