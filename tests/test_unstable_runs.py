@@ -126,6 +126,11 @@ def test_an_unphysical_state_stops_the_run_with_a_diagnosis_and_a_checkpoint(
         (["gravity=5e-324"], "too weak for a grain to fall out of the outlet"),
         # grains put in the pouring band at rest, with no gravity: they hang there
         (["gravity=0"], "the poured grains would hang where they are put"),
+        # heavy grains on soft springs: dt = 0.82 s, a grain that fell from the wall top
+        # (8.4 m/s) crosses 6.9 m in a step; it ended as unstable, exit 3 (an audit)
+        (["material.density=1e10"], (r"a time step of 0.824 s carries a grain that fell "
+                                    r"from the top of the walls \(8.4 m/s\) 6.92 m in one")),
+        (["material.density=1e300"], "fell from the top of the walls"),
     ],
 )
 def test_values_valid_one_by_one_but_unusable_together_are_refused(sets, needle):

@@ -35,7 +35,7 @@ from silodem.engine import hertz
 from silodem.engine.contact import GrainLaw, critical_time_step
 from silodem.errors import InputError
 from silodem.silo.geometry import silo_shape
-from silodem.silo.materials import contact_constants, linearised
+from silodem.silo.materials import contact_constants, impact_speed, linearised
 from silodem.theory import janssen_sigma_v
 
 PACKING_FRACTION = 0.82  # area fraction of a random packing of disks [-]
@@ -244,6 +244,13 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"{step:.3g} m in one time step of {dt:.3g} s, more than its radius "
             f"(material.radius_min = {cfg.material.radius_min:.3g} m): contacts would be "
             f"missed; give at most {floor_3(cfg.material.radius_min / dt):.3g} m/s")
+    fall = impact_speed(cfg) * dt  # a grain's travel in one step after a fall from the top
+    if not fall <= cfg.material.radius_min:
+        raise InputError(
+            f"a time step of {dt:.3g} s carries a grain that fell from the top of the walls "
+            f"({impact_speed(cfg):.3g} m/s) {fall:.3g} m in one step, more than its radius "
+            f"(material.radius_min = {cfg.material.radius_min:.3g} m): contacts would be "
+            f"missed and the run would end as unstable; check {keys}")
     if cfg.fill.method == "pour" and cfg.gravity == 0.0 and cfg.fill.initial_speed == 0.0:
         raise InputError("gravity = 0 with fill.method = 'pour' and fill.initial_speed = 0: "
                          "the poured grains would hang where they are put and never fill the "
