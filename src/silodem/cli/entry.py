@@ -4,6 +4,7 @@ traceback; an unstable run ends with exit code 3, Ctrl-C with 130 and SIGTERM wi
 
 from __future__ import annotations
 
+import errno
 import importlib
 import os
 import signal
@@ -55,6 +56,7 @@ def _interrupted() -> None:
     fail("interrupted", 130)
 
 
+NOT_INPUT = (errno.ENOSPC, errno.EDQUOT, errno.EIO)  # OSErrors of the machine, not the input
 PATH_FLAGS = ("--out", "-o", "--resume")  # options that take a path
 FOLDER_COMMANDS = ("plot", "animate")  # commands whose argument is a results folder
 
@@ -136,7 +138,8 @@ def main(argv: list[str] | None = None) -> None:
         _interrupted()
     except OSError as exc:  # a path given that the system refuses (name too long, ...)
         where = f": {exc.filename}" if exc.filename else ""
-        fail(f"error: {exc.strerror or exc}{where}", 2)
+        # a full disk or a failing one is no bad input: exit code 1, not 2
+        fail(f"error: {exc.strerror or exc}{where}", 1 if exc.errno in NOT_INPUT else 2)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
