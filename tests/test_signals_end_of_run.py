@@ -260,8 +260,8 @@ def test_a_second_signal_while_the_final_results_are_written_stops_at_once(
 def test_a_full_disk_during_the_final_write_names_the_checkpoint_kept(
         tmp_path, monkeypatch, capsys):
     """A final write that finds no room (an OSError, not a signal) ends the run with one line
-    (exit 1: a full disk is no bad input, which is 2) naming what failed, the checkpoint kept and the resume that goes on once the
-    cause is mended; results.h5 stays the last save's."""
+    (exit 1: a full disk is no bad input, which is 2) naming what failed, the checkpoint kept
+    and the resume that goes on once the cause is mended; results.h5 stays the last save's."""
     import errno
 
     import silodem.run

@@ -187,8 +187,9 @@ def test_a_silo_that_lost_every_grain_through_its_walls_stops_with_exit_3(capsys
     stops with one line naming the cause and exit code 3, kind all_lost in the diagnosis."""
     out = tmp_path / "run"
     soft = [f"{key}=10" for key in ("material.kn", "material.ks", "walls.kn", "walls.ks")]
+    # (dt_crit of 10 N/m is 0.2 s, in which a falling grain would cross 1.4 m: refused)
     with pytest.raises(SystemExit) as exit_info:
-        main(run_args(out, *soft))
+        main(run_args(out, *soft, "time.dt=0.005"))
     assert exit_info.value.code == 3
     line = capsys.readouterr().err.strip().splitlines()[-1]
     assert line.startswith("run stopped: no grain is left in the silo: all ") and \

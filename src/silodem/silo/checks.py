@@ -19,6 +19,7 @@
   5 % of the mean radius, with the k_s that keeps it under 1 %.
 * Values that are each valid but give no usable run together (``check_numbers``, before
   anything is written): stiffnesses out of range, a time step that is zero or not finite,
+  or in which a grain that fell from the top of the walls crosses more than its radius,
   more than ``MAX_STEPS`` steps, a loose fill that does not fit; and lengths so small
   against the silo that the arrays they size would not fit in memory (``check_sizes``).
 """
@@ -206,7 +207,8 @@ def law_key_names(cfg: Config) -> str:
 def check_numbers(cfg: Config) -> tuple[float, float]:
     """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
     run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, a pouring
-    speed that carries a grain more than its radius in one step, grains poured at rest without
+    speed, or the speed of a fall from the top of the walls, that carries a grain more than
+    its radius in one step, grains poured at rest without
     gravity, a clog time shorter than the first grain needs to leave
     (:func:`shortest_clog_time`), or a loose fill with more grains than fit in the silo)."""
     from silodem.silo.geometry import build_walls
@@ -250,7 +252,8 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"a time step of {dt:.3g} s carries a grain that fell from the top of the walls "
             f"({impact_speed(cfg):.3g} m/s) {fall:.3g} m in one step, more than its radius "
             f"(material.radius_min = {cfg.material.radius_min:.3g} m): contacts would be "
-            f"missed and the run would end as unstable; check {keys}")
+            f"missed and the run would end as unstable; check {keys}, silo.wall_height, "
+            "gravity and fill.initial_speed")
     if cfg.fill.method == "pour" and cfg.gravity == 0.0 and cfg.fill.initial_speed == 0.0:
         raise InputError("gravity = 0 with fill.method = 'pour' and fill.initial_speed = 0: "
                          "the poured grains would hang where they are put and never fill the "
