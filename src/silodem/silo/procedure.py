@@ -25,7 +25,7 @@ from silodem.engine import quantities as q
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.errors import InputError
-from silodem.silo.checks import choose_time_step, estimate_overlap, grain_law
+from silodem.silo.checks import PACKING_FRACTION, choose_time_step, estimate_overlap, grain_law
 from silodem.silo.geometry import GATE, SiloShape, build_walls, outlet_room, silo_shape
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
 
@@ -173,10 +173,7 @@ class SiloRun:
         self._advance(self._steps(BATCH_INTERVAL))
         elapsed = self.sim.time - st.phase_start
         if st.placed < f.n_particles and elapsed > f.max_time:
-            allowed = f.rate * f.max_time  # what the rate lets in at most
-            why = ("no room in the pouring band: the silo is full up to it"
-                   if st.placed < 0.5 * min(allowed, f.n_particles) else
-                   f"fill.rate = {f.rate:g} grains/s pours only about {allowed:.3g} in that time")
+            why = self._pour_stop_reason(elapsed)
             self.warnings.append(
                 f"pouring stopped after fill.max_time = {f.max_time} s with {st.placed} of "
                 f"{f.n_particles} grains placed: {why}"
@@ -185,6 +182,24 @@ class SiloRun:
             self.events["n_poured"] = st.placed
             self.events["fill_time"] = elapsed
             self._begin("settle")
+
+    def _pour_stop_reason(self, elapsed: float) -> str:
+        """Why pouring ended at fill.max_time short of fill.n_particles: the rate (it lets in
+        fewer than asked, and at least half of those were placed), else no room in the
+        pouring band, with the rate reached, and whether the grains placed would fill the
+        silo up to the band at rest (their area at ``checks.PACKING_FRACTION``)."""
+        f, st = self.cfg.fill, self.state
+        allowed = f.rate * f.max_time  # what the rate lets in at most
+        if allowed < f.n_particles and st.placed >= 0.5 * allowed:
+            return f"fill.rate = {f.rate:g} grains/s pours only about {allowed:.3g} in that time"
+        # the height the grains placed would fill at rest (the grains in the band are falling)
+        area = float(np.sum(np.pi * self.radii[:st.placed] ** 2)) / PACKING_FRACTION
+        band = self.shape.wall_top - f.band_height
+        if self.shape.height_of_area(area) >= band - 2.0 * self.cfg.material.radius_max:
+            return "no room in the pouring band: the silo is full up to it"
+        return (f"no room in the pouring band for more: {st.placed / elapsed:.3g} grains/s "
+                f"placed against fill.rate = {f.rate:g} (a batch places only the grains that "
+                "find room); give a longer fill.max_time")
 
     def _settle_chunk(self) -> None:
         """Run until the equilibrium criterion is met (or settle.max_time passes)."""
