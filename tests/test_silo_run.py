@@ -423,8 +423,8 @@ def test_a_pour_cut_short_by_a_full_silo_says_so_not_that_the_rate_was_low():
 def test_a_pour_slower_than_its_rate_with_the_silo_not_full_says_the_rate_reached():
     """paper-case2 with fill.max_time = 2 s: 250 grains/s asked, about 85/s placed (a batch
     places only the grains that find room in the band), 174 of 430 grains, which fill the
-    silo to about 2.4 m at rest (their area at a packing of 0.82), far under the band at 5.4 m: not 'the silo is full' (a
-    review of the first wording), nor the rate's 500."""
+    silo to about 2.4 m at rest (their area at a packing of 0.82), far under the band at
+    5.4 m: not 'the silo is full' (a review of the first wording), nor the rate's 500."""
     run = SiloRun(load_config("paper-case2", ["fill.max_time=2"]))
     while run.state.phase == "fill":
         run.advance_chunk()
