@@ -362,3 +362,25 @@ def test_the_dead_zone_is_read_up_to_the_discharge_windows_end():
     del f["max_displacement_window"]
     dead, to = _dead_zone(f, R)
     assert dead.tolist() == [False, False, False] and to == "the run's end"
+
+
+def test_in_a_slow_mass_flow_a_grain_that_descends_less_than_a_radius_is_not_dead():
+    """A column that has descended 0.15 m by the window's end: 150 kg through the outlet by
+    t = 1.5 s (100 kg/s) over rho_b B t = 1000 x 2 x 0.5 kg per metre.  A wall grain of a
+    mass flow moved 0.05 m, under a radius (0.1 m) but over a quarter of the descent
+    (0.0375 m): not dead; one that moved 0.01 m is.  Without a bulk density the radius
+    alone decides (a review: slow mass flows read as funnel flow)."""
+    from types import SimpleNamespace
+
+    from silodem.report.analysis import _dead_zone, mean_descent
+
+    a = SimpleNamespace(rho_b=1000.0, geom={"B": 2.0, "t": 0.5})
+    t, mass = np.array([0.0, 1.0, 2.0]), np.array([0.0, 100.0, 200.0])
+    descent = mean_descent(t, mass, 1.5, a)
+    assert descent == pytest.approx(0.15, rel=1e-12)
+    f = {"exit_time": np.full(3, np.nan), "max_displacement": np.zeros(3),
+         "max_displacement_window": np.array([0.05, 0.01, 0.2]),
+         "@attrs": {"window_start": 0.5, "window": 1.0}}
+    assert _dead_zone(f, 0.1, descent)[0].tolist() == [False, True, False]
+    assert _dead_zone(f, 0.1)[0].tolist() == [True, True, False]
+    assert mean_descent(t, mass, 1.5, SimpleNamespace(rho_b=np.nan, geom=a.geom)) == np.inf

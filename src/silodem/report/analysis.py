@@ -500,17 +500,37 @@ def wall_stress_at(edge: EdgeProfile, z: float) -> float:
 DEAD_TO = "the discharge window's end"  # the dead zone's horizon, in words
 
 
-def _dead_zone(f: dict, radius: float) -> tuple[np.ndarray, str]:
+DEAD_SHARE = 0.25  # a dead grain moved less than this share of the column's mean descent
+
+
+def _dead_zone(f: dict, radius: float, descent: float = np.inf) -> tuple[np.ndarray, str]:
     """The dead zone (``measure.discharge.dead_zone``) up to the end of the discharge window,
-    and that horizon in words; a results.h5 written before that record has only the whole
-    discharge's displacements, and its dead zone is read over the whole discharge, as it was
-    then."""
+    and that horizon in words.  ``descent`` [m]: the column's mean descent by then, a
+    function of the horizon (:func:`mean_descent`); a grain that moved less than ``radius``
+    but more than ``DEAD_SHARE`` of it is not dead.  In a slow mass flow every grain
+    descends, though by less than a radius within the window; a grain at the wall of a mass
+    flow moves at least 0.3 times as fast as one on the axis (the mass-flow index's
+    threshold), which moves at least at the mean: a quarter of the mean descent calls none
+    of them dead.
+    A results.h5 written before the window's record has only the whole discharge's
+    displacements, and its dead zone is read over the whole discharge, as it was then."""
     if "max_displacement_window" not in f:
         return dis.dead_zone(f["exit_time"], f["max_displacement"], radius), "the run's end"
     at = f["@attrs"]
     horizon = float(at["window_start"]) + float(at["window"])
-    return (dis.dead_zone(f["exit_time"], f["max_displacement_window"], radius, horizon),
-            DEAD_TO)
+    share = DEAD_SHARE * descent if np.isfinite(descent) else np.inf
+    return (dis.dead_zone(f["exit_time"], f["max_displacement_window"],
+                          min(radius, share), horizon), DEAD_TO)
+
+
+def mean_descent(t: np.ndarray, mass: np.ndarray, horizon: float, a: Analysis) -> float:
+    """The column's mean descent [m] by ``horizon`` [s after the opening]: the mass through
+    the outlet by then (``t``, ``mass``: the discharge's time series) over rho_b B t, the
+    mass of a layer of the cell 1 m deep; inf where it cannot be told (no bulk density)."""
+    per_metre = a.rho_b * a.geom["B"] * a.geom["t"]
+    if t.size == 0 or not (np.isfinite(per_metre) and per_metre > 0):
+        return np.inf
+    return float(np.interp(horizon, t, mass)) / per_metre
 
 
 def _flow(a: Analysis, shape) -> None:
@@ -535,7 +555,10 @@ def _flow(a: Analysis, shape) -> None:
         return
     band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
     mi = f["mass_flow_index"]
-    dead, dead_to = _dead_zone(f, 0.5 * a.geom["d"])
+    at = f["@attrs"]
+    descent = mean_descent(t, mass, float(at.get("window_start", np.nan)) +
+                           float(at.get("window", np.nan)), a)
+    dead, dead_to = _dead_zone(f, 0.5 * a.geom["d"], descent)
     dead_frac = dis.dead_fraction(dead, np.logical_or(*dis.lost_grains(f)))
     if np.isfinite(rate.rate):
         mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
