@@ -317,6 +317,14 @@ def test_the_hopper_theory_reads_the_hopper_walls_friction(tmp_path):
     a = analyse(load_results(tmp_path))
     assert a.geom["mu_wall"] == pytest.approx(math.tan(math.radians(24.0)))
     assert a.hopper["fill"]["mu"] == pytest.approx(math.tan(math.radians(12.0)))
+    from silodem.report.figures_stress import fig_wall_shear
+
+    e = a.edge["fill"]  # the fully mobilised line: each bin's own wall's friction
+    line = next(ln for ln in fig_wall_shear(a).axes[0].get_lines()
+                if ln.get_label().startswith("tan(phi_P) sigma_n") and "after" in
+                ln.get_label())
+    mu = np.where(e.on_vertical, math.tan(math.radians(24.0)), math.tan(math.radians(12.0)))
+    np.testing.assert_allclose(line.get_xdata(), mu * e.sigma_n, rtol=1e-12)
 
 
 def test_geometry_places_the_junction_where_the_paper_has_it():

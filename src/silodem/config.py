@@ -153,7 +153,8 @@ class WallMaterial(_Strict):
     friction_deg: float = Field(ge=0, lt=90, description="grain-wall friction angle phi_P [deg]")
     hopper_friction_deg: float | None = Field(
         None, ge=0, lt=90, description="grain-wall friction angle of the two hopper walls "
-        "phi_Ph [deg] (a hopper lined otherwise than the cell); unset: friction_deg")
+        "phi_Ph [deg] (a hopper lined otherwise than the cell); unset: friction_deg; a flat "
+        "silo has no hopper walls and does not read it")
 
     def hopper_mu(self) -> float:
         """tan of the hopper walls' friction angle [-]: hopper_friction_deg, else

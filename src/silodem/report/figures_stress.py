@@ -290,7 +290,8 @@ def fig_wall_shear(a: Analysis) -> Figure | None:
         ax.plot(e.tau_down, e.z, color=color, marker="o", ms=4, lw=1.5,
                 label=_flagged(f"downward shear on the wall, {when}",
                                WALLS_HELD_UP_SHORT if held_up else ""))
-        ax.plot(a.geom["mu_wall"] * e.sigma_n, e.z, color=color, lw=1, ls="--",
+        mu = np.where(e.on_vertical, a.geom["mu_wall"], a.geom["mu_hopper"])  # [-]
+        ax.plot(mu * e.sigma_n, e.z, color=color, lw=1, ls="--",
                 label=f"tan(phi_P) sigma_n (fully mobilised), {when}")
     ax.axvline(0, color="0.4", lw=0.6)
     ax.set_xlabel("wall shear stress [Pa]")

@@ -102,7 +102,8 @@ FIGURES = [
                fs.fig_fields),
     FigureSpec("wall_shear", "",
                "Wall friction along the silo wall, against its fully mobilised value "
-               "tan(phi_P) sigma_n: Janssen's theory assumes full mobilisation.",
+               "tan(phi_P) sigma_n (on the hopper walls, of walls.hopper_friction_deg where "
+               "it is set): Janssen's theory assumes full mobilisation.",
                fs.fig_wall_shear),
     FigureSpec("vertical_discharge", "",
                "Vertical stress along the silo wall during discharge (time average over the "
