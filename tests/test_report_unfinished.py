@@ -355,6 +355,15 @@ def test_the_advice_for_an_unstable_a_checkpointless_and_a_study_folder_is_what_
                            "go on from (checkpoint.enabled false, or none written yet): it "
                            "cannot be resumed; start it again")
 
+    with h5py.File(bare / "results.h5", "r+") as h5:  # a run still going, or killed
+        h5.attrs["status"] = "running"
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", str(bare)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and err[-1].endswith(
+        f"the run in {bare} has written no checkpoint.h5 yet: it is still running, or was "
+        "killed before its first checkpoint; nothing to resume")
+
     study = tmp_path / "study"
     (study / "runs").mkdir(parents=True)
     (study / "study.toml").write_text("# a study\n")

@@ -363,6 +363,10 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
                 raise CheckpointError(f"the run in {where} has finished (results.h5 is complete);"
                                       " there is nothing to resume")
             status = _results_status(where)
+            if status == "running":  # (a run killed before it could say it stopped, too)
+                raise CheckpointError(f"the run in {where} has written no {CHECKPOINT_NAME} "
+                                      "yet: it is still running, or was killed before its "
+                                      "first checkpoint; nothing to resume")
             if status is not None:  # a run's results.h5, stopped, with no checkpoint kept
                 raise CheckpointError(f"the run in {where} stopped ({status}) with no "
                                       f"{CHECKPOINT_NAME} to go on from (checkpoint.enabled "
