@@ -150,8 +150,6 @@ def remove_partial_saves(out: Path) -> None:
         (out / f".{name}.tmp").unlink(missing_ok=True)
 
 
-
-
 @contextlib.contextmanager
 def folder_lock(out: Path) -> Iterator[None]:
     """Hold an exclusive ``flock`` on the folder ``out`` itself while the block runs;
@@ -169,3 +167,16 @@ def folder_lock(out: Path) -> Iterator[None]:
         yield
     finally:
         os.close(fd)  # (releases the lock)
+
+
+def check_not_in_use(out: Path) -> None:
+    """InputError when another process holds ``out``'s lock (:func:`folder_lock`), so that
+    the command line refuses before it says anything of the run; nothing when ``out`` is no
+    folder yet.  (The run takes the lock itself when it starts.)"""
+    if not Path(out).is_dir():
+        return
+    try:
+        with folder_lock(Path(out)):
+            pass
+    except OSError:  # a folder that cannot be opened: the output checks say what is wrong
+        return

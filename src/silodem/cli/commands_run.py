@@ -72,7 +72,9 @@ def _resume(ctx: typer.Context, folder: Path, threads: int | None) -> None:
     if folder.exists() and not folder.is_dir():
         raise InputError(f"--resume {folder} is a file; give the results folder of the run")
     from silodem.run import read_checkpoint, resume_simulation  # imports numba: only when running
+    from silodem.run_folder import check_not_in_use
 
+    check_not_in_use(folder)  # (a run still writing there: refused before a word is said)
     checkpoint = read_checkpoint(folder)  # a one-line error before anything is announced
     console = Console(soft_wrap=True)
     console.print(f"silodem: resuming the run in {folder}", markup=False, highlight=False)
@@ -150,8 +152,10 @@ def run(
     from silodem.silo.checks import check_numbers
 
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
+    from silodem.run_folder import check_not_in_use, replacing_note
+
+    check_not_in_use(out_dir)  # (a run writing there: not 'an unfinished run' to resume)
     check_out(out_dir)
-    from silodem.run_folder import replacing_note
 
     replacing = replacing_note(out_dir, "--out")  # (a finished run was replaced unsaid)
 
