@@ -1141,11 +1141,16 @@ def test_a_sweep_into_a_folder_that_is_not_a_studys_is_refused(tmp_path, capsys)
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
-    assert err.startswith(f"error: --out {run} holds report.html (+1 more), which a study")
+    assert err.startswith(f"error: --out {run} holds report.html (+2 more), which a study")
     assert sorted(p.name for p in run.iterdir()) == ["config.toml", "figures", "report.html"]
     assert (run / "report.html").read_text() == "the run's report"
     from silodem.study.execute import check_study_folder
 
     check_study_folder(tmp_path / "empty")  # (missing: made later)
+    quiet = tmp_path / "quiet-run"  # a run that drew nothing: its results.h5 alone
+    quiet.mkdir()
+    (quiet / "results.h5").write_bytes(b"a run's")
+    with pytest.raises(InputError, match="holds results.h5, which a study there"):
+        check_study_folder(quiet)
     (run / "study.toml").write_text("# a study's folder\n")
     check_study_folder(run)

@@ -245,16 +245,20 @@ def check_workers(workers: int | None, what: str = "workers", *, local: bool = F
             "scheduler and workers on other machines and pass its address as the scheduler")
 
 
-STUDY_FILES = ("study.toml", "results.csv", "report.html", "figures")  # what a study writes
+# what a study writes beside its study.toml, and what a single run's folder holds: a folder
+# with any of them but no study.toml is not a study's
+NOT_A_STUDY = ("report.html", "results.csv", "figures", "results.h5", "config.toml",
+               "checkpoint.h5")
 
 
 def check_study_folder(out_dir: Path) -> None:
     """InputError if ``out_dir`` holds files a study writes (report.html, results.csv,
-    figures/) but is no study's folder (no study.toml, which every study writes first): a
-    sweep there replaced a single run's report.html and put its figures among the run's."""
+    figures/) or a run's (results.h5, config.toml, checkpoint.h5) but is no study's folder
+    (no study.toml, which every study writes first): a sweep there replaced a single run's
+    report.html and put its figures among the run's."""
     if (out_dir / "study.toml").is_file():
         return
-    found = [name for name in STUDY_FILES[1:] if (out_dir / name).exists()]
+    found = [name for name in NOT_A_STUDY if (out_dir / name).exists()]
     if found:
         more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
         raise InputError(f"--out {out_dir} holds {found[0]}{more}, which a study there would "
