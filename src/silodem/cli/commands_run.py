@@ -134,7 +134,8 @@ def run(
       silodem run --resume runs/test    (continue a run stopped by Ctrl-C or a crash)
 
     Checkpoints are saved while it runs; Ctrl-C (SIGINT) or SIGTERM saves one and stops.
-    Exit codes: 0 done, 2 bad input, 3 unstable run stopped, 130/143 stopped by SIGINT/SIGTERM.
+    Exit codes: 0 done, 1 a file not written (a full disk), 2 bad input, 3 unstable run
+    stopped, 130/143 stopped by SIGINT/SIGTERM.
     """
     check_threads(threads)
     if resume is not None:

@@ -1,6 +1,7 @@
 """The ``silodem`` entry point: runs the app and turns every bad input (file, scenario,
 ``--set``, option value, usage) into exactly one line on stderr and exit code 2, never a
-traceback; an unstable run ends with exit code 3, Ctrl-C with 130 and SIGTERM with 143."""
+traceback; a full disk (or another fault of the machine's, not the input's) ends with exit
+code 1, an unstable run with 3, Ctrl-C with 130 and SIGTERM with 143."""
 
 from __future__ import annotations
 

@@ -167,7 +167,7 @@ def bottom_load(normal: npt.ArrayLike, s0: npt.ArrayLike, s1: npt.ArrayLike,
     from the time-averaged normal pressure of each wall bin ``normal`` [Pa] over its span
     s1 - s0 [m] (bins of walls ``wall``, indices into ``names``) and the slab thickness t
     [m]: F = t sum p_i (s1_i - s0_i), p = F / (t sum (s1_i - s0_i)).  (nan, nan) without
-    such a bin (a gate already withdrawn is one)."""
+    such a bin; a withdrawn gate's bins hold 0 Pa."""
     ids = [k for k, name in enumerate(names) if name in BOTTOM_WALLS]
     sel = np.isin(np.asarray(wall), ids)
     span = (np.asarray(s1, dtype=float) - np.asarray(s0, dtype=float))[sel]

@@ -158,7 +158,7 @@ def _bottom_rows(a: Analysis) -> None:
              else "")
     label = (f"load on {what} after filling, slot of thickness t = {_fmt(a.geom['t'], 3)} m "
              "(its share of the fill's weight m g; the walls carry the rest)")
-    a.numbers.append((label, f"{pascals(force)}{share}", "N"))
+    a.numbers.append((label, f"{force:,.0f}{share}", "N"))
     depth = a.surface["fill"]
     if not flat or "fill" not in a.janssen or not np.isfinite(depth):
         return
