@@ -173,10 +173,10 @@ def check_not_in_use(out: Path) -> None:
     """InputError when another process holds ``out``'s lock (:func:`folder_lock`), so that
     the command line refuses before it says anything of the run; nothing when ``out`` is no
     folder yet.  (The run takes the lock itself when it starts.)"""
-    if not Path(out).is_dir():
-        return
     try:
+        if not Path(out).is_dir():
+            return
         with folder_lock(Path(out)):
             pass
-    except OSError:  # a folder that cannot be opened: the output checks say what is wrong
+    except OSError:  # a path the system refuses (too long, ...): the output checks say so
         return

@@ -156,8 +156,9 @@ def _bottom_rows(a: Analysis) -> None:
     what = "the floor and the closed gate" if flat else "the closed gate"
     share = (f" ({_fmt(100 * force / weight, 3)} %)" if np.isfinite(weight) and weight > 0
              else "")
-    label = (f"load on {what} after filling, slot of thickness t = {_fmt(a.geom['t'], 3)} m "
-             "(its share of the fill's weight m g; the walls carry the rest)")
+    when = a.labels["fill"]  # (an unsettled run's: the last window of its settling)
+    label = (f"load on {what} {when}, slot of thickness t = {_fmt(a.geom['t'], 3)} m (its "
+             "share of the fill's weight m g; the walls carry the rest)")
     a.numbers.append((label, f"{force:,.0f}{share}", "N"))
     depth = a.surface["fill"]
     if not flat or "fill" not in a.janssen or not np.isfinite(depth):
@@ -165,8 +166,8 @@ def _bottom_rows(a: Analysis) -> None:
     g = a.geom
     jan = th.janssen_sigma_v(depth, a.rho_b, g["g"], g["B"], a.janssen["fill"].K,
                              g["mu_wall"])
-    label = ("mean pressure on the bottom after filling / Janssen sigma_v at the floor (K "
-             "fitted, mu_w = tan phi_P) / hydrostatic rho_b g h")
+    label = (f"mean pressure on the bottom {when} / Janssen sigma_v at the floor (K fitted, "
+             "mu_w = tan phi_P) / hydrostatic rho_b g h")
     value = (f"{pascals(pressure)} / {pascals(float(jan))} / "
              f"{pascals(a.rho_b * g['g'] * depth)}")
     a.numbers.append((label, value, "Pa"))
