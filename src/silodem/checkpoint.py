@@ -331,8 +331,8 @@ class LoadedCheckpoint:
 
 
 def _results_status(folder: Path) -> str | None:
-    """The ``status`` of the results.h5 a silodem run wrote in ``folder`` (None: no such file,
-    or not silodem's)."""
+    """The ``status`` of the results.h5 a silodem run wrote in ``folder`` ("complete" when it
+    has none; None: no such file, or not silodem's)."""
     try:
         with h5py.File(folder / "results.h5", "r") as h5:
             if "silodem_version" not in h5.attrs:
@@ -343,14 +343,6 @@ def _results_status(folder: Path) -> str | None:
     return status.decode(errors="replace") if isinstance(status, bytes) else str(status)
 
 
-def _results_complete(folder: Path) -> bool:
-    try:
-        with h5py.File(folder / "results.h5", "r") as h5:
-            return h5.attrs.get("status", "complete") == "complete"
-    except OSError:
-        return False
-
-
 def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
     """Read ``where`` (a results folder, or a checkpoint file).  Every problem (missing folder
     or file, unreadable or foreign file, other format version, invalid config) raises
@@ -359,10 +351,10 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
     if where.is_dir():
         path = where / CHECKPOINT_NAME
         if not path.exists():
-            if _results_complete(where):
+            status = _results_status(where)
+            if status == "complete":
                 raise CheckpointError(f"the run in {where} has finished (results.h5 is complete);"
                                       " there is nothing to resume")
-            status = _results_status(where)
             if status == "running":  # (a run killed before it could say it stopped, too)
                 raise CheckpointError(f"the run in {where} has written no {CHECKPOINT_NAME} "
                                       "yet: it is still running, or was killed before its "

@@ -27,18 +27,15 @@ RESULTS_NAME = "results.h5"
 
 # what a run and its pictures write into the folder (the VTK writer clears its own files)
 ANIMATIONS = ("animation.mp4", "animation.gif")  # silodem animate's default names
-_RUN_FILES = (RESULTS_NAME, "report.html", "settled.png", "final.png", DIAGNOSTIC_NAME,
-              FAILURE_NAME, *ANIMATIONS)
+PICTURES = ("report.html", "settled.png", "final.png", *ANIMATIONS)  # (and figures/*.png)
+_RUN_FILES = (RESULTS_NAME, *PICTURES, DIAGNOSTIC_NAME, FAILURE_NAME)
 
 
 def _replaced_files(out: Path) -> list[Path]:
     """The files of ``out`` that ``clear_previous_run`` removes by name (not the frames' and
     VTK writers' own files, which they recognise); an unstable run's checkpoint.h5 among them
     (``ended_unstable``)."""
-    found = [out / name for name in _RUN_FILES if (out / name).exists()]
-    figures = out / "figures"
-    if figures.is_dir():
-        found += sorted(figures.glob("*.png"))
+    found = [out / name for name in _RUN_FILES if (out / name).exists()] + _figures(out)
     if (out / CHECKPOINT_NAME).exists() and ended_unstable(out):
         found.append(out / CHECKPOINT_NAME)
     return found
@@ -131,12 +128,14 @@ def remove_pictures(out: Path) -> None:
     under their default names), before a resume: they stayed beside the finished run's
     results, the report's banner still saying "Unfinished run ... continue it with ..." when
     the run drew no report of its own (``measure.report = false``)."""
-    for name in ("report.html", "settled.png", "final.png", *ANIMATIONS):
-        (out / name).unlink(missing_ok=True)
+    for path in [out / name for name in PICTURES] + _figures(out):
+        path.unlink(missing_ok=True)
+
+
+def _figures(out: Path) -> list[Path]:
+    """The report's figures/*.png in ``out``, sorted."""
     figures = out / "figures"
-    if figures.is_dir():
-        for png in figures.glob("*.png"):
-            png.unlink(missing_ok=True)
+    return sorted(figures.glob("*.png")) if figures.is_dir() else []
 
 
 def remove_partial_saves(out: Path) -> None:

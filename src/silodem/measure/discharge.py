@@ -111,15 +111,22 @@ def mass_flow_index(v_wall: npt.ArrayLike, v_axis: npt.ArrayLike, level: npt.Arr
     return float(np.mean(v_wall[ok]) / va) if va != 0 else float("nan")
 
 
+DEAD_SHARE = 0.25  # a dead grain moved less than this share of the column's mean descent
+
+
 def dead_zone(exit_time: npt.ArrayLike, max_displacement: npt.ArrayLike,
-              radius: float, horizon: float = np.inf) -> np.ndarray:
+              radius: float, horizon: float = np.inf, descent: float = np.inf) -> np.ndarray:
     """True for the grains that had not left by ``horizon`` [s after the gate opened] (exit
     time NaN or later) and never moved more than ``radius`` [m] up to it
     (``max_displacement`` [m], the largest distance from the grain's place at the opening up
-    to the horizon)."""
+    to the horizon), nor more than ``DEAD_SHARE`` of the column's mean ``descent`` [m] by
+    then.  In a slow mass flow every grain descends, though by less than a radius within
+    the window; a grain at the wall of a mass flow moves at least 0.3 times as fast as one
+    on the axis (the mass-flow index's threshold), which moves at least at the mean: a
+    quarter of the mean descent calls none of them dead."""
     exit_time = np.asarray(exit_time, dtype=float)
     stayed = np.isnan(exit_time) | (exit_time > horizon)
-    return stayed & (np.asarray(max_displacement) < radius)
+    return stayed & (np.asarray(max_displacement) < min(radius, DEAD_SHARE * descent))
 
 
 def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -500,27 +500,22 @@ def wall_stress_at(edge: EdgeProfile, z: float) -> float:
 DEAD_TO = "the discharge window's end"  # the dead zone's horizon, in words
 
 
-DEAD_SHARE = 0.25  # a dead grain moved less than this share of the column's mean descent
-
-
 def _dead_zone(f: dict, radius: float, descent: float = np.inf) -> tuple[np.ndarray, str]:
-    """The dead zone (``measure.discharge.dead_zone``) up to the end of the discharge window,
-    and that horizon in words.  ``descent`` [m]: the column's mean descent by then, a
-    function of the horizon (:func:`mean_descent`); a grain that moved less than ``radius``
-    but more than ``DEAD_SHARE`` of it is not dead.  In a slow mass flow every grain
-    descends, though by less than a radius within the window; a grain at the wall of a mass
-    flow moves at least 0.3 times as fast as one on the axis (the mass-flow index's
-    threshold), which moves at least at the mean: a quarter of the mean descent calls none
-    of them dead.
-    A results.h5 written before the window's record has only the whole discharge's
-    displacements, and its dead zone is read over the whole discharge, as it was then."""
+    """The dead zone (``measure.discharge.dead_zone``) up to the end of the discharge window
+    (``_horizon``), ``descent`` [m] the column's mean descent by then (:func:`mean_descent`),
+    and that horizon in words.  A results.h5 written before the window's record has only the
+    whole discharge's displacements, and its dead zone is read over the whole discharge, as
+    it was then."""
     if "max_displacement_window" not in f:
         return dis.dead_zone(f["exit_time"], f["max_displacement"], radius), "the run's end"
+    return (dis.dead_zone(f["exit_time"], f["max_displacement_window"], radius, _horizon(f),
+                          descent), DEAD_TO)
+
+
+def _horizon(f: dict) -> float:
+    """The end of the discharge window [s after the gate opened] (NaN in a file without)."""
     at = f["@attrs"]
-    horizon = float(at["window_start"]) + float(at["window"])
-    share = DEAD_SHARE * descent if np.isfinite(descent) else np.inf
-    return (dis.dead_zone(f["exit_time"], f["max_displacement_window"],
-                          min(radius, share), horizon), DEAD_TO)
+    return float(at.get("window_start", np.nan)) + float(at.get("window", np.nan))
 
 
 def mean_descent(t: np.ndarray, mass: np.ndarray, horizon: float, a: Analysis) -> float:
@@ -530,7 +525,8 @@ def mean_descent(t: np.ndarray, mass: np.ndarray, horizon: float, a: Analysis) -
     per_metre = a.rho_b * a.geom["B"] * a.geom["t"]
     if t.size == 0 or not (np.isfinite(per_metre) and per_metre > 0):
         return np.inf
-    return float(np.interp(horizon, t, mass)) / per_metre
+    descent = float(np.interp(horizon, t, mass)) / per_metre
+    return descent if np.isfinite(descent) else np.inf  # (no window: the radius decides)
 
 
 def _flow(a: Analysis, shape) -> None:
@@ -555,9 +551,7 @@ def _flow(a: Analysis, shape) -> None:
         return
     band_lo, band_hi = float(f["@attrs"]["mfi_band_lo"]), float(f["@attrs"]["mfi_band_hi"])
     mi = f["mass_flow_index"]
-    at = f["@attrs"]
-    descent = mean_descent(t, mass, float(at.get("window_start", np.nan)) +
-                           float(at.get("window", np.nan)), a)
+    descent = mean_descent(t, mass, _horizon(f), a)
     dead, dead_to = _dead_zone(f, 0.5 * a.geom["d"], descent)
     dead_frac = dis.dead_fraction(dead, np.logical_or(*dis.lost_grains(f)))
     if np.isfinite(rate.rate):
