@@ -331,12 +331,10 @@ class LoadedCheckpoint:
 
 
 def _results_status(folder: Path) -> str | None:
-    """The ``status`` of the results.h5 a silodem run wrote in ``folder`` ("complete" when it
-    has none; None: no such file, or not silodem's)."""
+    """The ``status`` of the results.h5 in ``folder`` ("complete" when it has none; None: no
+    such file, or not HDF5)."""
     try:
         with h5py.File(folder / "results.h5", "r") as h5:
-            if "silodem_version" not in h5.attrs:
-                return None
             status = h5.attrs.get("status", "complete")
     except OSError:
         return None
