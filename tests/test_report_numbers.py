@@ -612,6 +612,9 @@ def test_key_numbers_of_the_report(synth):
     Expected values as in the tests above; the peak / Janssen ratio is 4500 Pa over Janssen's
     sigma_h with K = 0.55 at the depth 1.36 - 0.5 m; 'n/a' where a change has no base."""
     a, _ = synth
+    # the config's radii (module docstring): d = 0.045 + 0.055
+    assert _number(a, "grain radii (shares by number) / mean diameter d") == (
+        "uniform in [0.045, 0.055] / 0.1")
     assert _first_float(_number(a, "free surface after filling")) == pytest.approx(
         SURF_FILL, rel=5e-4)
     assert _first_float(_number(a, "bulk density")) == pytest.approx(RHO_B, rel=5e-4)

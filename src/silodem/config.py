@@ -58,8 +58,19 @@ class Material(_Strict):
 
     density: float = Field(gt=0, description="grain density rho [kg/m^3]")
     radius_min: float = Field(gt=0, description="smallest grain radius [m]")
-    radius_max: float = Field(
-        gt=0, description="largest grain radius [m]; radii uniform in [min, max]"
+    radius_max: float = Field(gt=0, description="largest grain radius [m]")
+    radius_distribution: Literal["uniform", "uniform_mass", "discrete"] = Field(
+        "uniform", description="'uniform': radii uniform in [radius_min, radius_max] (Tables "
+        "1-2); 'uniform_mass': equal mass of grains in equal radius intervals of that range; "
+        "'discrete': the sizes of radii (radius_min and radius_max, when unset, their "
+        "smallest and largest)"
+    )
+    radii: list[float] | None = Field(
+        None, description="the grain radii of radius_distribution = 'discrete' [m]"
+    )
+    radius_shares: list[float] | None = Field(
+        None, description="each of radii's share of the grains by number, summing to 1 [-]; "
+        "unset: equal shares"
     )
     thickness: float = Field(1.0, gt=0, description="out-of-plane thickness t of a disk [m]")
     contact_model: Literal["linear", "hertz_mindlin"] = Field(
@@ -97,8 +108,21 @@ class Material(_Strict):
             data = {**data, "restitution": None}
         return data
 
+    @model_validator(mode="before")
+    @classmethod
+    def _discrete_bounds(cls, data: Any) -> Any:
+        """With discrete radii, radius_min and radius_max default to their smallest and
+        largest, so that a config gives each size once."""
+        if (isinstance(data, dict) and data.get("radius_distribution") == "discrete"
+                and isinstance(data.get("radii"), list) and data["radii"]
+                and all(isinstance(r, (int, float)) for r in data["radii"])):
+            data = {"radius_min": min(data["radii"]), "radius_max": max(data["radii"]),
+                    **data}
+        return data
+
     @model_validator(mode="after")
     def _check(self) -> Material:
+        self._check_sizes()
         if self.radius_max < self.radius_min:
             raise ValueError(
                 f"material.radius_max ({self.radius_max}) must be >= material.radius_min "
@@ -111,6 +135,40 @@ class Material(_Strict):
                 f"({self.damping_ratio}) both set the normal damping; give one of them"
             )
         return self
+
+    def _check_sizes(self) -> None:
+        """The keys of the discrete distribution: given together with it, and consistent."""
+        if self.radius_distribution != "discrete":
+            for key in ("radii", "radius_shares"):
+                if getattr(self, key) is not None:
+                    raise ValueError(f"material.{key} is read only with "
+                                     "radius_distribution = 'discrete'; set that too, or "
+                                     f"remove material.{key}")
+            return
+        if not self.radii:
+            raise ValueError("material.radius_distribution = 'discrete' needs the grain radii: "
+                             "give material.radii, e.g. [0.01, 0.02]")
+        if any(not (math.isfinite(r) and r > 0) for r in self.radii):
+            raise ValueError(f"material.radii must hold positive radii [m], not {self.radii}")
+        if len(set(self.radii)) != len(self.radii):
+            raise ValueError(f"material.radii must not repeat a radius: {self.radii}")
+        for key, value in (("radius_min", min(self.radii)), ("radius_max", max(self.radii))):
+            if getattr(self, key) != value:
+                raise ValueError(
+                    f"material.{key} ({getattr(self, key)}) is not the "
+                    f"{'smallest' if key == 'radius_min' else 'largest'} of material.radii "
+                    f"({value}): set material.{key} = {value} too")
+        s = self.radius_shares
+        if s is None:
+            return
+        if len(s) != len(self.radii):
+            raise ValueError(f"material.radius_shares has {len(s)} values for "
+                             f"{len(self.radii)} radii; give one share per radius")
+        if any(not (math.isfinite(v) and v > 0) for v in s):
+            raise ValueError(f"material.radius_shares must hold positive shares, not {s}")
+        if abs(sum(s) - 1.0) > 1e-9:
+            raise ValueError(f"material.radius_shares sum to {sum(s):.12g}, not 1: give "
+                             "each radius's share of the grains by number")
 
     @property
     def normal_damping_ratio(self) -> float:

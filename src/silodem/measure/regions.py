@@ -13,6 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from silodem.config import Config
+from silodem.silo import sizes
 from silodem.silo.geometry import SiloShape
 
 
@@ -28,8 +29,8 @@ class CircleRegion:
 
 
 def mean_diameter(cfg: Config) -> float:
-    """Mean grain diameter [m] (radii uniform in [r_min, r_max])."""
-    return cfg.material.radius_min + cfg.material.radius_max
+    """Mean grain diameter by number [m] (``silo.sizes.mean_radius``)."""
+    return 2.0 * sizes.mean_radius(cfg.material)
 
 
 def inside_silo(shape: SiloShape, x: npt.ArrayLike, z: npt.ArrayLike) -> np.ndarray:

@@ -30,6 +30,7 @@ from silodem.report.flags import (
     walls_held_up,
 )
 from silodem.report.numbers import pascals, poorly_determined, resolved, significant
+from silodem.silo import sizes
 
 
 def mfi_where(a: Analysis) -> str:
@@ -182,6 +183,8 @@ def add_numbers(a: Analysis) -> None:
     if a.res.cfg.silo.kind == "hopper":
         n.append(("hopper half-angle from the vertical alpha (= 90 - theta)",
                   f"{g['alpha']:.3g}", "deg"))
+    n.append(("grain radii (shares by number) / mean diameter d",
+              f"{sizes.describe(a.res.cfg.material)} / {g['d']:.3g}", "m"))
     _pour_row(a)
     lost_row(a)
     surface = ("free surface after filling (mean top of the grain columns, one diameter "

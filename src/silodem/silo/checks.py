@@ -35,6 +35,7 @@ from silodem.config import Config
 from silodem.engine import hertz
 from silodem.engine.contact import GrainLaw, critical_time_step
 from silodem.errors import InputError
+from silodem.silo import sizes
 from silodem.silo.geometry import silo_shape
 from silodem.silo.materials import contact_constants, impact_speed, linearised
 from silodem.theory import janssen_sigma_v
@@ -152,9 +153,8 @@ def estimate_overlap(cfg: Config) -> OverlapEstimate:
     overlap that force makes on the softer of the grain-grain and grain-wall contacts."""
     m, s = cfg.material, cfg.silo
     shape = silo_shape(cfg)
-    r_mean = 0.5 * (m.radius_min + m.radius_max)
-    mean_r2 = (m.radius_max**3 - m.radius_min**3) / (3 * (m.radius_max - m.radius_min)) \
-        if m.radius_max > m.radius_min else m.radius_min**2
+    r_mean = sizes.mean_radius(m)
+    mean_r2 = sizes.mean_square_radius(m)
     area = cfg.fill.n_particles * math.pi * mean_r2 / PACKING_FRACTION
     fill_height = shape.height_of_area(area)
     depth = max(fill_height - shape.junction, 0.0)

@@ -25,6 +25,7 @@ from silodem.engine import quantities as q
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.errors import InputError
+from silodem.silo import sizes
 from silodem.silo.checks import PACKING_FRACTION, choose_time_step, estimate_overlap, grain_law
 from silodem.silo.geometry import GATE, SiloShape, build_walls, outlet_room, silo_shape
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
@@ -68,7 +69,7 @@ class ProcedureState:
 
 def neighbour_skin(cfg: Config) -> float:
     """Verlet-list skin of a silo run [m]: 0.4 mean grain radii."""
-    return 0.4 * 0.5 * (cfg.material.radius_min + cfg.material.radius_max)
+    return 0.4 * sizes.mean_radius(cfg.material)
 
 
 def loose_spacing(radius_max: float) -> float:
@@ -113,7 +114,7 @@ class SiloRun:
         self.law = grain_law(cfg)
         self.dt, self.dt_crit = choose_time_step(cfg, self.law, self.walls.kn, self.walls.ks)
         m = cfg.material
-        self.radii = self.rng.uniform(m.radius_min, m.radius_max, cfg.fill.n_particles)
+        self.radii = sizes.draw_radii(m, cfg.fill.n_particles, self.rng)
         self.sim = Simulation(Particles(cfg.fill.n_particles), self.walls, self.law, self.dt,
                               gravity=cfg.gravity, skin=neighbour_skin(cfg))
         self.state = ProcedureState()

@@ -155,7 +155,9 @@ LATER_KEYS = {("material", "contact_model"): "linear", ("material", "young_modul
               ("material", "poisson_ratio"): None, ("walls", "young_modulus"): None,
               ("walls", "poisson_ratio"): None, ("measure", "field_kernel"): "box",
               ("measure", "field_width"): None, ("measure", "angle_of_repose_deg"): None,
-              ("walls", "hopper_friction_deg"): None}
+              ("walls", "hopper_friction_deg"): None,
+              ("material", "radius_distribution"): "uniform", ("material", "radii"): None,
+              ("material", "radius_shares"): None}
 
 
 def config_hash(cfg: Config) -> str:

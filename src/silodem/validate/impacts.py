@@ -35,6 +35,7 @@ from silodem.engine.contact import GrainLaw, damping_ratio_from_restitution
 from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.engine.walls import Walls
+from silodem.silo import sizes
 from silodem.validate.records import Record, absolute, info, rel
 
 CASE = "normal impact"
@@ -292,7 +293,7 @@ def default_steps_per_contact() -> float:
     walls = build_walls(cfg)
     dt, _ = choose_time_step(cfg, g, walls.kn, walls.ks)
     m = cfg.material
-    r = 0.5 * (m.radius_min + m.radius_max)
+    r = sizes.mean_radius(m)
     mass = m.density * math.pi * r * r * m.thickness
     return spring_dashpot(g.kn, 0.5 * mass, g.zeta).t_c / dt
 

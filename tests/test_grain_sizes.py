@@ -1,0 +1,152 @@
+"""Grain size distributions (silo/sizes.py): the draws against their densities, the moments
+against numerical integrals of those densities, exact counts of discrete mixtures, a run with
+a binary mixture, and the refusals of inconsistent size keys."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+from test_input_errors import assert_names, refused
+
+from silodem.config import Config, Material
+from silodem.scenario_files import load_config, quick_variant
+from silodem.silo import sizes
+from silodem.silo.checks import PACKING_FRACTION, estimate_overlap
+from silodem.silo.geometry import silo_shape
+from silodem.silo.procedure import SiloRun, neighbour_skin
+from silodem.study.plan import config_hash
+
+A, B = 0.1, 0.3  # radius range of the continuous distributions [m]
+
+
+def material(**keys) -> Material:
+    base = {"density": 2000.0, "radius_min": A, "radius_max": B, "kn": 1e6, "ks": 1e6,
+            "friction_deg": 20.0}
+    return Material.model_validate({**base, **keys})
+
+
+def density(m: Material):
+    """The probability density of r that docs/physics.md gives for ``m``'s distribution."""
+    if m.radius_distribution == "uniform_mass":
+        return lambda r: A * B / ((B - A) * r * r)
+    return lambda r: 1.0 / (B - A)
+
+
+@pytest.mark.parametrize("kind", ["uniform", "uniform_mass"])
+def test_moments_are_the_integrals_of_the_density(kind):
+    m = material(radius_distribution=kind)
+    p = density(m)
+    assert integrate.quad(p, A, B)[0] == pytest.approx(1.0, rel=1e-12)
+    assert sizes.mean_radius(m) == pytest.approx(integrate.quad(lambda r: r * p(r), A, B)[0],
+                                                 rel=1e-12)
+    assert sizes.mean_square_radius(m) == pytest.approx(
+        integrate.quad(lambda r: r * r * p(r), A, B)[0], rel=1e-12)
+
+
+def test_uniform_mass_draws_equal_mass_in_equal_radius_intervals():
+    """Four equal radius intervals each hold a quarter of the drawn grains' mass (r^2), and
+    the numbers in them follow the density's integrals. With 4e5 draws a share's standard
+    deviation is below 1e-3; the bound is five of them."""
+    m = material(radius_distribution="uniform_mass")
+    r = sizes.draw_radii(m, 400_000, np.random.default_rng(7))
+    assert r.min() >= A and r.max() <= B
+    edges = np.linspace(A, B, 5)
+    index = np.digitize(r, edges[1:-1])
+    mass_share = np.bincount(index, weights=r * r) / np.sum(r * r)
+    np.testing.assert_allclose(mass_share, 0.25, atol=5e-3)
+    number_share = np.bincount(index) / r.size
+    expected = [integrate.quad(density(m), lo, hi)[0] for lo, hi in itertools.pairwise(edges)]
+    np.testing.assert_allclose(number_share, expected, atol=5e-3)
+    assert r.mean() == pytest.approx(sizes.mean_radius(m), rel=2e-3)
+
+
+def test_uniform_draws_are_numpys_single_uniform_call():
+    """A config without the new keys draws the grains every earlier run drew (one
+    ``Generator.uniform`` call on the seed), and keeps its study hash."""
+    cfg = quick_variant(load_config("paper-case2"))
+    run = SiloRun(cfg)
+    m = cfg.material
+    expected = np.random.default_rng(cfg.seed).uniform(m.radius_min, m.radius_max,
+                                                       cfg.fill.n_particles)
+    np.testing.assert_array_equal(run.radii, expected)
+    assert neighbour_skin(cfg) == 0.4 * 0.5 * (m.radius_min + m.radius_max)
+    data = cfg.model_dump()
+    data["material"]["radius_distribution"] = "uniform_mass"
+    assert config_hash(Config.model_validate(data)) != config_hash(cfg)
+
+
+@pytest.mark.parametrize(("share", "n", "counts"), [
+    ([0.3, 0.7], 1001, [300, 701]),  # 300.3 and 700.7: the larger remainder gets the grain
+    ([1 / 3, 1 / 3, 1 / 3], 100, [34, 33, 33]),  # ties: the first size
+    ([0.5, 0.5], 10, [5, 5]),
+])
+def test_discrete_counts_are_exact_by_largest_remainder(share, n, counts):
+    assert sizes.discrete_counts(np.array(share), n).tolist() == counts
+
+
+def small_mixture(**keys) -> Config:
+    cfg = quick_variant(load_config("paper-case2"))
+    data = cfg.model_dump()
+    data["fill"]["n_particles"] = 120
+    data["discharge"]["max_time"] = 4.0
+    data["material"] = {**data["material"], "radius_distribution": "discrete",
+                        "radii": [0.08, 0.12], "radius_shares": [0.25, 0.75], **keys}
+    del data["material"]["radius_min"], data["material"]["radius_max"]
+    return Config.model_validate(data)
+
+
+def test_binary_mixture_runs_with_its_exact_composition():
+    """30 grains of 0.08 m and 90 of 0.12 m (shares 0.25 and 0.75 of 120), shuffled; radius_min
+    and radius_max come from the radii; the overlap check's fill height is the area of those
+    grains at the packing fraction; the whole run conserves their mass."""
+    cfg = small_mixture()
+    m = cfg.material
+    assert (m.radius_min, m.radius_max) == (0.08, 0.12)
+    run = SiloRun(cfg)
+    values, counts = np.unique(run.radii, return_counts=True)
+    assert values.tolist() == [0.08, 0.12] and counts.tolist() == [30, 90]
+    assert not np.all(np.diff(run.radii) >= 0)  # shuffled, not sorted
+    solid = (30 * 0.08**2 + 90 * 0.12**2) * math.pi
+    assert estimate_overlap(cfg).fill_height == pytest.approx(
+        silo_shape(cfg).height_of_area(solid / PACKING_FRACTION), rel=1e-12)
+    assert neighbour_skin(cfg) == pytest.approx(0.4 * (0.25 * 0.08 + 0.75 * 0.12), rel=1e-15)
+    run.run()
+    mass0 = m.density * math.pi * m.thickness * np.sum(run.radii[: run.events["n_poured"]] ** 2)
+    assert run.sim.particles.total_mass() + run.discharged_mass + run.state.lost_mass == \
+        pytest.approx(mass0, rel=1e-12)
+    assert set(np.unique(run.sim.particles.view("radius"))) <= {0.08, 0.12}
+
+
+def test_same_seed_same_mixture_other_seed_other_order():
+    a, b = SiloRun(small_mixture()).radii, SiloRun(small_mixture()).radii
+    np.testing.assert_array_equal(a, b)
+    data = small_mixture().model_dump()
+    data["seed"] += 1
+    c = SiloRun(Config.model_validate(data)).radii
+    assert np.sort(c).tolist() == np.sort(a).tolist() and not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize(("sets", "needles"), [
+    (["material.radii=[0.1, 0.2]"], ("material.radii", "radius_distribution = 'discrete'")),
+    (["material.radius_distribution=\"discrete\""], ("material.radii",)),
+    (["material.radius_distribution=\"discrete\"", "material.radii=[0.09, 0.11]",
+      "material.radius_shares=[1.0]"], ("radius_shares", "1 values for 2 radii")),
+    (["material.radius_distribution=\"discrete\"", "material.radii=[0.09, 0.11]",
+      "material.radius_shares=[0.5, 0.6]"], ("radius_shares", "sum to 1.1")),
+    (["material.radius_distribution=\"discrete\"", "material.radii=[0.09, 0.1]"],
+     ("material.radius_max (0.11)", "largest", "material.radius_max = 0.1")),
+    (["material.radius_distribution=\"discrete\"", "material.radii=[0.09, -0.11]"],
+     ("material.radii", "positive")),
+    (["material.radius_distribution=\"discrete\"", "material.radii=[0.09, 0.09, 0.11]"],
+     ("material.radii", "repeat")),
+    (["material.radius_distribution=\"lognormal\""], ("material.radius_distribution",)),
+])
+def test_inconsistent_size_keys_are_refused_in_one_line(capsys, sets, needles):
+    args = ["show", "paper-case2"]
+    for s in sets:
+        args += ["--set", s]
+    assert_names(refused(capsys, *args), *needles)
