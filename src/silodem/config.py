@@ -312,6 +312,10 @@ class Discharge(_Strict):
     """Discharge: the gate under the outlet is withdrawn."""
 
     enabled: bool = Field(True, description="run the discharge phase")
+    gate_speed: float | None = Field(
+        None, gt=0, description="speed at which the gate slides open sideways, under the "
+        "floor, as a slide gate does [m/s]; unset: the gate is removed at once (the paper's)"
+    )
     stop_fraction: float = Field(
         0.9, gt=0, le=MAX_STOP_FRACTION, description="stop when this fraction of the mass in "
         "the silo at the gate's opening, less any mass lost through a wall since, has left "

@@ -55,7 +55,8 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
         stiffness = "Pa" if run.law.hertz else "N/m"  # Hertz-Mindlin: 2 E* and 8 G*
         for key, unit in (("ax", "m"), ("ay", "m"), ("bx", "m"), ("by", "m"), ("kn", stiffness),
                           ("ks", stiffness), ("mu", "-"), ("active", "-")):
-            wg.create_dataset(key, data=getattr(w, key)).attrs["unit"] = unit
+            data = run.walls_built[key] if key in run.walls_built else getattr(w, key)
+            wg.create_dataset(key, data=data).attrs["unit"] = unit
         ev = h5.create_group("events")
         for key, val in run.events.items():
             ev.attrs[key] = val

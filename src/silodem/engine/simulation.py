@@ -80,6 +80,11 @@ class Simulation:
         self.walls.set_active(name, active)
         self.invalidate()
 
+    def set_wall_velocity(self, name: str, vx: float, vy: float) -> None:
+        """Give wall ``name`` the velocity (vx, vy) [m/s] from the next step on (step 4)."""
+        w = self.walls.index(name)
+        self.walls.vx[w], self.walls.vy[w] = vx, vy
+
     def remove(self, mask: np.ndarray) -> None:
         """Remove the grains where ``mask`` (over the live grains) is True."""
         self.particles.keep(~mask)

@@ -185,7 +185,9 @@ EVENT_MEANINGS = {
     "settle_criterion_value": ("settling criterion at its end (force ratio [-] or mean "
                                "kinetic energy [J])"),
     "fill_level": "fill level after settling [m]",
-    "discharge_start_time": "time the gate opened [s]",
+    "discharge_start_time": "time the gate opened (or began to slide open) [s]",
+    "gate_opening_time": ("time the sliding gate took to clear the outlet (outlet width / "
+                          "discharge.gate_speed) [s]"),
     "initial_mass": "mass in the silo (a slot of thickness t) when the gate opened [kg]",
     "discharge_end_reason": "what ended the discharge (fraction, time or clog)",
     "discharge_time": "time the discharge took [s]",

@@ -269,6 +269,7 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             "level 4 material.radius_max below it, plus the 0.05 s between the checks): the "
             f"discharge would be called a clog before any grain left; give at least "
             f"{math.ceil(shortest * 1000.0) / 1000.0:g} s")
+    check_gate(cfg, dt)
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
         from silodem.silo.geometry import silo_shape
         from silodem.silo.procedure import loose_sites
@@ -280,6 +281,39 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"a time step of {dt:.3g} s would allow {total / dt:.2g} steps in the phase time "
             f"limits ({total:g} s = {words}), more than {MAX_STEPS:.0e}; check {keys}")
     return dt, dt_crit
+
+
+def check_gate(cfg: Config, dt: float) -> None:
+    """InputError when a sliding gate (``discharge.gate_speed``) cannot work: it would cross
+    more than a smallest radius in one step of ``dt`` [s], the discharge would end before it
+    had slid open, or the fill's expected overlap (``estimate_overlap``) would reach half of
+    the gate's depth under the floor (``geometry.gate_depth``), so that grains resting on
+    the floor would touch the gate running under them."""
+    from silodem.silo.geometry import GATE_GAP, gate_depth, silo_shape
+
+    d, r_min = cfg.discharge, cfg.material.radius_min
+    if d.gate_speed is None or not d.enabled:
+        return
+    if not d.gate_speed * dt <= r_min:
+        raise InputError(
+            f"discharge.gate_speed = {d.gate_speed:.3g} m/s moves the gate "
+            f"{d.gate_speed * dt:.3g} m in one time step of {dt:.3g} s, more than "
+            f"material.radius_min = {r_min:.3g} m: give at most {floor_3(r_min / dt):.3g} m/s")
+    shape = silo_shape(cfg)
+    opening = (shape.outlet_right - shape.outlet_left) / d.gate_speed
+    if d.max_time <= opening:
+        raise InputError(
+            f"discharge.max_time = {d.max_time:g} s ends the discharge before the gate has slid "
+            f"open (outlet width / discharge.gate_speed = {opening:.3g} s): give a longer "
+            "max_time or a faster gate")
+    overlap = estimate_overlap(cfg).overlap
+    if not overlap <= 0.5 * gate_depth(cfg):
+        raise InputError(
+            f"discharge.gate_speed: the sliding gate runs {GATE_GAP:g} material.radius_min = "
+            f"{gate_depth(cfg):.3g} m under the floor, and the fill's expected overlap "
+            f"({overlap:.3g} m) would reach half of that, so grains on the floor would touch "
+            "the gate; stiffen the contacts (the overlap warning's advice) or leave "
+            "discharge.gate_speed unset")
 
 
 def shortest_clog_time(cfg: Config) -> float:

@@ -323,6 +323,7 @@ class FramesRecorder(Recorder):
         if self._vtk is None:
             self._vtk = VtkSeries(self.vtk_dir, WallGeometry.of(run.walls),
                                   fresh=not self.vtk_times)
+        self._vtk.walls = WallGeometry.of(run.walls)  # where they are now (a sliding gate)
         self._vtk.write(len(self.vtk_times), frame)
         self.vtk_times.append(frame.time)
         self._vtk.write_collections(self.vtk_times)

@@ -31,6 +31,7 @@ import numpy as np
 
 from silodem.errors import one_line
 from silodem.measure.stress import contact_points_walls
+from silodem.silo.geometry import GATE
 from silodem.silo.recorders import PHASE_CODES, PHASE_CODES_TEXT
 
 if TYPE_CHECKING:
@@ -87,11 +88,13 @@ class WallGeometry:
             coords = [np.asarray(walls[k][()], dtype=float) for k in keys]
         return cls(names, *coords)
 
-    def closest_points(self, wall: np.ndarray, x: np.ndarray, y: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
-        """The point of segment ``wall[k]`` closest to ``(x[k], y[k])`` (a grain's contact)."""
-        return contact_points_walls(x, y, np.arange(len(wall)), wall, self.ax, self.ay,
-                                    self.bx, self.by)
+    def closest_points(self, wall: np.ndarray, x: np.ndarray, y: np.ndarray,
+                       shift: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The point of segment ``wall[k]`` closest to ``(x[k], y[k])`` (a grain's contact),
+        each wall moved by ``shift`` [m] in x (``Frames.wall_shift``) if given."""
+        dx = np.zeros(len(self)) if shift is None else shift
+        return contact_points_walls(x, y, np.arange(len(wall)), wall, self.ax + dx, self.ay,
+                                    self.bx + dx, self.by)
 
 
 @dataclass
@@ -338,6 +341,21 @@ class Frames:
 
     def __iter__(self) -> Iterator[Frame]:
         return (self.frames[k] for k in range(len(self.frames)))
+
+    def wall_shift(self, time: float) -> np.ndarray:
+        """Each wall's x displacement [m] at ``time`` [s] from where ``walls`` (results.h5
+        /walls, the silo as built) has it: for a gate that slides open (``discharge.gate_speed``,
+        the event ``gate_opening_time``), its speed, its length over that time, times the time
+        since the discharge started; 0 for every other wall and gate."""
+        shift = np.zeros(len(self.walls))
+        t0 = self.events.get("discharge_start_time")
+        span = self.events.get("gate_opening_time")
+        if t0 is None or span is None or GATE not in self.walls.names:
+            return shift
+        k = self.walls.names.index(GATE)
+        length = float(self.walls.bx[k] - self.walls.ax[k])
+        shift[k] = max(float(time) - float(t0), 0.0) * length / float(span)
+        return shift
 
     @property
     def times(self) -> np.ndarray:

@@ -24,6 +24,15 @@ from silodem.engine.walls import Walls
 from silodem.silo.materials import contact_constants
 
 GATE = "gate"
+GATE_GAP = 0.1  # a sliding gate's depth under the outlet's edges [smallest grain radii]
+
+
+def gate_depth(cfg: Config) -> float:
+    """How far under z = 0 the gate lies [m]: 0 for a gate removed at once (the paper's);
+    GATE_GAP smallest radii for one that slides open (``discharge.gate_speed``), which runs
+    under the floor as a slide gate runs in its slot, so that it never touches a grain that
+    rests on the floor (``checks.check_numbers`` refuses contacts soft enough for that)."""
+    return GATE_GAP * cfg.material.radius_min if cfg.discharge.gate_speed else 0.0
 
 
 def outlet_room(cfg: Config) -> float:
@@ -135,5 +144,6 @@ def build_walls(cfg: Config) -> Walls:
     else:
         walls.add("left_floor", (0.0, 0.0), (xl, 0.0), kn, ks, mu, one_sided=True)
         walls.add("right_floor", (xr, 0.0), (B, 0.0), kn, ks, mu, one_sided=True)
-    walls.add(GATE, (xl, 0.0), (xr, 0.0), kn, ks, mu, one_sided=True)
+    h = gate_depth(cfg)
+    walls.add(GATE, (xl, -h), (xr, -h), kn, ks, mu, one_sided=True)
     return walls

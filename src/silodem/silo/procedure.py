@@ -111,6 +111,8 @@ class SiloRun:
         self.rng = np.random.default_rng(cfg.seed)
         self.shape = silo_shape(cfg)
         self.walls = build_walls(cfg)
+        # the segments as built, the gate closed: results.h5 /walls (a sliding gate moves)
+        self.walls_built = {k: getattr(self.walls, k).copy() for k in ("ax", "ay", "bx", "by")}
         self.law = grain_law(cfg)
         self.dt, self.dt_crit = choose_time_step(cfg, self.law, self.walls.kn, self.walls.ks)
         m = cfg.material
@@ -227,7 +229,7 @@ class SiloRun:
         self.snapshots["settled"] = take_snapshot(self)
         if self.cfg.discharge.enabled:
             self._begin("discharge")
-            self.sim.set_wall_active(GATE, False)
+            self._open_gate()
             st.mass0 = self.sim.particles.total_mass()
             st.last_exit = self.sim.time
             self.events["discharge_start_time"] = self.sim.time
@@ -235,11 +237,40 @@ class SiloRun:
         else:
             self._finish()
 
+    def _open_gate(self) -> None:
+        """Start the discharge: the gate removed at once (the paper's), or set sliding
+        sideways at ``discharge.gate_speed`` (towards +x, under the right-hand floor or hopper
+        wall), to be removed once its trailing end has passed the outlet (``_gate_slid``)."""
+        speed = self.cfg.discharge.gate_speed
+        if speed is None:
+            self.sim.set_wall_active(GATE, False)
+            return
+        self.sim.set_wall_velocity(GATE, speed, 0.0)
+        self.events["gate_opening_time"] = (self.shape.outlet_right
+                                            - self.shape.outlet_left) / speed
+
+    def gate_sliding(self) -> bool:
+        """Whether the gate is sliding open (``discharge.gate_speed``), not yet removed."""
+        w = self.walls.index(GATE)
+        return bool(self.walls.active[w] and self.walls.vx[w] != 0.0)
+
+    def _gate_slid(self) -> None:
+        """Remove a sliding gate once its trailing end has passed the outlet's right edge;
+        the clog clock starts there (no grain may leave before the outlet is open)."""
+        w = self.walls.index(GATE)
+        if not (self.gate_sliding() and self.walls.ax[w] >= self.shape.outlet_right):
+            return
+        self.sim.set_wall_velocity(GATE, 0.0, 0.0)
+        self.sim.set_wall_active(GATE, False)
+        self.state.last_exit = max(self.state.last_exit, self.sim.time)
+
     def _discharge_chunk(self) -> None:
-        """Gate withdrawn; stop on the discharged fraction (of the mass not lost through a wall:
-        ``stop_fraction_of``), the time limit or a clog."""
+        """Gate withdrawn (or sliding open); stop on the discharged fraction (of the mass not
+        lost through a wall: ``stop_fraction_of``), the time limit or a clog (not while the
+        gate slides)."""
         d, st = self.cfg.discharge, self.state
         self._advance(self._steps(CHECK_INTERVAL))
+        self._gate_slid()
         fraction = self.discharged_fraction()
         self._report(f"discharged {100 * fraction:.0f}%")
         elapsed = self.sim.time - st.phase_start
@@ -248,7 +279,7 @@ class SiloRun:
             reason = "fraction"
         elif elapsed >= d.max_time:
             reason = "time"
-        elif self.sim.time - st.last_exit >= d.clog_time:
+        elif self.sim.time - st.last_exit >= d.clog_time and not self.gate_sliding():
             reason = "clog"
             self.warnings.append(
                 f"clogged: no grain left the silo for {d.clog_time} s (discharge.clog_time) at "

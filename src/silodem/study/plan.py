@@ -157,7 +157,7 @@ LATER_KEYS = {("material", "contact_model"): "linear", ("material", "young_modul
               ("measure", "field_width"): None, ("measure", "angle_of_repose_deg"): None,
               ("walls", "hopper_friction_deg"): None,
               ("material", "radius_distribution"): "uniform", ("material", "radii"): None,
-              ("material", "radius_shares"): None}
+              ("material", "radius_shares"): None, ("discharge", "gate_speed"): None}
 
 
 def config_hash(cfg: Config) -> str:

@@ -390,8 +390,11 @@ class FrameArtist:
             self._draw_pixels(frame, x, y)
         else:
             self._draw_disks(frame, x, y, r)
+        shift, walls = self.frames.wall_shift(frame.time), self.frames.walls
         for k, line in enumerate(self.wall_lines):
             on = bool(frame.walls_active[k]) if k < frame.walls_active.size else True
+            dx = shift[k] if on else 0.0  # (a sliding gate where it is; once gone, where it was)
+            line.set_xdata([walls.ax[k] + dx, walls.bx[k] + dx])
             line.set_linestyle("-" if on else ":")
             line.set_alpha(1.0 if on else 0.5)
         self._set_title(frame, title)
@@ -486,7 +489,8 @@ class FrameArtist:
 
     def _chains(self, frame: Frame, x: np.ndarray, y: np.ndarray):
         c, w = frame.contacts, frame.wall_contacts
-        wx, wy = self.frames.walls.closest_points(w["wall"], x[w["grain"]], y[w["grain"]])
+        wx, wy = self.frames.walls.closest_points(w["wall"], x[w["grain"]], y[w["grain"]],
+                                                  self.frames.wall_shift(frame.time))
         a = np.concatenate([np.column_stack([x[c["i"]], y[c["i"]]]),
                             np.column_stack([x[w["grain"]], y[w["grain"]]])])
         b = np.concatenate([np.column_stack([x[c["j"]], y[c["j"]]]),

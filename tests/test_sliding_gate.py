@@ -1,0 +1,187 @@
+"""A gate that slides open (``discharge.gate_speed``): its motion against kinematics, no grain
+out before the opening is as wide as a grain or through the part still closed, the gate gone
+once the outlet is clear, a checkpoint mid-slide that resumes bit-identical, and the
+refusals of a gate that cannot work."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from reliability_helpers import quick_config, stop_and_restore
+from test_input_errors import assert_names, refused
+
+from silodem.silo.geometry import GATE, GATE_GAP
+from silodem.silo.procedure import SiloRun
+
+SPEED = 0.3  # [m/s]: paper-case2's outlet D = 1 m clears in 3.33 s
+
+
+@pytest.fixture(scope="module")
+def sliding():
+    """paper-case2 --quick with the sliding gate, watched between chunks: the time, the
+    gate's trailing end, and where each grain under the floor crossed z = 0 (free fall traced
+    back, as a ballistic grain does)."""
+    run = SiloRun(quick_config(f"discharge.gate_speed={SPEED}"))
+    seen: list[tuple[float, bool, float, float, int]] = []
+    g = run.cfg.gravity
+
+    def watch(r: SiloRun) -> None:
+        if r.state.phase != "discharge":
+            return
+        w = r.walls.index(GATE)
+        p = r.sim.particles
+        x, y, vx, vy = (p.view(k) for k in ("x", "y", "vx", "vy"))
+        under = y < -r.cfg.material.radius_max
+        s = (vy[under] + np.sqrt(vy[under] ** 2 + 2.0 * g * -y[under])) / g  # since z = 0
+        crossed = x[under] + vx[under] * s  # x - vx (-s) back along the fall
+        seen.append((r.sim.time, bool(r.walls.active[w]), float(r.walls.ax[w]),
+                     float(crossed.max()) if crossed.size else -math.inf,
+                     r.discharged_count))
+
+    run.chunk_hooks.append(watch)
+    run.run()
+    return run, seen
+
+
+def test_the_gate_slides_at_its_speed_and_is_gone_once_the_outlet_is_clear(sliding):
+    run, seen = sliding
+    shape, t0 = run.shape, run.events["discharge_start_time"]
+    D = shape.outlet_right - shape.outlet_left
+    assert run.events["gate_opening_time"] == pytest.approx(D / SPEED, rel=1e-12)
+    sliding_rows = [(t, ax) for t, active, ax, _, _ in seen if active]
+    assert sliding_rows, "the gate was removed at once"
+    for t, ax in sliding_rows:  # x = x_left + v (t - t0), the one-step clock of each move
+        assert ax == pytest.approx(shape.outlet_left + SPEED * (t - t0), abs=1e-9)
+        assert ax < shape.outlet_right + SPEED * 0.06  # at most one check late
+    gone = [t for t, active, *_ in seen if not active]
+    assert gone and gone[0] - t0 == pytest.approx(D / SPEED, abs=0.06)
+    w = run.walls.index(GATE)
+    assert run.walls.ay[w] == -GATE_GAP * run.cfg.material.radius_min  # under the floor
+    assert run.events["discharge_end_reason"] == "fraction"
+
+
+def test_no_grain_leaves_before_the_opening_is_a_grain_wide_nor_where_the_gate_is(sliding):
+    """The opening is v (t - t0) wide: a disk of diameter 2 r_min cannot pass before it is
+    that wide (less the overlaps, under 1 % of r here). Every grain under the silo crossed
+    z = 0 left of the gate's trailing end at that moment, which is left of it now (the room
+    of a largest diameter for collisions in the falling stream)."""
+    run, seen = sliding
+    t0, m = run.events["discharge_start_time"], run.cfg.material
+    first_out = min(t for t, *_, count in seen if count > 0)
+    assert first_out - t0 >= 0.99 * 2.0 * m.radius_min / SPEED
+    for _, active, ax, crossed, _ in seen:
+        if active:
+            assert crossed <= ax + 2.0 * m.radius_max
+
+
+def test_mass_is_conserved_with_a_sliding_gate(sliding):
+    run, _ = sliding
+    m = run.cfg.material
+    poured = run.radii[: run.events["n_poured"]]
+    mass0 = m.density * math.pi * m.thickness * float(np.sum(poured**2))
+    assert run.sim.particles.total_mass() + run.discharged_mass + run.state.lost_mass == \
+        pytest.approx(mass0, rel=1e-12)
+
+
+def test_a_checkpoint_while_the_gate_slides_resumes_bit_identical(sliding, tmp_path):
+    ref, _ = sliding
+    first, second = stop_and_restore(ref.cfg, "discharge", tmp_path / "checkpoint.h5")
+    assert first.gate_sliding() and second.gate_sliding()
+    w = first.walls.index(GATE)
+    assert second.walls.ax[w] == first.walls.ax[w] and second.walls.vx[w] == SPEED
+    second.run()
+    assert np.array(second.series.rows).tobytes() == np.array(ref.series.rows).tobytes()
+    assert second.events == ref.events
+    for key, arr in ref.snapshots["final"].particles.items():
+        assert arr.tobytes() == second.snapshots["final"].particles[key].tobytes(), key
+
+
+@pytest.mark.parametrize(("sets", "needles"), [
+    (["discharge.gate_speed=1e6"], ("discharge.gate_speed", "more than material.radius_min")),
+    (["discharge.gate_speed=0.01", "discharge.max_time=50"],
+     ("discharge.max_time = 50 s", "100 s")),
+    (["discharge.gate_speed=0.5", "material.kn=1e5", "walls.kn=1e5"],
+     ("sliding gate", "expected overlap")),
+    (["discharge.gate_speed=0"], ("discharge.gate_speed",)),
+])
+def test_a_gate_that_cannot_work_is_refused_in_one_line(capsys, tmp_path, sets, needles):
+    args = ["run", "paper-case2", "--out", str(tmp_path / "out")]
+    for s in sets:
+        args += ["--set", s]
+    assert_names(refused(capsys, *args, silent=True), *needles)
+    assert not (tmp_path / "out").exists()
+
+
+def test_results_keep_the_gate_where_it_closed_the_outlet(sliding, tmp_path):
+    """results.h5 /walls is the silo as built (frames draw the closed gate from it), not the
+    slid gate at the end of the run."""
+    import h5py
+
+    from silodem.output import write_results
+
+    run, _ = sliding
+    write_results(run, tmp_path / "results.h5", "")
+    with h5py.File(tmp_path / "results.h5", "r") as h5:
+        names = [n.decode() for n in h5["walls/name"][()]]
+        w = names.index(GATE)
+        depth = -GATE_GAP * run.cfg.material.radius_min
+        assert (h5["walls/ax"][w], h5["walls/bx"][w]) == (run.shape.outlet_left,
+                                                          run.shape.outlet_right)
+        assert h5["walls/ay"][w] == h5["walls/by"][w] == depth
+        assert not h5["walls/active"][w]
+    assert run.walls.ax[run.walls.index(GATE)] >= run.shape.outlet_right  # it did slide
+
+
+def test_the_animation_draws_the_gate_where_it_has_slid(tmp_path):
+    """A whole run's frames: while the gate slides, its line lies v (t - t0) right of the
+    closed gate (v the config's gate_speed); before the discharge, over the outlet."""
+    from silodem.run import run_simulation
+    from silodem.silo.frames import read_frames
+    from silodem.viz.draw import FrameArtist
+
+    cfg = quick_config(f"discharge.gate_speed={SPEED}", "output.png=false",
+                       "output.vtk_interval=0.5")
+    run_simulation(cfg, tmp_path / "run", progress=False)
+    frames = read_frames(tmp_path / "run" / "results.h5")
+    k = frames.walls.names.index(GATE)
+    left, right = float(frames.walls.ax[k]), float(frames.walls.bx[k])
+    t0 = frames.events["discharge_start_time"]
+    artist = FrameArtist(frames, "none")
+    checked = {"settle": 0, "discharge": 0}
+    for frame in frames:
+        if frame.phase not in checked or not frame.walls_active[k]:
+            continue
+        artist.draw(frame)
+        dx = SPEED * (frame.time - t0) if frame.phase == "discharge" else 0.0
+        np.testing.assert_allclose(artist.wall_lines[k].get_xdata(), [left + dx, right + dx],
+                                   rtol=0, atol=1e-9)
+        # force lines end on the gate where it is: under the grain, within the slid segment
+        on_gate = frame.wall_contacts["wall"] == k
+        g = frame.wall_contacts["grain"][on_gate]
+        x = frame.particles["x"][g].astype(float)
+        y = frame.particles["y"][g].astype(float)
+        wx, wy = frames.walls.closest_points(np.full(g.size, k), x, y,
+                                             frames.wall_shift(frame.time))
+        np.testing.assert_allclose(wx, np.clip(x, left + dx, right + dx), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(wy, frames.walls.ay[k], rtol=0, atol=1e-12)
+        checked[frame.phase] += 1
+    assert checked["settle"] and checked["discharge"] >= 10  # 3.3 s of slide, 0.1 s frames
+    # the VTK walls likewise (their points: a, b of each segment in turn)
+    import xml.etree.ElementTree as ET
+
+    import meshio
+
+    vtk = tmp_path / "run" / "vtk"
+    sliding_files = 0
+    for entry in ET.parse(vtk / "walls.pvd").getroot().iter("DataSet"):
+        t = float(entry.get("timestep"))
+        mesh = meshio.read(vtk / entry.get("file"))
+        if t <= t0 or not mesh.cell_data["active"][0][k]:
+            continue
+        dx = SPEED * (t - t0)
+        np.testing.assert_allclose(mesh.points[2 * k: 2 * k + 2, 0], [left + dx, right + dx],
+                                   rtol=0, atol=1e-9)
+        sliding_files += 1
+    assert sliding_files >= 3
