@@ -10,6 +10,7 @@ import pytest
 from silodem.measure.discharge import (
     classify_flow,
     dead_zone,
+    discharge_composition,
     flow_rate_series,
     mass_flow_index,
     steady_rate,
@@ -136,3 +137,41 @@ def test_dead_grains_never_left_nor_moved_a_radius_and_mass_flow_needs_none():
     assert classify_flow(0.8, 0.01) == "funnel flow"
     assert classify_flow(0.8, 0.5, threshold=0.9) == "funnel flow"
     assert classify_flow(float("nan"), 0.0) == "unknown"
+
+
+def test_composition_of_a_discharge_where_the_small_grains_leave_first():
+    """Ten grains of r = 1 (mass 1 each) leave, then ten of r = 2 (mass 4): 50 in all, five
+    to a tenth. The small ones fill the first two tenths (middles 0.5 ... 9.5 of 50); the
+    fill's mass mean diameter is 2 (10 x 1 + 10 x 8) / 50 = 3.6, so the first tenths read
+    2 / 3.6 = 5/9 and the rest 4 / 3.6 = 10/9; by mass the fill is 20 % small, 80 % large."""
+    r = np.array([1.0] * 10 + [2.0] * 10)
+    t = np.arange(20.0)
+    c = discharge_composition(t, r)
+    assert c.fill_diameter == pytest.approx(3.6, rel=1e-15)
+    np.testing.assert_allclose(c.diameter_ratio, [5 / 9] * 2 + [10 / 9] * 8, rtol=1e-14)
+    np.testing.assert_allclose(c.fraction, np.arange(0.05, 1.0, 0.1), rtol=1e-14)
+    np.testing.assert_array_equal(c.sizes, [1.0, 2.0])
+    np.testing.assert_allclose(c.fill_share, [0.2, 0.8], rtol=1e-15)
+    np.testing.assert_array_equal(c.size_share[:, 0], [1, 1] + [0] * 8)
+
+
+def test_composition_without_segregation_reads_one_in_every_tenth():
+    """Each tenth holds one grain of r = 2 and four of r = 1 (mass 8: the large one's middle at
+    8 k + 2, the small ones' at 8 k + 4.5 ... 7.5): every tenth is the fill. A grain that never
+    left (r = 3) counts in the fill, and so in the reference, not in the tenths."""
+    r = np.tile([2.0, 1.0, 1.0, 1.0, 1.0], 10)
+    t = np.arange(50.0)
+    c = discharge_composition(t, r)
+    np.testing.assert_allclose(c.diameter_ratio, 1.0, rtol=1e-14)
+    np.testing.assert_allclose(c.size_share, [[0.5, 0.5]] * 10, rtol=1e-14)
+    stayed = discharge_composition(np.append(t, np.nan), np.append(r, 3.0))
+    d_fill = 2 * (10 * 8 + 40 * 1 + 27) / (10 * 4 + 40 * 1 + 9)  # sum m d / sum m
+    assert stayed.fill_diameter == pytest.approx(d_fill, rel=1e-15)
+    np.testing.assert_allclose(stayed.diameter_ratio, 2 * 120 / 80 / d_fill, rtol=1e-14)
+
+
+def test_composition_needs_a_grain_per_tenth_and_lists_sizes_of_a_mixture_only():
+    assert discharge_composition(np.arange(9.0), np.ones(9)) is None
+    r = np.random.default_rng(3).uniform(1.0, 2.0, 200)  # 200 distinct sizes: no list
+    c = discharge_composition(np.arange(200.0), r)
+    assert c.sizes.size == 0 and c.size_share.shape == (10, 0)

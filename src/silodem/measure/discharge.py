@@ -129,6 +129,67 @@ def dead_zone(exit_time: npt.ArrayLike, max_displacement: npt.ArrayLike,
     return stayed & (np.asarray(max_displacement) < min(radius, DEAD_SHARE * descent))
 
 
+DISCHARGE_PARTS = 10  # the discharged mass cut into this many equal shares
+
+
+def mass_mean_diameter(radius: npt.ArrayLike) -> float:
+    """The mass-weighted mean diameter sum(m d) / sum(m) [m] of disks of radii ``radius``
+    [m], one density and thickness (m proportional to r^2); NaN for none."""
+    r = np.asarray(radius, dtype=float)
+    return float(2.0 * np.sum(r**3) / np.sum(r**2)) if r.size else float("nan")
+
+
+@dataclass(frozen=True)
+class Composition:
+    """The sizes in a discharge, in ``DISCHARGE_PARTS`` equal shares of the discharged mass
+    in the order it left (``discharge_composition``)."""
+
+    fraction: np.ndarray  # the middle of each share, as a fraction of the discharged mass [-]
+    diameter_ratio: np.ndarray  # each share's mass mean diameter over the fill's [-]
+    fill_diameter: float  # the fill's mass mean diameter (grains at the gate opening) [m]
+    sizes: np.ndarray  # the distinct radii, for a mixture of a few sizes (else empty) [m]
+    size_share: np.ndarray  # (share, size): each size's share of the share's mass [-]
+    fill_share: np.ndarray  # each size's share of the fill's mass [-]
+
+
+def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
+                          parts: int = DISCHARGE_PARTS, few: int = 8) -> Composition | None:
+    """Size segregation in the discharge. The grains in the silo at the gate opening
+    (radii ``radius`` [m]) that left (``exit_time`` finite [s]), taken in the order they
+    left, are cut into ``parts`` shares of equal discharged mass (a grain belongs to the share
+    in which the middle of its mass falls); each share's mass mean diameter
+    (:func:`mass_mean_diameter`) over the fill's is 1 throughout when the sizes do not
+    segregate. With at most ``few`` distinct radii (a discrete mixture), each size's share
+    of each part's mass too, the normalised mass fraction of segregation studies being that
+    over the fill's share. None when fewer than ``parts`` grains left."""
+    exit_time = np.asarray(exit_time, dtype=float)
+    radius = np.asarray(radius, dtype=float)
+    gone = np.isfinite(exit_time)
+    if int(gone.sum()) < parts:
+        return None
+    order = np.argsort(exit_time[gone], kind="stable")
+    r = radius[gone][order]
+    mass = r * r
+    middle = (np.cumsum(mass) - 0.5 * mass) / np.sum(mass)
+    part = np.minimum((middle * parts).astype(np.int64), parts - 1)
+    fill_d = mass_mean_diameter(radius)
+    ratio = np.array([mass_mean_diameter(r[part == k]) for k in range(parts)]) / fill_d
+    # (mass_mean_diameter of an empty part, a grain heavier than a share beside it: NaN)
+    sizes = np.unique(radius)
+    if sizes.size > few:
+        sizes = np.zeros(0)
+    size_share = np.zeros((parts, sizes.size))
+    part_mass = np.bincount(part, weights=mass, minlength=parts)
+    for j, size in enumerate(sizes):
+        with np.errstate(invalid="ignore"):  # (a part no grain's middle fell in: NaN)
+            size_share[:, j] = np.bincount(part, weights=mass * (r == size),
+                                           minlength=parts) / part_mass
+    fill_share = np.array([np.sum(radius[radius == size] ** 2) for size in sizes]) / np.sum(
+        radius**2)
+    return Composition((np.arange(parts) + 0.5) / parts, ratio, fill_d, sizes, size_share,
+                       fill_share)
+
+
 def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """(before, during): per grain of results.h5's ``measure/flow`` (a mapping of its
     datasets), True for the grains lost through a wall before the gate opened

@@ -563,6 +563,11 @@ def _flow(a: Analysis, shape) -> None:
         pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
     a.flow.update(mfi=mfi, dead=dead, dead_to=dead_to, dead_fraction=dead_frac, pattern=pattern,
                   mfi_band=(band_lo, band_hi))
+    before = dis.lost_grains(f)[0]  # (not in the silo at the opening)
+    composition = dis.discharge_composition(np.asarray(f["exit_time"])[~before],
+                                            np.asarray(f["r0"])[~before])
+    if composition is not None:
+        a.flow["composition"] = composition
     if np.isfinite(rate.rate) and np.isfinite(a.rho_b):
         a.flow["beverloo_C"] = th.beverloo_2d_C(rate.rate, cfg.silo.outlet_width, a.geom["d"],
                                                 a.rho_b, cfg.gravity, 1.5, a.geom["t"])

@@ -193,3 +193,33 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
     if left.any():
         fig.colorbar(pc, ax=ax, shrink=0.6, label="exit time after the gate opened [s]")
     return fig
+
+
+def fig_composition(a: Analysis) -> Figure | None:
+    """Size segregation in the discharge (``measure.discharge.discharge_composition``): each
+    tenth of the discharged mass's mass mean diameter over the fill's, and for a mixture of a
+    few sizes each size's share of that tenth's mass beside its share of the fill."""
+    c = a.flow.get("composition")
+    if c is None:
+        return None
+    mixture = c.sizes.size > 1
+    fig = Figure(figsize=(8, 6.5 if mixture else 3.8), dpi=100)
+    axes = fig.subplots(2 if mixture else 1, 1, sharex=True, squeeze=False)[:, 0]
+    x = 100 * c.fraction
+    ax = axes[0]
+    ax.axhline(1.0, color="0.5", lw=1, ls="--", label="the fill's (no segregation)")
+    ax.plot(x, c.diameter_ratio, "o-", color="k", lw=1.5,
+            label="each tenth of the discharged mass")
+    ax.set_ylabel("mass mean diameter /\nthe fill's [-]")
+    ax.legend(fontsize=8)
+    if mixture:
+        ax2 = axes[1]
+        for j, size in enumerate(c.sizes):
+            line = ax2.plot(x, 100 * c.size_share[:, j], "o-", lw=1.5,
+                            label=f"r = {significant(size, 3)} m")[0]
+            ax2.axhline(100 * c.fill_share[j], color=line.get_color(), lw=1, ls="--")
+        ax2.set_ylabel("share of the tenth's mass [%]\n(dashed: of the fill's)")
+        ax2.legend(fontsize=8)
+    axes[-1].set_xlabel("discharged mass, middle of each tenth [%]")
+    tight_layout(fig)
+    return fig

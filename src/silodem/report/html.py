@@ -123,6 +123,12 @@ FIGURES = [
                "silo) reaches measure.mass_flow_index_threshold and no grain stays in a dead "
                "zone, funnel flow otherwise. It is not Jenike's classification of a hopper "
                "design by its slope and wall friction.", ff.fig_velocity),
+    FigureSpec("discharge_composition", "",
+               "Size segregation in the discharge: the grains that left, in the order they "
+               "left, cut into ten parts of equal mass; each part's mass mean diameter "
+               "sum(m d) / sum(m) over that of the grains in the silo at the gate opening "
+               "(1 throughout: no segregation), and, for a mixture of a few sizes, each size's "
+               "share of each part's mass beside its share of the fill.", ff.fig_composition),
     FigureSpec("dead_zones", "",
                "Grains at the gate opening coloured by the time they left the silo; the dead "
                "zone in black: the grains that neither left nor moved a grain radius from "

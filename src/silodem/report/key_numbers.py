@@ -311,6 +311,15 @@ def add_numbers(a: Analysis) -> None:
         label = (f"flow pattern, measured: mass flow if v_wall / v_axis >= {threshold:g} "
                  f"({where}) and no dead zone; not Jenike's hopper design chart")
         n.append((label, f["pattern"], ""))
+    if "composition" in f:
+        c = f["composition"]
+        label = ("size segregation in the discharge: mass mean diameter of the first and last "
+                 f"tenth of the discharged mass (and the least and largest tenth) over the "
+                 f"fill's, {_fmt(c.fill_diameter, 3)} m (1: none)")
+        value = (f"{_fmt(c.diameter_ratio[0], 3)} / {_fmt(c.diameter_ratio[-1], 3)} "
+                 f"({_fmt(np.nanmin(c.diameter_ratio), 3)} - "
+                 f"{_fmt(np.nanmax(c.diameter_ratio), 3)})")
+        n.append((label, value, "-"))
     if "beverloo_C" in f:
         hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
                   "its slope)" if a.res.cfg.silo.kind == "hopper" else "")
