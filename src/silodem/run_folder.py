@@ -71,6 +71,15 @@ def _written_by_silodem(results: Path) -> bool:
     return _silodem_attrs(results) is not None
 
 
+def foreign_files(out: Path, found: list[str], writer: str, why: str, flag: str) -> InputError:
+    """The refusal of a folder ``out`` whose files ``found`` (names relative to it) a new
+    ``writer`` ("run", "study") there would replace, though ``why`` says it did not write
+    them: one line naming the first of them and how many more."""
+    more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
+    return InputError(f"{flag} {out} holds {found[0]}{more}, which a {writer} there would "
+                      f"replace, but {why}; give a new or empty folder, or move those files")
+
+
 def check_replaceable(out: Path, flag: str = "out") -> bool:
     """Whether ``out`` holds an earlier run's files, which a new run there replaces; InputError
     if it holds files of those names that no silodem run wrote (no config.toml beside them, or
@@ -83,11 +92,9 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
     foreign = not (out / "config.toml").is_file() or (
         results.exists() and not _written_by_silodem(results))
     if foreign:
-        more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
-        raise InputError(f"{flag} {out} holds {found[0].relative_to(out)}{more}, which a run "
-                         "there would replace, but no silodem run wrote it (no config.toml "
-                         "and silodem results.h5 there); give a new or empty folder, or move "
-                         "those files")
+        raise foreign_files(out, [str(f.relative_to(out)) for f in found], "run",
+                            "no silodem run wrote it (no config.toml and silodem results.h5 "
+                            "there)", flag)
     return True
 
 

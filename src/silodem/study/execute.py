@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 from silodem.errors import InputError, one_line, short_repr
 from silodem.output import write_text
+from silodem.run_folder import foreign_files
 from silodem.study.plan import PlannedRun, StudyPlan
 
 if TYPE_CHECKING:
@@ -260,10 +261,8 @@ def check_study_folder(out_dir: Path) -> None:
         return
     found = [name for name in NOT_A_STUDY if (out_dir / name).exists()]
     if found:
-        more = f" (+{len(found) - 1} more)" if len(found) > 1 else ""
-        raise InputError(f"--out {out_dir} holds {found[0]}{more}, which a study there would "
-                         "replace, but it is not a study's folder (no study.toml); give a new "
-                         "or empty folder, or move those files")
+        raise foreign_files(out_dir, found, "study",
+                            "it is not a study's folder (no study.toml)", "--out")
 
 
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
