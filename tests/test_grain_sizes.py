@@ -150,3 +150,48 @@ def test_inconsistent_size_keys_are_refused_in_one_line(capsys, sets, needles):
     for s in sets:
         args += ["--set", s]
     assert_names(refused(capsys, *args), *needles)
+
+
+def test_uniform_mass_of_one_size_is_that_size_and_keeps_the_random_stream():
+    """r_min = r_max: every radius is exactly r_min (1 / (1 / a) need not be a), and the draw
+    takes the n numbers the general case takes, so what the seed draws next is the same."""
+    m = material(radius_min=0.013, radius_max=0.013, radius_distribution="uniform_mass")
+    rng, ref = np.random.default_rng(5), np.random.default_rng(5)
+    r = sizes.draw_radii(m, 1000, rng)
+    assert np.all(r == 0.013)
+    ref.uniform(0.0, 1.0, 1000)
+    assert rng.bit_generator.state == ref.bit_generator.state
+    assert sizes.mean_radius(m) == 0.013 and sizes.mean_square_radius(m) == 0.013**2
+
+
+def test_the_sizes_in_words():
+    assert sizes.describe(material()) == "uniform in [0.1, 0.3]"
+    assert sizes.describe(material(radius_distribution="uniform_mass")) == (
+        "equal mass per radius interval in [0.1, 0.3]")
+    binary = material(radius_distribution="discrete", radii=[0.08, 0.12],
+                      radius_shares=[0.25, 0.75], radius_min=0.08, radius_max=0.12)
+    assert sizes.describe(binary) == "0.08 (25 %), 0.12 (75 %)"
+    equal = material(radius_distribution="discrete", radii=[0.08, 0.1, 0.12],
+                     radius_min=0.08, radius_max=0.12)
+    assert sizes.describe(equal) == "0.08 (33.3 %), 0.1 (33.3 %), 0.12 (33.3 %)"
+
+
+def test_the_composition_figure_of_a_mixture_draws_each_sizes_share():
+    """fig_composition: the diameter ratio, and for two sizes each one's share of every tenth
+    of the discharged mass (hand values: the small grains, a fifth of the mass, leave first)."""
+    import types
+
+    from silodem.measure.discharge import discharge_composition
+    from silodem.report.figures_flow import fig_composition
+
+    c = discharge_composition(np.arange(20.0), np.array([1.0] * 10 + [2.0] * 10))
+    fig = fig_composition(types.SimpleNamespace(flow={"composition": c}))
+    top, shares = fig.axes[:2]
+    ratio = [line for line in top.get_lines() if line.get_label().startswith("each tenth")]
+    np.testing.assert_allclose(ratio[0].get_ydata(), [5 / 9] * 2 + [10 / 9] * 8, rtol=1e-14)
+    drawn = {line.get_label(): line.get_ydata() for line in shares.get_lines()
+             if line.get_label().startswith("r = ")}
+    np.testing.assert_allclose(drawn["r = 1 m"], [100, 100] + [0] * 8)
+    np.testing.assert_allclose(drawn["r = 2 m"], [0, 0] + [100] * 8)
+    one_size = discharge_composition(np.arange(20.0), np.ones(20))
+    assert len(fig_composition(types.SimpleNamespace(flow={"composition": one_size})).axes) == 1

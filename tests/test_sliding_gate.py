@@ -12,8 +12,10 @@ import pytest
 from reliability_helpers import quick_config, stop_and_restore
 from test_input_errors import assert_names, refused
 
-from silodem.silo.geometry import GATE, GATE_GAP
+from silodem.silo.checks import check_numbers, estimate_overlap
+from silodem.silo.geometry import GATE, GATE_CLEARANCE, GATE_GAP
 from silodem.silo.procedure import SiloRun
+from silodem.silo.recorders import take_snapshot
 
 SPEED = 0.3  # [m/s]: paper-case2's outlet D = 1 m clears in 3.33 s
 
@@ -102,8 +104,8 @@ def test_a_checkpoint_while_the_gate_slides_resumes_bit_identical(sliding, tmp_p
     (["discharge.gate_speed=1e6"], ("discharge.gate_speed", "more than material.radius_min")),
     (["discharge.gate_speed=0.01", "discharge.max_time=50"],
      ("discharge.max_time = 50 s", "100 s")),
-    (["discharge.gate_speed=0.5", "material.kn=1e5", "walls.kn=1e5"],
-     ("sliding gate", "expected overlap")),
+    (["discharge.gate_speed=0.5", 'silo.kind="flat"', "material.kn=1e5", "walls.kn=1e5"],
+     ("sliding gate", "expected overlaps", "0.5 material.radius_min")),
     (["discharge.gate_speed=0"], ("discharge.gate_speed",)),
 ])
 def test_a_gate_that_cannot_work_is_refused_in_one_line(capsys, tmp_path, sets, needles):
@@ -185,3 +187,77 @@ def test_the_animation_draws_the_gate_where_it_has_slid(tmp_path):
                                    rtol=0, atol=1e-9)
         sliding_files += 1
     assert sliding_files >= 3
+    # the report's pictures of the discharge window (Figs. 4, 5, the fields): the snapshot in
+    # its middle, 0.5 + 0.5 s after the opening, has the gate in place, 0.3 m along
+    from silodem.report.draw import walls_at
+    from silodem.report.load import load_results
+
+    res = load_results(tmp_path / "run")
+    snap = res.snapshot("discharge")
+    t, active = float(snap["@attrs"]["time"]), np.asarray(snap["walls_active"], dtype=bool)
+    assert active[k] and t - t0 == pytest.approx(1.0, abs=0.05)
+    moved = walls_at(res.group("walls"), res.events, t, active)
+    assert moved["ax"][k] == pytest.approx(left + SPEED * (t - t0), abs=1e-9)
+    assert moved["bx"][k] == pytest.approx(right + SPEED * (t - t0), abs=1e-9)
+    others = np.arange(len(moved["ax"])) != k
+    np.testing.assert_array_equal(moved["ax"][others], res.group("walls")["ax"][others])
+    settled = res.snapshot("settled")
+    assert walls_at(res.group("walls"), res.events, float(settled["@attrs"]["time"]),
+                    settled["walls_active"]) is res.group("walls")  # closed: as built
+
+
+@pytest.mark.parametrize("stiffness", [None, 1.1e6], ids=["stiff", "soft"])
+def test_under_a_flat_floor_the_gate_never_touches_a_grain_resting_on_the_floor(stiffness):
+    """A flat silo: the gate runs under the right-hand floor. At every check of the slide no
+    grain centred over the floor (more than a largest radius beyond the outlet's edge)
+    touches it. With soft contacts (k = 1.1e6 N/m: the largest floor overlap is some 0.014 m
+    against an estimate of 0.0036 m) the gate runs GATE_CLEARANCE estimates deep, not
+    GATE_GAP r_min = 0.009 m, which such grains reached."""
+    sets = [f"discharge.gate_speed={SPEED}", 'silo.kind="flat"']
+    if stiffness is not None:
+        sets += [f"{s}.{k}={stiffness}" for s in ("material", "walls") for k in ("kn", "ks")]
+    cfg = quick_config(*sets)
+    check_numbers(cfg)  # accepted
+    run = SiloRun(cfg)
+    m = cfg.material
+    depth = max(GATE_GAP * m.radius_min, GATE_CLEARANCE * estimate_overlap(cfg).overlap)
+    w = run.walls.index(GATE)
+    assert run.walls.ay[w] == pytest.approx(-depth, rel=1e-12)
+    floor = [run.walls.index("left_floor"), run.walls.index("right_floor")]
+    deepest, checks = 0.0, 0
+
+    def watch(r: SiloRun) -> None:
+        nonlocal deepest, checks
+        if not r.gate_sliding():
+            return
+        snap = take_snapshot(r)
+        wc, x = snap.wall_contacts, snap.particles["x"]
+        over_floor = (x > r.shape.outlet_right + m.radius_max) | (
+            x < r.shape.outlet_left - m.radius_max)
+        on_gate = (wc["wall"] == w) & (wc["fn"] > 0)
+        assert not np.any(over_floor[wc["grain"][on_gate]])
+        on_floor = np.isin(wc["wall"], floor)
+        y, rad = snap.particles["y"], snap.particles["radius"]
+        g = wc["grain"][on_floor]
+        g = g[over_floor[g]]  # (the overlap r - y of a face contact, not an edge's)
+        deepest = max(deepest, float(np.max(rad[g] - y[g], initial=0.0)))
+        checks += 1
+
+    run.chunk_hooks.append(watch)
+    run.run()
+    assert checks >= 50  # 3.3 s of slide, 0.05 s apart
+    assert 0.0 < deepest < depth  # grains press into the floor, not down to the gate
+
+
+def test_a_window_that_begins_mid_slide_warns_and_a_gate_without_discharge_stays_put():
+    """The discharge window begins measure.discharge_delay = 0.5 s after the gate begins to
+    slide, before the outlet is clear (1 m / 0.3 m/s = 3.33 s): a warning; from 3.4 s on, none.
+    Without a discharge the gate never slides and stays at z = 0, as the paper's."""
+    early = SiloRun(quick_config(f"discharge.gate_speed={SPEED}")).warnings
+    assert any("before the outlet is clear at 3.33 s" in w and ">= 3.34 s" in w for w in early)
+    late = SiloRun(quick_config(f"discharge.gate_speed={SPEED}",
+                                "measure.discharge_delay=3.4")).warnings
+    assert not any("outlet is clear" in w for w in late)
+    idle = SiloRun(quick_config(f"discharge.gate_speed={SPEED}", "discharge.enabled=false"))
+    w = idle.walls.index(GATE)
+    assert idle.walls.ay[w] == idle.walls.by[w] == 0.0

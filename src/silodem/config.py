@@ -57,8 +57,10 @@ class Material(_Strict):
     """Grain properties (the paper's Tables 1-2, column "Grain-Grain")."""
 
     density: float = Field(gt=0, description="grain density rho [kg/m^3]")
-    radius_min: float = Field(gt=0, description="smallest grain radius [m]")
-    radius_max: float = Field(gt=0, description="largest grain radius [m]")
+    radius_min: float = Field(gt=0, description="smallest grain radius [m] (with "
+                              "radius_distribution = 'discrete': radii's, when left out)")
+    radius_max: float = Field(gt=0, description="largest grain radius [m] (with "
+                              "radius_distribution = 'discrete': radii's, when left out)")
     radius_distribution: Literal["uniform", "uniform_mass", "discrete"] = Field(
         "uniform", description="'uniform': radii uniform in [radius_min, radius_max] (Tables "
         "1-2); 'uniform_mass': equal mass of grains in equal radius intervals of that range; "
@@ -152,12 +154,13 @@ class Material(_Strict):
             raise ValueError(f"material.radii must hold positive radii [m], not {self.radii}")
         if len(set(self.radii)) != len(self.radii):
             raise ValueError(f"material.radii must not repeat a radius: {self.radii}")
-        for key, value in (("radius_min", min(self.radii)), ("radius_max", max(self.radii))):
-            if getattr(self, key) != value:
-                raise ValueError(
-                    f"material.{key} ({getattr(self, key)}) is not the "
-                    f"{'smallest' if key == 'radius_min' else 'largest'} of material.radii "
-                    f"({value}): set material.{key} = {value} too")
+        bounds = {"radius_min": min(self.radii), "radius_max": max(self.radii)}
+        wrong = {k: v for k, v in bounds.items() if getattr(self, k) != v}
+        if wrong:
+            given = " and ".join(f"material.{k} ({getattr(self, k)})" for k in wrong)
+            fix = " and ".join(f"material.{k} = {v}" for k, v in wrong.items())
+            raise ValueError(f"{given} must be the smallest and largest of material.radii "
+                             f"{self.radii}: set {fix} too")
         s = self.radius_shares
         if s is None:
             return
@@ -390,7 +393,8 @@ class Measure(_Strict):
         "'after filling' profiles, `window` s of discharge the 'during discharge' ones"
     )
     discharge_delay: float = Field(
-        0.5, ge=0, description="the discharge window starts this long after the gate opens [s]"
+        0.5, ge=0, description="the discharge window starts this long after the gate opens "
+        "(a sliding gate: begins to slide) [s]"
     )
     wall_bin: float | None = Field(
         None, gt=0, description="bin length along the walls and height of the profile bins "

@@ -553,7 +553,8 @@ def _flow(a: Analysis, shape) -> None:
     mi = f["mass_flow_index"]
     descent = mean_descent(t, mass, _horizon(f), a)
     dead, dead_to = _dead_zone(f, 0.5 * a.geom["d"], descent)
-    dead_frac = dis.dead_fraction(dead, np.logical_or(*dis.lost_grains(f)))
+    before, during = dis.lost_grains(f)
+    dead_frac = dis.dead_fraction(dead, before | during)
     if np.isfinite(rate.rate):
         mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
                                   band_hi - band_lo)
@@ -563,9 +564,8 @@ def _flow(a: Analysis, shape) -> None:
         pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
     a.flow.update(mfi=mfi, dead=dead, dead_to=dead_to, dead_fraction=dead_frac, pattern=pattern,
                   mfi_band=(band_lo, band_hi))
-    before = dis.lost_grains(f)[0]  # (not in the silo at the opening)
     composition = dis.discharge_composition(np.asarray(f["exit_time"])[~before],
-                                            np.asarray(f["r0"])[~before])
+                                            np.asarray(f["r0"])[~before])  # (at the opening)
     if composition is not None:
         a.flow["composition"] = composition
     if np.isfinite(rate.rate) and np.isfinite(a.rho_b):

@@ -17,6 +17,7 @@ from matplotlib.collections import EllipseCollection, LineCollection
 
 from silodem.measure.stress import contact_points_walls
 from silodem.report.numbers import loaded
+from silodem.silo.geometry import gate_shift
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -87,6 +88,23 @@ def png_bytes(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
+def wall_names(walls: dict[str, Any]) -> list[str]:
+    """The names of results.h5's /walls (``walls``: its datasets)."""
+    return [n.decode() if isinstance(n, bytes) else str(n) for n in walls.get("name", ())]
+
+
+def walls_at(walls: dict[str, Any], events: dict[str, Any], time: float,
+             active: np.ndarray) -> dict[str, Any]:
+    """``walls`` (results.h5 /walls, the silo as built) as they stood at ``time`` [s]: a
+    gate sliding open, still in place (``active``), moved as far as it had slid
+    (``silo.geometry.gate_shift``); the same dict when no wall had moved."""
+    shift = gate_shift(events, wall_names(walls), walls["ax"], walls["bx"], time)
+    shift = shift * np.asarray(active, dtype=bool)
+    if not shift.any():
+        return walls
+    return {**walls, "ax": np.asarray(walls["ax"]) + shift, "bx": np.asarray(walls["bx"]) + shift}
+
+
 def draw_walls(ax: Axes, walls: dict[str, Any], active: np.ndarray | None = None) -> None:
     """Wall segments; withdrawn walls (the open gate) dotted."""
     act = walls["active"] if active is None else active
@@ -123,13 +141,18 @@ def draw_grains(ax: Axes, p: dict[str, np.ndarray], color: str = "#e4ddcf",
 
 def draw_force_network(ax: Axes, snap: dict[str, Any], walls: dict[str, Any],
                        fmax: float | None = None, cmap: str | Colormap = "inferno_r",
-                       max_width: float = 4.0) -> tuple[LineCollection | None, float]:
+                       max_width: float = 4.0, events: dict[str, Any] | None = None
+                       ) -> tuple[LineCollection | None, float]:
     """Grains, and every touching contact as a line whose width and colour grow with its normal
-    force (grain-grain: between the centres; grain-wall: from the centre to the wall).
+    force (grain-grain: between the centres; grain-wall: from the centre to the wall, a
+    sliding gate where it stood at the snapshot's time, from the run's ``events``).
     Returns the line collection (for a colour bar) and the force scale [N]."""
     p, c, wc = snap["particles"], snap["contacts"], snap["wall_contacts"]
     draw_grains(ax, p)
-    draw_walls(ax, walls, snap.get("walls_active"))
+    active = snap.get("walls_active")
+    if events is not None and active is not None:
+        walls = walls_at(walls, events, float(snap["@attrs"].get("time", np.nan)), active)
+    draw_walls(ax, walls, active)
     segs, forces = [], []
     if c["fn"].size:
         segs.append(np.stack([np.column_stack([p["x"][c["i"]], p["y"][c["i"]]]),

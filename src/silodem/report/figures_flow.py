@@ -49,7 +49,7 @@ def fig_network(a: Analysis) -> Figure | None:
     axes = np.atleast_1d(fig.subplots(1, len(snaps)))
     lc = None
     for ax, (title, snap) in zip(axes, snaps):
-        lc, _ = draw_force_network(ax, snap, walls, fmax)
+        lc, _ = draw_force_network(ax, snap, walls, fmax, events=a.res.events)
         silo_axes(ax, a.geom)
         ax.set_title(f"force network {title}", fontsize=9)
     if lc is not None:
@@ -74,7 +74,7 @@ def fig_switch_network(a: Analysis) -> Figure | None:
     axes = np.atleast_1d(fig.subplots(1, len(snaps)))
     lc = None
     for ax, (title, snap) in zip(axes, snaps):
-        lc, _ = draw_force_network(ax, snap, walls, fmax, max_width=6.0)
+        lc, _ = draw_force_network(ax, snap, walls, fmax, max_width=6.0, events=a.res.events)
         ax.set_aspect("equal")
         ax.set_xlim(*xs[0])
         ax.set_ylim(max(zc - half, -0.3), zc + half)

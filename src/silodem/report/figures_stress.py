@@ -20,6 +20,7 @@ from silodem.report.draw import (
     shade_phases,
     silo_axes,
     tight_layout,
+    walls_at,
 )
 from silodem.report.flags import (
     ABOVE_HYDROSTATIC_SHORT,
@@ -386,6 +387,12 @@ def fig_change(a: Analysis) -> Figure | None:
     return fig
 
 
+def window_time(a: Analysis, window: str) -> float:
+    """The moment the field window ``window`` is drawn at [s]: its snapshot's (NaN without)."""
+    snap = a.res.snapshot(window)
+    return float(snap["@attrs"].get("time", np.nan)) if isinstance(snap, dict) else np.nan
+
+
 def walls_active_in(a: Analysis, window: str) -> np.ndarray:
     """Which walls stand [bool per wall] in the field window ``window``: the walls_active of
     the snapshot of that moment (/settled for "settled", /measure/discharge_snapshot for
@@ -429,7 +436,9 @@ def fig_fields(a: Analysis) -> Figure | None:
             pm = ax.pcolormesh(xe, ze, v.T, cmap=cmap, vmin=0.0, vmax=top, shading="flat")
             # a cell cut by a hopper wall holds the value of its inside part (A_c, fields.py)
             pm.set_clip_path(Polygon(inside, transform=ax.transData))
-            draw_walls(ax, a.res.group("walls"), walls_active_in(a, window))
+            active = walls_active_in(a, window)
+            draw_walls(ax, walls_at(a.res.group("walls"), a.res.events,
+                                    window_time(a, window), active), active)
             silo_axes(ax, a.geom)
             ax.set_title(f"{label.split(' [')[0]}, {window}", fontsize=9)
             fig.colorbar(pm, ax=ax, shrink=0.7, label=label)

@@ -286,10 +286,10 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
 def check_gate(cfg: Config, dt: float) -> None:
     """InputError when a sliding gate (``discharge.gate_speed``) cannot work: it would cross
     more than a smallest radius in one step of ``dt`` [s], the discharge would end before it
-    had slid open, or the fill's expected overlap (``estimate_overlap``) would reach half of
-    the gate's depth under the floor (``geometry.gate_depth``), so that grains resting on
-    the floor would touch the gate running under them."""
-    from silodem.silo.geometry import GATE_GAP, gate_depth, silo_shape
+    had slid open, or, under a flat floor, the fill's expected overlaps are so large that the
+    gate would have to run more than ``GATE_DEEPEST`` smallest radii under it to stay clear
+    of the grains resting there (``geometry.gate_depth``)."""
+    from silodem.silo.geometry import GATE_CLEARANCE, GATE_DEEPEST, gate_depth, gate_overlap
 
     d, r_min = cfg.discharge, cfg.material.radius_min
     if d.gate_speed is None or not d.enabled:
@@ -306,14 +306,15 @@ def check_gate(cfg: Config, dt: float) -> None:
             f"discharge.max_time = {d.max_time:g} s ends the discharge before the gate has slid "
             f"open (outlet width / discharge.gate_speed = {opening:.3g} s): give a longer "
             "max_time or a faster gate")
-    overlap = estimate_overlap(cfg).overlap
-    if not overlap <= 0.5 * gate_depth(cfg):
+    overlap = gate_overlap(cfg)
+    depth = gate_depth(cfg, overlap)
+    if not depth <= GATE_DEEPEST * r_min:
         raise InputError(
-            f"discharge.gate_speed: the sliding gate runs {GATE_GAP:g} material.radius_min = "
-            f"{gate_depth(cfg):.3g} m under the floor, and the fill's expected overlap "
-            f"({overlap:.3g} m) would reach half of that, so grains on the floor would touch "
-            "the gate; stiffen the contacts (the overlap warning's advice) or leave "
-            "discharge.gate_speed unset")
+            f"discharge.gate_speed: under the flat floor the sliding gate must run "
+            f"{GATE_CLEARANCE:g} expected overlaps ({overlap:.3g} m) deep, {depth:.3g} m, to "
+            "stay clear of the grains resting there, more than "
+            f"{GATE_DEEPEST:g} material.radius_min; stiffen the contacts (the overlap "
+            "warning's advice) or leave discharge.gate_speed unset")
 
 
 def shortest_clog_time(cfg: Config) -> float:

@@ -31,7 +31,7 @@ import numpy as np
 
 from silodem.errors import one_line
 from silodem.measure.stress import contact_points_walls
-from silodem.silo.geometry import GATE
+from silodem.silo.geometry import gate_shift
 from silodem.silo.recorders import PHASE_CODES, PHASE_CODES_TEXT
 
 if TYPE_CHECKING:
@@ -344,18 +344,8 @@ class Frames:
 
     def wall_shift(self, time: float) -> np.ndarray:
         """Each wall's x displacement [m] at ``time`` [s] from where ``walls`` (results.h5
-        /walls, the silo as built) has it: for a gate that slides open (``discharge.gate_speed``,
-        the event ``gate_opening_time``), its speed, its length over that time, times the time
-        since the discharge started; 0 for every other wall and gate."""
-        shift = np.zeros(len(self.walls))
-        t0 = self.events.get("discharge_start_time")
-        span = self.events.get("gate_opening_time")
-        if t0 is None or span is None or GATE not in self.walls.names:
-            return shift
-        k = self.walls.names.index(GATE)
-        length = float(self.walls.bx[k] - self.walls.ax[k])
-        shift[k] = max(float(time) - float(t0), 0.0) * length / float(span)
-        return shift
+        /walls, the silo as built) has it: a sliding gate's (``geometry.gate_shift``)."""
+        return gate_shift(self.events, self.walls.names, self.walls.ax, self.walls.bx, time)
 
     @property
     def times(self) -> np.ndarray:

@@ -15,24 +15,64 @@ theta is the hopper wall's angle FROM THE HORIZONTAL (the paper's "slope"); hopp
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from silodem.config import Config
 from silodem.engine.walls import Walls
 from silodem.silo.materials import contact_constants
 
 GATE = "gate"
-GATE_GAP = 0.1  # a sliding gate's depth under the outlet's edges [smallest grain radii]
+GATE_GAP = 0.1  # a sliding gate's least depth under the outlet's edges [smallest radii]
+GATE_CLEARANCE = 10.0  # ... and under a flat floor, this many expected overlaps at least
+GATE_DEEPEST = 0.5  # the deepest a sliding gate may lie [smallest radii] (checks.check_gate)
 
 
-def gate_depth(cfg: Config) -> float:
-    """How far under z = 0 the gate lies [m]: 0 for a gate removed at once (the paper's);
-    GATE_GAP smallest radii for one that slides open (``discharge.gate_speed``), which runs
-    under the floor as a slide gate runs in its slot, so that it never touches a grain that
-    rests on the floor (``checks.check_numbers`` refuses contacts soft enough for that)."""
-    return GATE_GAP * cfg.material.radius_min if cfg.discharge.gate_speed else 0.0
+def gate_depth(cfg: Config, expected_overlap: float = 0.0) -> float:
+    """How far under z = 0 the gate lies [m]: 0 for a gate removed at once (the paper's, and
+    without a discharge); for one that slides open (``discharge.gate_speed``) GATE_GAP
+    smallest radii, and under a flat floor at least GATE_CLEARANCE times the fill's
+    ``expected_overlap`` [m] (``checks.estimate_overlap``): a slide gate runs in a slot under
+    the floor, clear of the grains that rest on it, whose overlaps under the force chains
+    reach about five times the estimate's mean (measured in a flat paper-case2 --quick).
+    Beside a hopper's outlet only grains over the outlet, which rest on the gate anyway, can
+    reach it."""
+    d = cfg.discharge
+    if d.gate_speed is None or not d.enabled:
+        return 0.0
+    least = GATE_GAP * cfg.material.radius_min
+    return max(least, GATE_CLEARANCE * expected_overlap) if cfg.silo.kind == "flat" else least
+
+
+def gate_overlap(cfg: Config) -> float:
+    """The expected overlap [m] that sets a sliding gate's depth under a flat floor
+    (``gate_depth``): ``checks.estimate_overlap``'s; 0 where it plays no part."""
+    if cfg.discharge.gate_speed is None or cfg.silo.kind != "flat":
+        return 0.0
+    from silodem.silo.checks import estimate_overlap  # (checks reads this module)
+
+    return estimate_overlap(cfg).overlap
+
+
+def gate_shift(events: Mapping[str, Any], names: Sequence[str], ax: npt.ArrayLike,
+               bx: npt.ArrayLike, time: float) -> np.ndarray:
+    """Each wall's x displacement [m] at ``time`` [s] from its place as built (results.h5
+    /walls): a gate that slides open (the event ``gate_opening_time``) has moved its length
+    over that time for each second since the discharge started (``discharge_start_time``),
+    0 before; every other wall, and a gate removed at once, 0. Pure kinematics: a drawing
+    applies it while the gate stands (walls_active). 0 at an unknown (NaN) time."""
+    shift = np.zeros(len(names))
+    t0, span = events.get("discharge_start_time"), events.get("gate_opening_time")
+    if t0 is None or span is None or GATE not in names or not math.isfinite(float(time)):
+        return shift
+    k = list(names).index(GATE)
+    length = float(np.asarray(bx)[k] - np.asarray(ax)[k])
+    shift[k] = max(float(time) - float(t0), 0.0) * length / float(span)
+    return shift
 
 
 def outlet_room(cfg: Config) -> float:
@@ -144,6 +184,6 @@ def build_walls(cfg: Config) -> Walls:
     else:
         walls.add("left_floor", (0.0, 0.0), (xl, 0.0), kn, ks, mu, one_sided=True)
         walls.add("right_floor", (xr, 0.0), (B, 0.0), kn, ks, mu, one_sided=True)
-    h = gate_depth(cfg)
+    h = gate_depth(cfg, gate_overlap(cfg))
     walls.add(GATE, (xl, -h), (xr, -h), kn, ks, mu, one_sided=True)
     return walls

@@ -136,6 +136,8 @@ class SiloRun:
         elif self.overlap_estimate.soft_shear:
             self.warnings.append(self.overlap_estimate.shear_warning())
         self.warnings += [w for rec in self.recorders if (w := rec.volume_warning(self))]
+        if (warning := self._early_window()) is not None:
+            self.warnings.append(warning)
 
     @property
     def phase(self) -> str:
@@ -248,6 +250,21 @@ class SiloRun:
         self.sim.set_wall_velocity(GATE, speed, 0.0)
         self.events["gate_opening_time"] = (self.shape.outlet_right
                                             - self.shape.outlet_left) / speed
+
+    def _early_window(self) -> str | None:
+        """The warning of a discharge window that begins while a sliding gate still covers
+        part of the outlet (its measurements are of a partly open outlet)."""
+        speed, delay = self.cfg.discharge.gate_speed, self.cfg.measure.discharge_delay
+        if speed is None or not self.cfg.discharge.enabled:
+            return None
+        opening = (self.shape.outlet_right - self.shape.outlet_left) / speed
+        if delay >= opening:
+            return None
+        return (f"the discharge window begins {delay:g} s after the gate begins to slide "
+                f"(measure.discharge_delay), before the outlet is clear at {opening:.3g} s: "
+                "its wall stresses, velocity field and flow pattern are of a partly open "
+                f"outlet; give measure.discharge_delay >= {math.ceil(opening * 100) / 100:g} s "
+                "to measure the open silo")
 
     def gate_sliding(self) -> bool:
         """Whether the gate is sliding open (``discharge.gate_speed``), not yet removed."""

@@ -37,7 +37,9 @@ def draw_radii(material: Material, n: int, rng: np.random.Generator) -> np.ndarr
     if kind == "uniform":
         return rng.uniform(a, b, n)
     if kind == "uniform_mass":
-        u = rng.uniform(0.0, 1.0, n)
+        u = rng.uniform(0.0, 1.0, n)  # (drawn for one size too: the same random stream)
+        if b == a:  # (1 / (1 / a) is not always a in floating point)
+            return np.full(n, a)
         return 1.0 / (1.0 / a - u * (1.0 / a - 1.0 / b))
     counts = discrete_counts(shares(material), n)
     return rng.permutation(np.repeat(np.asarray(material.radii, dtype=float), counts))
