@@ -306,3 +306,35 @@ def test_a_damped_triangular_packing_is_stable_at_dt_crit_and_not_at_the_undampe
     e0_undamped, _, mechanical = energies(lambda dt_crit: dt_crit / damped_step_factor(zeta))
     assert e0_undamped == e0
     assert min(mechanical) > e0  # energy made by the integration: 1.5-2.4 E0 (six seeds)
+
+
+def test_a_disk_on_a_moving_wall_slides_then_rolls_at_a_third_of_the_walls_speed():
+    """A disk at rest on a floor that starts moving at v (the sliding gate's contact): kinetic
+    friction mu m g drives it, a = mu g, and spins it, alpha = mu m g r / I = 2 mu g / r, so
+    its bottom point gains 3 mu g per second until it moves with the floor, at t* = v/(3 mu g);
+    then it rolls, with no force needed, at v/3 and omega = 2 v / (3 r) (rigid-body mechanics
+    of a disk on a belt). The tangential spring rings about the rolling state once the slip
+    stops; its mean over many periods is the rigid body's."""
+    r, k, g, mu, v = 0.01, 1e5, 9.81, 0.4, 0.2
+    w = Walls()
+    w.add("floor", (-10.0, 0.0), (10.0, 0.0), k, k, mu, one_sided=True)
+    p = Particles(1)
+    p.add(0.0, r - 2500.0 * math.pi * r * r * g / k, r, 2500.0)  # at its static overlap
+    dt = 1e-5
+    sim = Simulation(p, w, law(k, zeta=0.3, mu=mu), dt=dt, gravity=g, skin=0.003)
+    sim.run(5_000)  # at rest
+    w.vx[0] = v
+    t_stick = v / (3.0 * mu * g)
+    half = round(0.5 * t_stick / dt)
+    sim.run(half)
+    t = half * dt
+    assert p.vx[0] == pytest.approx(mu * g * t, rel=0.02)
+    assert p.omega[0] == pytest.approx(2.0 * mu * g * t / r, rel=0.02)
+    sim.run(round(t_stick / dt))  # past t*
+    vx, omega = [], []
+    for _ in range(2000):  # 0.2 s: many periods of the ringing
+        sim.run(10)
+        vx.append(p.vx[0])
+        omega.append(p.omega[0])
+    assert np.mean(vx) == pytest.approx(v / 3.0, rel=0.01)
+    assert np.mean(omega) == pytest.approx(2.0 * v / (3.0 * r), rel=0.01)
