@@ -261,3 +261,30 @@ def test_a_window_that_begins_mid_slide_warns_and_a_gate_without_discharge_stays
     idle = SiloRun(quick_config(f"discharge.gate_speed={SPEED}", "discharge.enabled=false"))
     w = idle.walls.index(GATE)
     assert idle.walls.ay[w] == idle.walls.by[w] == 0.0
+
+
+def test_pictures_of_a_snapshot_draw_the_gate_and_its_force_lines_where_it_stood():
+    """settled.png, final.png and Figs. 4-5 (``draw_force_network``): a snapshot 2 s into a
+    slide of a 1 m gate over 4 s has the gate 0.5 m along, and a grain at x = 1.7 over it is
+    joined to it straight below; once the gate is out (inactive) it is drawn where it was
+    (as built, [0.5, 1.5]: the nearest point is its end)."""
+    from matplotlib.figure import Figure
+
+    from silodem.report.draw import draw_force_network
+
+    walls = {"name": np.array([b"left_floor", b"gate"]), "ax": np.array([0.0, 0.5]),
+             "ay": np.array([0.0, -0.01]), "bx": np.array([0.5, 1.5]),
+             "by": np.array([0.0, -0.01]), "active": np.array([True, False])}
+    events = {"discharge_start_time": 10.0, "gate_opening_time": 4.0}
+    grain = {"x": np.array([1.7]), "y": np.array([0.08]), "radius": np.array([0.1])}
+    empty = {"i": np.zeros(0, int), "j": np.zeros(0, int), "fn": np.zeros(0)}
+    for active, gate_x, end_x in ((True, [1.0, 2.0], 1.7), (False, [0.5, 1.5], 1.5)):
+        snap = {"particles": grain, "contacts": empty, "@attrs": {"time": 12.0},
+                "walls_active": np.array([True, active]),
+                "wall_contacts": {"grain": np.array([0]), "wall": np.array([1]),
+                                  "fn": np.array([50.0])}}
+        ax = Figure().subplots()
+        lines, _ = draw_force_network(ax, snap, walls, events=events)
+        gate = [ln for ln in ax.get_lines() if list(ln.get_ydata()) == [-0.01, -0.01]]
+        assert [list(ln.get_xdata()) for ln in gate] == [gate_x]
+        np.testing.assert_allclose(lines.get_segments()[0][1], (end_x, -0.01), atol=1e-12)

@@ -77,7 +77,7 @@ def write_views(folder: Path | str) -> list[Path]:
     from silodem.viz.vtk import write_fields
 
     folder = Path(folder)
-    res = load_results(folder, only=("walls", *PICTURES))  # not the frames and series
+    res = load_results(folder, only=("walls", "events", *PICTURES))  # not frames, series
     out = draw_pictures(res)
     if res.cfg.output.vtk_interval:
         out += write_fields(folder / "results.h5", folder / "vtk")
@@ -98,16 +98,17 @@ def draw_pictures(res: Results) -> list[Path]:
             continue
         path = res.folder / f"{name}.png"
         draw_state(snap, walls, path,
-                   f"{res.cfg.name}: {caption}, t = {snap['@attrs']['time']:.2f} s")
+                   f"{res.cfg.name}: {caption}, t = {snap['@attrs']['time']:.2f} s", res.events)
         out.append(path)
     return out
 
 
-def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
+def draw_state(snap: dict, walls: dict, path: Path, title: str,
+               events: dict | None = None) -> None:
     """A PNG of a snapshot: grains to scale, the force network (every touching contact, line
     width and colour ~ normal force; ``report.draw.draw_force_network``, as the report's
     Fig. 5, with its colour bar) and the walls (``walls``: ax, ay, bx, by [m]; dotted where
-    withdrawn)."""
+    withdrawn; a sliding gate where it stood, from the run's ``events``)."""
     from silodem.report.draw import draw_force_network, save_png, tight_layout
 
     p = snap["particles"]
@@ -125,7 +126,7 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str) -> None:
     aspect = (xlim[1] - xlim[0]) / (ylim[1] - ylim[0])
     size = (max(3.5, 9 * aspect) + 1.6, 9) if aspect <= 1 else (12 + 1.6, max(3, 12 / aspect) + 1)
     fig, ax = plt.subplots(figsize=size, dpi=110)
-    lines, _ = draw_force_network(ax, snap, walls)
+    lines, _ = draw_force_network(ax, snap, walls, events=events)
     ax.set_aspect("equal")
     ax.set_xlim(*xlim)
     ax.set_ylim(*ylim)

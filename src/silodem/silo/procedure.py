@@ -243,22 +243,26 @@ class SiloRun:
         """Start the discharge: the gate removed at once (the paper's), or set sliding
         sideways at ``discharge.gate_speed`` (towards +x, under the right-hand floor or hopper
         wall), to be removed once its trailing end has passed the outlet (``_gate_slid``)."""
-        speed = self.cfg.discharge.gate_speed
-        if speed is None:
+        opening = self.gate_opening_time()
+        if opening is None:
             self.sim.set_wall_active(GATE, False)
             return
-        self.sim.set_wall_velocity(GATE, speed, 0.0)
-        self.events["gate_opening_time"] = (self.shape.outlet_right
-                                            - self.shape.outlet_left) / speed
+        self.sim.set_wall_velocity(GATE, self.cfg.discharge.gate_speed, 0.0)
+        self.events["gate_opening_time"] = opening
+
+    def gate_opening_time(self) -> float | None:
+        """How long a sliding gate takes to clear the outlet, D / ``discharge.gate_speed``
+        [s]; None for a gate removed at once, and without a discharge."""
+        d = self.cfg.discharge
+        if d.gate_speed is None or not d.enabled:
+            return None
+        return (self.shape.outlet_right - self.shape.outlet_left) / d.gate_speed
 
     def _early_window(self) -> str | None:
         """The warning of a discharge window that begins while a sliding gate still covers
         part of the outlet (its measurements are of a partly open outlet)."""
-        speed, delay = self.cfg.discharge.gate_speed, self.cfg.measure.discharge_delay
-        if speed is None or not self.cfg.discharge.enabled:
-            return None
-        opening = (self.shape.outlet_right - self.shape.outlet_left) / speed
-        if delay >= opening:
+        opening, delay = self.gate_opening_time(), self.cfg.measure.discharge_delay
+        if opening is None or delay >= opening:
             return None
         return (f"the discharge window begins {delay:g} s after the gate begins to slide "
                 f"(measure.discharge_delay), before the outlet is clear at {opening:.3g} s: "
