@@ -580,6 +580,8 @@ def test_flow_pattern_dead_fraction_and_mass_flow_index(synth, tmp_path):
     assert a.flow["pattern"] == "funnel flow"
     _check(s, {"dead_fraction": 0.15, "mass_flow_index": 1 / 3})
     assert s["flow_pattern"] == "funnel flow"
+    # grains of one size (r0 = 0.05 m for all): no size segregation to report
+    assert s["segregation_first"] == s["segregation_last"] == 1.0
     folder = write_synthetic(tmp_path / "mass", mass_flow=True)
     s2 = summarise_run(folder)
     assert s2["mass_flow_index"] == 0.3 and s2["dead_fraction"] == 0.0
@@ -1201,7 +1203,8 @@ DOC_COLUMNS = [
     "en1991_4_class", "en1991_4_hopper_class", "en1991_4_hopper_p_n_fill",
     "en1991_4_hopper_p_n_discharge", "discharge_rate", "discharge_rate_err",
     "window_emptied_start_pct", "window_emptied_end_pct",
-    "mass_flow_index", "dead_fraction", "flow_pattern", "junction_z", "fill_level",
+    "mass_flow_index", "dead_fraction", "flow_pattern", "segregation_first",
+    "segregation_last", "junction_z", "fill_level",
     "bulk_density", "n_poured", "lost_count",
     "discharged_fraction", "discharge_end_reason", "steps", "dt"]
 

@@ -86,6 +86,9 @@ COLUMNS: list[tuple[str, str, str]] = [
     ("dead_fraction", "-", ("fraction of the grains in a dead zone (at rest to the end of "
                             "the discharge window)")),
     ("flow_pattern", "", "mass flow, funnel flow, clogged, or unknown (MFI not measured)"),
+    ("segregation_first", "-", ("mass mean diameter of the first tenth of the discharged "
+                                "mass over the fill's (1: no size segregation)")),
+    ("segregation_last", "-", "the same of the last tenth"),
     ("junction_z", "m", "height of the cell-hopper junction above the outlet"),
     ("fill_level", "m", "fill level after settling: mean of the 5 highest grain tops (events)"),
     ("bulk_density", "kg/m^3", "bulk density rho_b of the settled packing under the free surface"),
@@ -276,6 +279,10 @@ def summarise_run(folder: Path | str) -> dict[str, Any]:
         out["mass_flow_index"] = as_float(flow["mfi"])
         out["dead_fraction"] = as_float(flow["dead_fraction"])
         out["flow_pattern"] = str(flow["pattern"])
+    if "composition" in flow:
+        ratio = flow["composition"].diameter_ratio
+        out["segregation_first"], out["segregation_last"] = as_float(ratio[0]), \
+            as_float(ratio[-1])
     return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in out.items()}
 
 
