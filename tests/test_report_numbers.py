@@ -654,6 +654,16 @@ def test_key_numbers_of_the_report(synth):
     assert _number(a, "measured mean vertical stress q on the junction, during") == "6,000"
     rate = _number(a, "steady discharge rate W (of a slot of thickness t = ")
     assert _first_float(rate) == pytest.approx(W_RATE, rel=5e-4)
+    assert "slid open" not in rate  # the gate was removed at once
+    # a gate that slid open over 100 s: the whole fit lies within the slide, and the row says so
+    slid = copy.copy(a)
+    slid.res = dataclasses.replace(a.res, events={**a.res.events, "gate_opening_time": 100.0})
+    slid.numbers = []
+    add_numbers(slid)
+    t0 = a.flow["rate"].t0
+    assert _number(slid, "steady discharge rate W").endswith(
+        f"(fitted from {significant(t0, 3)} s after the opening, while the gate still slid "
+        "open, to 100 s: of a partly open outlet)")
     # the discharge window, 0.25-0.75 s after the gate opened: m = W (t - 0.25) of the
     # initial M_TOTAL / 0.75, so 0 and 64 x 0.5 / 106.7 = 30 % discharged
     assert _number(a, "share of the fill's mass discharged at the discharge window") == "0 / 30"

@@ -301,7 +301,11 @@ def add_numbers(a: Analysis) -> None:
     if "rate" in f:
         r = f["rate"]
         label = f"steady discharge rate W (of a slot of thickness t = {_fmt(a.geom['t'], 3)} m)"
-        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}", "kg/s"))
+        opening = float(a.res.events.get("gate_opening_time", 0.0))
+        sliding = (f" (fitted from {_fmt(r.t0, 3)} s after the opening, while the gate still "
+                   f"slid open, to {_fmt(opening, 3)} s: of a partly open outlet)"
+                   if np.isfinite(r.rate) and r.t0 < opening else "")
+        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}{sliding}", "kg/s"))
     if "pattern" in f:
         where = mfi_where(a)
         n.append((f"mass flow index v_wall / v_axis, {where}", _fmt(f["mfi"], 3), "-"))
