@@ -17,6 +17,7 @@ from matplotlib.collections import EllipseCollection, LineCollection
 
 from silodem.measure.stress import contact_points_walls
 from silodem.report.numbers import loaded
+from silodem.silo.frames import WallGeometry
 from silodem.silo.geometry import gate_shift
 
 if TYPE_CHECKING:
@@ -88,17 +89,13 @@ def png_bytes(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
-def wall_names(walls: dict[str, Any]) -> list[str]:
-    """The names of results.h5's /walls (``walls``: its datasets)."""
-    return [n.decode() if isinstance(n, bytes) else str(n) for n in walls.get("name", ())]
-
-
 def walls_at(walls: dict[str, Any], events: dict[str, Any], time: float,
              active: np.ndarray) -> dict[str, Any]:
     """``walls`` (results.h5 /walls, the silo as built) as they stood at ``time`` [s]: a
     gate sliding open, still in place (``active``), moved as far as it had slid
     (``silo.geometry.gate_shift``); the same dict when no wall had moved."""
-    shift = gate_shift(events, wall_names(walls), walls["ax"], walls["bx"], time)
+    geometry = WallGeometry.of(walls)
+    shift = gate_shift(events, geometry.names, geometry.ax, geometry.bx, time)
     shift = shift * np.asarray(active, dtype=bool)
     if not shift.any():
         return walls

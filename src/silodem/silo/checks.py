@@ -289,18 +289,23 @@ def check_gate(cfg: Config, dt: float) -> None:
     had slid open, or, under a flat floor, the fill's expected overlaps are so large that the
     gate would have to run more than ``GATE_DEEPEST`` smallest radii under it to stay clear
     of the grains resting there (``geometry.gate_depth``)."""
-    from silodem.silo.geometry import GATE_CLEARANCE, GATE_DEEPEST, gate_depth, gate_overlap
+    from silodem.silo.geometry import (
+        GATE_CLEARANCE,
+        GATE_DEEPEST,
+        gate_depth,
+        gate_opening_time,
+        gate_overlap,
+    )
 
     d, r_min = cfg.discharge, cfg.material.radius_min
-    if d.gate_speed is None or not d.enabled:
+    opening = gate_opening_time(cfg)
+    if opening is None:
         return
     if not d.gate_speed * dt <= r_min:
         raise InputError(
             f"discharge.gate_speed = {d.gate_speed:.3g} m/s moves the gate "
             f"{d.gate_speed * dt:.3g} m in one time step of {dt:.3g} s, more than "
             f"material.radius_min = {r_min:.3g} m: give at most {floor_3(r_min / dt):.3g} m/s")
-    shape = silo_shape(cfg)
-    opening = (shape.outlet_right - shape.outlet_left) / d.gate_speed
     if d.max_time <= opening:
         raise InputError(
             f"discharge.max_time = {d.max_time:g} s ends the discharge before the gate has slid "

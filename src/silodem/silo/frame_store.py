@@ -320,10 +320,10 @@ class FramesRecorder(Recorder):
     def _write_vtk(self, run: SiloRun, frame: Frame) -> None:
         from silodem.viz.vtk import VtkSeries
 
+        walls = WallGeometry.of(run.walls)  # where they are now (a sliding gate moves)
         if self._vtk is None:
-            self._vtk = VtkSeries(self.vtk_dir, WallGeometry.of(run.walls),
-                                  fresh=not self.vtk_times)
-        self._vtk.walls = WallGeometry.of(run.walls)  # where they are now (a sliding gate)
+            self._vtk = VtkSeries(self.vtk_dir, walls, fresh=not self.vtk_times)
+        self._vtk.walls = walls
         self._vtk.write(len(self.vtk_times), frame)
         self.vtk_times.append(frame.time)
         self._vtk.write_collections(self.vtk_times)

@@ -48,6 +48,15 @@ def gate_depth(cfg: Config, expected_overlap: float = 0.0) -> float:
     return max(least, GATE_CLEARANCE * expected_overlap) if cfg.silo.kind == "flat" else least
 
 
+def gate_opening_time(cfg: Config) -> float | None:
+    """How long a sliding gate takes to clear the outlet, D / ``discharge.gate_speed`` [s];
+    None for a gate removed at once, and without a discharge."""
+    d = cfg.discharge
+    if d.gate_speed is None or not d.enabled:
+        return None
+    return cfg.silo.outlet_width / d.gate_speed
+
+
 def gate_overlap(cfg: Config) -> float:
     """The expected overlap [m] that sets a sliding gate's depth under a flat floor
     (``gate_depth``): ``checks.estimate_overlap``'s; 0 where it plays no part."""

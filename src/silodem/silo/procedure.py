@@ -27,7 +27,14 @@ from silodem.engine.simulation import Simulation
 from silodem.errors import InputError
 from silodem.silo import sizes
 from silodem.silo.checks import PACKING_FRACTION, choose_time_step, estimate_overlap, grain_law
-from silodem.silo.geometry import GATE, SiloShape, build_walls, outlet_room, silo_shape
+from silodem.silo.geometry import (
+    GATE,
+    SiloShape,
+    build_walls,
+    gate_opening_time,
+    outlet_room,
+    silo_shape,
+)
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
 
 PHASES = ("fill", "settle", "discharge", "done")
@@ -243,25 +250,17 @@ class SiloRun:
         """Start the discharge: the gate removed at once (the paper's), or set sliding
         sideways at ``discharge.gate_speed`` (towards +x, under the right-hand floor or hopper
         wall), to be removed once its trailing end has passed the outlet (``_gate_slid``)."""
-        opening = self.gate_opening_time()
+        opening = gate_opening_time(self.cfg)
         if opening is None:
             self.sim.set_wall_active(GATE, False)
             return
         self.sim.set_wall_velocity(GATE, self.cfg.discharge.gate_speed, 0.0)
         self.events["gate_opening_time"] = opening
 
-    def gate_opening_time(self) -> float | None:
-        """How long a sliding gate takes to clear the outlet, D / ``discharge.gate_speed``
-        [s]; None for a gate removed at once, and without a discharge."""
-        d = self.cfg.discharge
-        if d.gate_speed is None or not d.enabled:
-            return None
-        return (self.shape.outlet_right - self.shape.outlet_left) / d.gate_speed
-
     def _early_window(self) -> str | None:
         """The warning of a discharge window that begins while a sliding gate still covers
         part of the outlet (its measurements are of a partly open outlet)."""
-        opening, delay = self.gate_opening_time(), self.cfg.measure.discharge_delay
+        opening, delay = gate_opening_time(self.cfg), self.cfg.measure.discharge_delay
         if opening is None or delay >= opening:
             return None
         return (f"the discharge window begins {delay:g} s after the gate begins to slide "

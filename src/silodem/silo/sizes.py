@@ -49,7 +49,8 @@ def shares(material: Material) -> np.ndarray:
     """The shares by number of ``material.radii`` (equal when ``radius_shares`` is unset)."""
     if material.radius_shares is not None:
         return np.asarray(material.radius_shares, dtype=float)
-    return np.full(len(material.radii or ()), 1.0 / len(material.radii or (0,)))
+    n = len(material.radii or ())
+    return np.full(n, 1.0 / n) if n else np.zeros(0)
 
 
 def discrete_counts(share: np.ndarray, n: int) -> np.ndarray:
