@@ -11,6 +11,7 @@ from silodem.measure.discharge import (
     classify_flow,
     dead_zone,
     discharge_composition,
+    flow_composition,
     flow_rate_series,
     mass_flow_index,
     steady_rate,
@@ -168,6 +169,28 @@ def test_composition_without_segregation_reads_one_in_every_tenth():
     d_fill = 2 * (10 * 8 + 40 * 1 + 27) / (10 * 4 + 40 * 1 + 9)  # sum m d / sum m
     assert stayed.fill_diameter == pytest.approx(d_fill, rel=1e-15)
     np.testing.assert_allclose(stayed.diameter_ratio, 2 * 120 / 80 / d_fill, rtol=1e-14)
+
+
+def test_the_flow_records_composition_leaves_out_the_grains_lost_before_the_opening():
+    """The interleaved discharge above as results.h5's measure/flow, with two grains of r = 3
+    that never left: one lost through a wall before the gate opened, which was not in the silo
+    then and so is not in the reference (every tenth reads 1, as without it), and one lost
+    after, which was and is (the reference of the grain that stayed above). A file written
+    before the flags tells the first by its centre below the outlet (z0 < 0)."""
+    r = np.append(np.tile([2.0, 1.0, 1.0, 1.0, 1.0], 10), [3.0, 3.0])
+    t = np.append(np.arange(50.0), [np.nan, np.nan])
+    z0 = np.append(np.full(50, 0.5), [-0.02, 0.4])
+    flow = {"exit_time": t, "r0": r, "z0": z0,
+            "lost_before_discharge": np.arange(52) == 50,
+            "lost_during_discharge": np.arange(52) == 51}
+    d_fill = 2 * (10 * 8 + 40 * 1 + 27) / (10 * 4 + 40 * 1 + 9)
+    for record in (flow, {k: flow[k] for k in ("exit_time", "r0", "z0")}):
+        c = flow_composition(record)
+        assert c.fill_diameter == pytest.approx(d_fill, rel=1e-15)
+        np.testing.assert_allclose(c.diameter_ratio, 2 * 120 / 80 / d_fill, rtol=1e-14)
+    counted_both = discharge_composition(t, r)  # (what the lost one would have made it)
+    assert counted_both.fill_diameter == pytest.approx(2 * (120 + 54) / (80 + 18), rel=1e-15)
+    assert flow_composition({**flow, "lost_before_discharge": np.ones(52, bool)}) is None
 
 
 def test_composition_needs_a_grain_per_tenth_and_lists_sizes_of_a_mixture_only():

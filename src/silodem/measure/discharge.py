@@ -204,6 +204,16 @@ def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     return before, during & ~before  # (a file that flagged a grain twice: lost before)
 
 
+def flow_composition(flow: Mapping[str, Any], parts: int = DISCHARGE_PARTS) -> Composition | None:
+    """:func:`discharge_composition` of results.h5's ``measure/flow`` (a mapping of its
+    datasets, radii ``r0`` at the gate opening): the grains lost through a wall before the
+    gate opened (:func:`lost_grains`) were not in the silo then and are in neither count; those
+    lost after it count in the fill's reference but never left."""
+    before, _ = lost_grains(flow)
+    return discharge_composition(np.asarray(flow["exit_time"], dtype=float)[~before],
+                                 np.asarray(flow["r0"], dtype=float)[~before], parts)
+
+
 def dead_fraction(dead: npt.ArrayLike, lost: npt.ArrayLike | None = None) -> float:
     """The fraction [-] of the grains in the silo as the gate opened that are in the dead zone
     (``dead``, :func:`dead_zone`): grains ``lost`` through a wall (either kind of

@@ -564,8 +564,7 @@ def _flow(a: Analysis, shape) -> None:
         pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
     a.flow.update(mfi=mfi, dead=dead, dead_to=dead_to, dead_fraction=dead_frac, pattern=pattern,
                   mfi_band=(band_lo, band_hi))
-    composition = dis.discharge_composition(np.asarray(f["exit_time"])[~before],
-                                            np.asarray(f["r0"])[~before])  # (at the opening)
+    composition = dis.flow_composition(f)
     if composition is not None:
         a.flow["composition"] = composition
     if np.isfinite(rate.rate) and np.isfinite(a.rho_b):
