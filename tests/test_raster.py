@@ -128,16 +128,17 @@ def test_the_colour_scale_over_many_grains_is_taken_from_a_thinned_sample(monkey
     the frames hold more than SCALE_SAMPLE values, every k-th is kept (about SCALE_SAMPLE in
     all).  On the 160,000-grain lattice (speeds (row + 1) / 400, uniform over the rows) with a
     sample of 4000, the scale is within 0.5 % of the 95th percentile of every speed."""
-    from silodem.viz import draw
+    from silodem.silo.frames import Frame
+    from silodem.viz import scales
 
     frames = _many_grains()
     speeds = frames[0].speed().astype(float)
-    monkeypatch.setattr(draw, "SCALE_SAMPLE", 4000)
-    kept = draw._every_frame(frames, draw.Frame.speed)
+    monkeypatch.setattr(scales, "SCALE_SAMPLE", 4000)
+    kept = scales.every_frame(frames, Frame.speed)
     assert sum(v.size for v in kept) == 4000
     top = FrameArtist(frames, "velocity").norm.vmax
     assert top == pytest.approx(np.percentile(speeds, 95.0), rel=5e-3)
-    monkeypatch.setattr(draw, "SCALE_SAMPLE", 10**9)  # all of them: the exact percentile
+    monkeypatch.setattr(scales, "SCALE_SAMPLE", 10**9)  # all of them: the exact percentile
     assert FrameArtist(frames, "velocity").norm.vmax == pytest.approx(
         np.percentile(speeds, 95.0), rel=1e-6)
 

@@ -4,7 +4,7 @@ of three widths), the walls; grains under ``RASTER_BELOW_PX`` across as cells of
 
 ``FrameArtist`` owns one matplotlib figure (Agg canvas, no pyplot) and redraws only what changes
 from frame to frame, so animations render fast.  Colour scales and the force-line scale are
-fixed over all the frames of a run, so frames (and the report's pictures) compare.
+fixed over all the frames of a run (``viz.scales``), so frames (and the report's pictures) compare.
 """
 
 from __future__ import annotations
@@ -27,13 +27,23 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from silodem.report.draw import PNG_COMPRESSION, grain_disks
-from silodem.silo.frames import Frame, Frames, FramesFile
+from silodem.silo.frames import Frame, Frames
 from silodem.viz.raster import (
     RASTER_BELOW_PX,
     pixel_count_and_mean,
     pixel_index,
     pixel_max,
     raster_shape,
+)
+from silodem.viz.scales import (
+    CHAIN_ALPHA,
+    chain_alphas,
+    chain_widths,
+    every_frame,
+    key_forces,
+    most_grains,
+    positive_percentile,
+    settled_or_all,
 )
 from silodem.viz.title import (
     ELLIPSIS,
@@ -67,41 +77,6 @@ HEIGHT_PX = (200, 8000)  # the heights [px] a figure may have (room for its axes
 # the widest figure [px]: libx264 refused a 26,800 px wide frame (a silo 70 m wide and 1 m
 # tall), after every frame had been drawn; wider silos get a lower figure
 WIDTH_PX_MAX = 8000
-
-
-# force-line widths [pt]: CHAIN_WIDTH at the run's force scale, clipped to CHAIN_WIDTHS
-CHAIN_WIDTH = 2.5
-CHAIN_WIDTHS = (0.15, 6.0)
-
-
-def chain_widths(fn: np.ndarray, force_scale: float) -> np.ndarray:
-    """Line widths [pt] of contacts with normal forces ``fn`` [N]: proportional to the force,
-    ``CHAIN_WIDTH`` at ``force_scale`` [N], clipped to ``CHAIN_WIDTHS``."""
-    return np.clip(CHAIN_WIDTH * np.asarray(fn, dtype=float) / force_scale, *CHAIN_WIDTHS)
-
-
-CHAIN_ALPHA = 0.9  # the opacity of a force line (and of a cell of chains at full force)
-
-
-def chain_alphas(force_max: np.ndarray, force_scale: float) -> np.ndarray:
-    """Opacity of the chains' cells of a frame drawn as pixels (``viz.raster``): proportional
-    to the largest normal force [N] of the contacts centred in the cell, ``CHAIN_ALPHA`` (a
-    force line's) from the run's force scale [N] up, as a line is ``CHAIN_WIDTH`` wide there."""
-    return CHAIN_ALPHA * np.clip(np.asarray(force_max, dtype=float) / force_scale, 0.0, 1.0)
-
-
-def key_forces(force_scale: float, raster: bool = False) -> list[float]:
-    """Forces [N] for the line-width key: the run's force scale to one significant figure, and
-    half and twice that, less any whose line would be clipped (``CHAIN_WIDTHS``: twice a scale
-    rounded up, e.g. 1.5 -> 2, would be drawn 6.7 pt wide, which the network draws at 6).
-    For a frame drawn as pixels (``raster``, opacity full from the scale up, ``chain_alphas``):
-    a quarter, half and the whole of that force."""
-    base = float(f"{force_scale:.0e}")
-    if raster:
-        return [0.25 * base, 0.5 * base, base]
-    lo, hi = CHAIN_WIDTHS
-    return [f for f in (0.5 * base, base, 2.0 * base)
-            if lo <= CHAIN_WIDTH * f / force_scale <= hi]
 
 
 KEY_GAP = 14  # px between the plot, the colour bar and the force key
@@ -155,45 +130,6 @@ def _even16(px: float) -> int:
     return max(16, round(px / 16.0) * 16)
 
 
-def _positive_percentile(values: list[np.ndarray], q: float,
-                         default: float | None) -> float | None:
-    """The ``q``-th percentile of the finite positive values, else ``default``."""
-    data = np.concatenate([np.asarray(v, dtype=float).ravel() for v in values]) if values \
-        else np.zeros(0)
-    data = data[np.isfinite(data) & (data > 0)]
-    return float(np.percentile(data, q)) if data.size else default
-
-
-SCALE_SAMPLE = 8_000_000  # at most about this many values kept for a scale over all frames
-
-
-def _every_frame(frames: Frames, column) -> list[np.ndarray]:
-    """``column(frame)`` of every frame, read a block at a time, each thinned to every k-th
-    value where the frames hold more than SCALE_SAMPLE in all (k = ceil(values in the frame x
-    frames / SCALE_SAMPLE)): a percentile of a million grains over 200 frames kept 800 MB."""
-    out = []
-    for frame in frames:
-        values = np.asarray(column(frame))
-        stride = max(1, math.ceil(values.size * len(frames) / SCALE_SAMPLE))
-        out.append(values[::stride])
-    return out
-
-
-def _settled_or_all(q: float, settled: list[np.ndarray], every) -> float:
-    """The ``q``-th percentile of the positive values of the settled packing's frame, else
-    of ``every()`` (all the frames' values, read only then), else 1."""
-    top = _positive_percentile(settled, q, None)
-    return top if top is not None else _positive_percentile(every(), q, 1.0)
-
-
-def most_grains(frames: Frames) -> int:
-    """The most grains in any frame (from the index of a results file's frames)."""
-    if isinstance(frames.frames, FramesFile):
-        n = np.diff(np.asarray(frames.frames.index["particle_offset"], dtype=np.int64))
-        return int(n.max()) if n.size else 0
-    return max((f.n for f in frames.frames), default=0)
-
-
 class FrameArtist:
     """Draws the frames of ``frames`` coloured by ``color`` on a figure ``height_px`` tall."""
 
@@ -226,15 +162,15 @@ class FrameArtist:
         # the impacts of pouring do not flatten the static force network; all the frames
         # (read a block at a time) only where that has no value, and for the velocity colour
         ref = [frames.end_of_filling()] if len(frames) else []
-        self.force_scale = _settled_or_all(
+        self.force_scale = settled_or_all(
             90.0, [f.contacts["fn"] for f in ref] + [f.wall_contacts["fn"] for f in ref],
-            lambda: _every_frame(frames, lambda f: f.contacts["fn"]))
+            lambda: every_frame(frames, lambda f: f.contacts["fn"]))
         if color == "velocity":
-            top = _positive_percentile(_every_frame(frames, Frame.speed), 95.0, 1.0)
+            top = positive_percentile(every_frame(frames, Frame.speed), 95.0, 1.0)
             self.norm = Normalize(0.0, top)
         elif color == "force":
-            top = _settled_or_all(95.0, [f.normal_force_sum() for f in ref],
-                                  lambda: _every_frame(frames, Frame.normal_force_sum))
+            top = settled_or_all(95.0, [f.normal_force_sum() for f in ref],
+                                  lambda: every_frame(frames, Frame.normal_force_sum))
             self.norm = Normalize(0.0, 1.2 * top)
         elif color == "coordination":
             self.norm = BoundaryNorm(np.arange(-0.5, _MAX_COORD + 1.0), 256)

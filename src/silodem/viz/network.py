@@ -99,7 +99,7 @@ def _layout_titles(frames: Frames) -> list[str]:
     """The longest titles a picture of ``frames`` may have (the label of each moment the run
     has, with its last time and most grains): the figure keeps room for them, the same for
     every moment, so that a picture is the same drawn alone or with the others."""
-    from silodem.viz.draw import most_grains
+    from silodem.viz.scales import most_grains
 
     time, n = float(frames.times.max()), most_grains(frames)
     labels = {_UNSETTLED if v in ("end-of-filling", "settled") and not frames.settled else label
