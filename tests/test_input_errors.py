@@ -839,9 +839,9 @@ def test_an_address_that_is_no_dask_scheduler_is_refused_in_time(
     sweep for ever (Dask's handshake read has no timeout, whatever Client's timeout says).
     The silent server is refused by the probe's own time limit (CONNECT_TIMEOUT_S, set to
     2 s here, which the line names); the HTTP server by its reply, before that limit."""
-    from silodem.study import execute
+    from silodem.study import cluster as study_cluster
 
-    monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 2.0)
+    monkeypatch.setattr(study_cluster, "CONNECT_TIMEOUT_S", 2.0)
     address = not_a_scheduler(mode)
     line = refused(capsys, "sweep", "paper-study", "--quick", "--scheduler", address,
                    "--out", str(tmp_path / "s"))
@@ -857,9 +857,9 @@ def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_s
     import threading
     import time
 
-    from silodem.study import execute
+    from silodem.study import cluster as study_cluster
 
-    monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 20.0)
+    monkeypatch.setattr(study_cluster, "CONNECT_TIMEOUT_S", 20.0)
     address = not_a_scheduler("silent")
     main_thread = threading.main_thread().ident
     ctrl_c = threading.Timer(0.5, signal.pthread_kill, (main_thread, signal.SIGINT))
@@ -869,13 +869,13 @@ def test_ctrl_c_while_the_scheduler_is_probed_ends_the_wait(monkeypatch, not_a_s
     ctrl_c.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            execute._probe(address)
+            study_cluster._probe(address)
     finally:
         ctrl_c.cancel()  # never an interrupt in a later test
         signal.signal(signal.SIGINT, before)
     # not a speed bound: the interrupt must end the wait before the probe's own timeout
     # (the old code re-raised it only when the probe gave up, CONNECT_TIMEOUT_S later)
-    assert time.monotonic() - t0 < execute.CONNECT_TIMEOUT_S
+    assert time.monotonic() - t0 < study_cluster.CONNECT_TIMEOUT_S
 
 
 def test_the_scheduler_probe_works_where_an_event_loop_runs(monkeypatch, not_a_scheduler):
@@ -886,14 +886,14 @@ def test_the_scheduler_probe_works_where_an_event_loop_runs(monkeypatch, not_a_s
     import asyncio
 
     from silodem.errors import InputError
-    from silodem.study import execute
+    from silodem.study import cluster as study_cluster
 
-    monkeypatch.setattr(execute, "CONNECT_TIMEOUT_S", 2.0)
+    monkeypatch.setattr(study_cluster, "CONNECT_TIMEOUT_S", 2.0)
     address = not_a_scheduler("silent")
 
     async def notebook_cell() -> str:
         with pytest.raises(InputError) as info:
-            execute.connect(address, None)
+            study_cluster.connect(address, None)
         return str(info.value)
 
     message = asyncio.run(notebook_cell())
@@ -908,13 +908,13 @@ def test_waiting_for_workers_says_so_before_the_wait(monkeypatch):
     from distributed import LocalCluster
 
     from silodem.errors import InputError
-    from silodem.study import execute
+    from silodem.study import cluster as study_cluster
 
-    monkeypatch.setattr(execute, "WORKER_WAIT_S", 1.0)
+    monkeypatch.setattr(study_cluster, "WORKER_WAIT_S", 1.0)
     said: list[str] = []
     with (LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster,
           pytest.raises(InputError) as info):
-        execute.connect(cluster.scheduler_address, 2, said.append)
+        study_cluster.connect(cluster.scheduler_address, 2, said.append)
     assert said == [(f"waiting up to 1 s for 2 worker(s) at {cluster.scheduler_address} "
                      "(0 joined so far)")]
     assert "has 0 worker(s), fewer than 2 after 1 s" in str(info.value)

@@ -25,7 +25,7 @@ import pytest
 from silodem.cli import main
 from silodem.errors import InputError
 from silodem.study import expand, load_study, run_study
-from silodem.study.execute import local_cluster
+from silodem.study.cluster import local_cluster
 from silodem.study.spec import _first_repeat, _same_value
 
 # A tiny study: the paper's hopper case shrunk by --quick (about 50 grains, a 1 s discharge),
@@ -570,7 +570,7 @@ def test_a_local_cluster_takes_at_most_four_workers_per_core(tmp_path, capsys):
     whatever machine it was given; a local cluster now takes at most 4 per core this process
     may use (os.sched_getaffinity), and refuses more before anything is written.  An external
     scheduler's count is not bounded by this machine's cores."""
-    from silodem.study.execute import check_workers
+    from silodem.study.cluster import check_workers
 
     cores = len(os.sched_getaffinity(0))
     out = tmp_path / "out"
@@ -786,7 +786,7 @@ def test_ctrl_c_while_waiting_for_workers_closes_the_client(monkeypatch):
     hook, where a second Ctrl-C printed a traceback."""
     import distributed
 
-    from silodem.study import execute
+    from silodem.study import cluster as study_cluster
 
     closed = []
 
@@ -803,10 +803,10 @@ def test_ctrl_c_while_waiting_for_workers_closes_the_client(monkeypatch):
         def close(self):
             closed.append(self.address)
 
-    monkeypatch.setattr(execute, "_probe", lambda address: None)
+    monkeypatch.setattr(study_cluster, "_probe", lambda address: None)
     monkeypatch.setattr(distributed, "Client", FakeClient)
     with pytest.raises(KeyboardInterrupt):
-        execute.connect("tcp://127.0.0.1:1", 3)
+        study_cluster.connect("tcp://127.0.0.1:1", 3)
     assert closed == ["tcp://127.0.0.1:1"]
 
 
@@ -833,7 +833,7 @@ def test_runs_finished_by_another_attempt_meanwhile_are_counted(serial, tmp_path
 def test_a_spell_without_workers_is_said_once_and_its_end_too():
     """NoWorkersWatch, on a made-up clock: nothing before NO_WORKERS_WARN_S of no worker,
     one line when it has passed, one when workers are back, and a new spell starts over."""
-    from silodem.study.execute import NoWorkersWatch
+    from silodem.study.cluster import NoWorkersWatch
 
     said: list[str] = []
     watch = NoWorkersWatch("tcp://10.0.0.1:8786", said.append, after_s=60.0)
@@ -862,11 +862,12 @@ def test_a_sweep_on_a_scheduler_without_workers_says_so_and_finishes_when_one_jo
     finishes every run, equal to the serial reference."""
     from distributed import Client, LocalCluster
 
+    from silodem.study import cluster as study_cluster
     from silodem.study import execute
     from silodem.study.api import finish_study
 
-    monkeypatch.setattr(execute, "NO_WORKERS_WARN_S", 0.5)
-    monkeypatch.setattr(execute, "WATCH_INTERVAL_S", 0.1)
+    monkeypatch.setattr(study_cluster, "NO_WORKERS_WARN_S", 0.5)
+    monkeypatch.setattr(study_cluster, "WATCH_INTERVAL_S", 0.1)
     _, ref_dir = serial
     plan = _plan(tmp_path)
     study_dir = tmp_path / "study"
@@ -1013,7 +1014,7 @@ def test_signals_while_a_sweep_shuts_down_wait_for_the_shutdown():
     sweep being stopped drops the signals noted (the first one gives the exit code); an
     ordinary close raises the first one again after the block, so that it still stops the
     command."""
-    from silodem.study.execute import shutdown_shield
+    from silodem.study.cluster import shutdown_shield
 
     def kill(sig: int = signal.SIGINT) -> None:
         os.kill(os.getpid(), sig)

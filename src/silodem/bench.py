@@ -306,7 +306,7 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    from silodem.study.execute import default_workers  # the cores this process may use
+    from silodem.study.cluster import default_workers  # the cores this process may use
 
     return {"cpu": cpu or platform.processor() or platform.machine(), "cpus": default_workers()}
 

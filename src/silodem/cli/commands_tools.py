@@ -76,15 +76,13 @@ def sweep(
 
     from silodem.errors import RunInterrupted, Terminated
     from silodem.study import expand, load_study, run_study
-    from silodem.study.execute import (
-        check_study_folder,
+    from silodem.study.cluster import (
         check_workers,
         default_workers,
-        is_finished,
         shutdown_shield,
-        stopped_sweep_text,
         workers_phrase,
     )
+    from silodem.study.execute import check_study_folder, is_finished, stopped_sweep_text
 
     check_workers(workers, "--workers", local=scheduler is None)
     if scheduler is not None and not scheduler.strip():

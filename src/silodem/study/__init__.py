@@ -2,7 +2,8 @@
 
     spec.py     the study file (pydantic model) and the embedded studies
     plan.py     grid expansion, resolved configs, run ids
-    execute.py  the Dask task of a run, atomic run folders, resumption, the cluster
+    execute.py  the Dask task of a run, atomic run folders, resumption
+    cluster.py  the local cluster or a scheduler's client, its workers, its shutdown
     table.py    per-run summaries and the results table (CSV)
     report.py   the study report (report.html, figures/)
 

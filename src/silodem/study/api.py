@@ -11,11 +11,9 @@ from typing import TYPE_CHECKING, Any
 
 from silodem.errors import InputError, check_flag, short_repr
 from silodem.output import write_text
+from silodem.study.cluster import check_workers, close_cluster, connect
 from silodem.study.execute import (
     StudyOutcome,
-    check_workers,
-    close_cluster,
-    connect,
     is_finished,
     prepare,
     read_summary,

@@ -1,4 +1,4 @@
-"""Preloaded by every worker process of a sweep's LocalCluster (``execute.local_cluster``):
+"""Preloaded by every worker process of a sweep's LocalCluster (``cluster.local_cluster``):
 the worker ignores SIGINT from here on.
 
 Ctrl-C in a terminal goes to the whole process group, the sweep and its Dask workers; the
