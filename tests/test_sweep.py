@@ -329,6 +329,37 @@ seeds = [1, 2]
 """
 
 
+def test_the_beverloo_fit_of_a_mixture_takes_the_mean_diameter_by_number(tmp_path):
+    """Radii 0.05 m (80 % by number) and 0.15 m: d = 2 (0.8 x 0.05 + 0.2 x 0.15) = 0.14 m,
+    not r_min + r_max = 0.2 m. Rates made with k = 1.4 at d = 0.14 m give k = 1.4 back, and
+    the fit and beverloo.csv name d = 0.14 m."""
+    import csv as csv_module
+
+    from silodem import theory as th
+    from silodem.study.beverloo import outlet_fits
+    from silodem.study.report import write_study_report
+
+    path = tmp_path / "outlets.toml"
+    path.write_text(OUTLET_STUDY.replace("[grid]", """[set]
+"material.radius_distribution" = "discrete"
+"material.radii" = [0.05, 0.15]
+"material.radius_shares" = [0.8, 0.2]
+"material.radius_min" = 0.05
+"material.radius_max" = 0.15
+[grid]"""), encoding="utf-8")
+    plan = expand(load_study(str(path)), quick=True)
+    rows = [{"id": run.id, "bulk_density": 700.0, "discharge_rate_err": 0.0,
+             "discharge_rate": th.beverloo_2d(run.cfg.silo.outlet_width, 0.14, 700.0, 9.81,
+                                              0.5, 1.4, 1.0)} for run in plan.runs]
+    fits, _ = outlet_fits(plan, {r["id"]: r for r in rows})
+    assert [f.d for f in fits] == pytest.approx([0.14, 0.14], rel=1e-12)
+    assert [f.fixed.k for f in fits] == pytest.approx([1.4, 1.4], rel=1e-9)
+    write_study_report(plan, tmp_path / "study", rows)
+    with open(tmp_path / "study" / "beverloo.csv", encoding="utf-8") as fh:
+        table = list(csv_module.DictReader(fh))
+    assert [float(r["grain_diameter"]) for r in table] == pytest.approx([0.14, 0.14])
+
+
 @pytest.mark.parametrize("k", [0.0, -0.5])
 def test_a_beverloo_fit_with_k_at_or_below_zero_is_drawn(tmp_path, k):
     """Rates exactly ~ D^(3/2) (k = 0; the fit's k is 0 only to round-off) or with k < 0 (a

@@ -85,7 +85,10 @@ class Material(_Strict):
     poisson_ratio: float | None = _law_field("grain", "poisson_ratio")
     friction_deg: float = Field(ge=0, lt=90, description="grain-grain friction angle phi_G [deg]")
     restitution: float | None = Field(
-        0.5, gt=0, le=1, description="normal restitution coefficient e of a contact [-]"
+        0.5, gt=0, le=1,
+        description="normal restitution coefficient e of a contact [-], which sets the "
+                    "damping ratio; without tension (the default) a contact ends as its force "
+                    "vanishes and rebounds a little faster (0.55 for 0.5; docs/physics.md)",
     )
     damping_ratio: float | None = Field(
         None, ge=0, lt=1,

@@ -9,8 +9,9 @@ with b held at 3/2 (``theory.fit_beverloo_three_halves``) and, from four widths 
 too (``theory.fit_beverloo_free``).  Per width: W is the mean of the seeds' steady rates
 (results.csv ``discharge_rate``) and its error the larger of their combined standard errors
 and the seeds' standard error of the mean (as ``validate.beverloo``); rho_b is the mean bulk
-density of the group's settled packings (``bulk_density``), d the mean grain diameter
-r_min + r_max of the config, t its thickness and g its gravity.  Runs without a rate (a clog,
+density of the group's settled packings (``bulk_density``), d the config's mean grain diameter
+2<r> by number (``regions.mean_diameter``: r_min + r_max for the default uniform radii), t
+its thickness and g its gravity.  Runs without a rate (a clog,
 a discharge too short to measure) are left out of W, and so is a width left with no run; the
 notes say which, and why a case has no fit.
 """
@@ -142,7 +143,7 @@ FIT_COLUMNS: list[tuple[str, str, str]] = [
     ("D_min", "m", "smallest outlet width"),
     ("D_max", "m", "largest outlet width"),
     ("bulk_density", "kg/m^3", "mean bulk density rho_b of the case's settled packings"),
-    ("grain_diameter", "m", "mean grain diameter d = r_min + r_max"),
+    ("grain_diameter", "m", "mean grain diameter d = 2<r> by number"),
     ("C", "-", "Beverloo constant C with b = 3/2"),
     ("C_err", "-", "its standard error"),
     ("k", "-", "k with b = 3/2 (D - k d is the open width)"),
