@@ -1,6 +1,8 @@
 """What saving frames costs a run, and what looking at them costs (docs/output.md, thirty-fourth
 session): a quick paper-case2 run with many frames and frequent saves, in a process of its own,
-then its frames read back and gone through once in this one.
+then its frames read back and gone through once in this one. (``--grains 3000`` becomes 1080
+under ``--quick``, and the quick silo takes 178 of them before ``fill.max_time`` stops the
+pour: the figures in docs/output.md are of that run.)
 
     python benchmarks/frames_io.py [--grains 3000] [--frame-interval 0.002]
                                    [--every-steps 1000] [--out DIR]

@@ -238,7 +238,7 @@ def validate(
         list[str] | None,
         typer.Option("--case", metavar="NAME", help="Run only this family of cases "
                      "(repeatable): impacts, chung_ooi, hertz_mindlin, statics, lammps, "
-                     "janssen (about 2 minutes), beverloo (about 11)."),
+                     "janssen (2-4 minutes), beverloo (about 11)."),
     ] = None,
     as_json: Annotated[
         bool,
