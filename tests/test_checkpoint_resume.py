@@ -492,29 +492,58 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
     assert list((out / "vtk").iterdir()) == []  # and the views wrote no fields into it
 
 
-@pytest.mark.parametrize("config", [False, True])
+@pytest.mark.parametrize("config, results", [(False, True), (True, True), (True, False)])
 def test_a_run_into_a_folder_of_files_no_run_wrote_is_refused_and_deletes_nothing(
-        tmp_path, capsys, config):
+        tmp_path, capsys, config, results):
     """--out . in a project folder deleted the user's own results.h5 and figures/*.png
-    without a word.  Files of those names that no silodem run wrote (no config.toml beside
-    them, or a results.h5 without silodem's attributes) are refused in one line, exit 2, and
-    kept; an earlier run's folder is replaced with a line that says so."""
+    without a word; so did a folder of the user's config.toml, report.html and figures/
+    without a results.h5.  Files of those names that no silodem run wrote (no config.toml and
+    silodem results.h5 beside them) are refused in one line, exit 2, and kept; an earlier
+    run's folder is replaced with a line that says so."""
     from silodem.cli import main
 
     out = tmp_path / "project"
     (out / "figures").mkdir(parents=True)
     (out / "figures" / "my_plot.png").write_bytes(b"mine")
-    (out / "results.h5").write_text("mine")
+    (out / ("results.h5" if results else "report.html")).write_text("mine")
     if config:
         (out / "config.toml").write_text("# mine\n")
     with pytest.raises(SystemExit) as exc:
         main(["run", "paper-case2", "--quick", "--out", str(out)])
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "holds results.h5 (+1 more)" in err
+    first = "results.h5" if results else "report.html"
+    assert err.count("\n") == 1 and f"holds {first} (+1 more)" in err
     assert "no silodem run wrote it" in err
-    assert (out / "results.h5").read_text() == "mine"
+    assert (out / first).read_text() == "mine"
     assert (out / "figures" / "my_plot.png").read_bytes() == b"mine"
+    if config:
+        assert (out / "config.toml").read_text() == "# mine\n"
+
+
+def test_a_run_given_its_folders_own_config_rewrites_it_only_as_it_was(tmp_path, capsys):
+    """silodem run DIR/config.toml --out DIR replaced the file it was given with the resolved
+    config: a hand-written one lost its comments, one changed by --set its values. Refused in
+    one line (exit 2), the file kept; the config a run wrote there, run as it is, passes."""
+    from silodem.cli import main
+    from silodem.run_folder import check_config_kept
+    from silodem.scenario_files import config_to_toml, load_config
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    mine = "# my own notes\n" + config_to_toml(load_config("paper-case2"))
+    (out / "config.toml").write_text(mine, encoding="utf-8")
+    for extra in ([], ["--set", "seed=3"]):
+        with pytest.raises(SystemExit) as exc:
+            main(["run", str(out / "config.toml"), "--quick", "--out", str(out), *extra])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "is that folder's config.toml" in err
+        assert (out / "config.toml").read_text(encoding="utf-8") == mine
+    resolved = config_to_toml(load_config(str(out / "config.toml")))
+    (out / "config.toml").write_text(resolved, encoding="utf-8")
+    check_config_kept(str(out / "config.toml"), out, resolved)  # the same text: no refusal
+    check_config_kept(str(out / "config.toml"), tmp_path / "elsewhere", "other")
 
 
 def test_a_run_over_an_earlier_run_says_it_replaces_it(tmp_path):

@@ -82,20 +82,36 @@ def foreign_files(out: Path, found: list[str], writer: str, why: str, flag: str)
 
 def check_replaceable(out: Path, flag: str = "out") -> bool:
     """Whether ``out`` holds an earlier run's files, which a new run there replaces; InputError
-    if it holds files of those names that no silodem run wrote (no config.toml beside them, or
-    a results.h5 without silodem's attributes): a user's own results.h5 or figures/*.png in a
-    folder given as ``--out`` were deleted without a word."""
+    if it holds files of those names that no silodem run wrote (no config.toml and silodem
+    results.h5 beside them): a user's own results.h5 or figures/*.png in a folder given as
+    ``--out`` were deleted without a word, and so were a report.html and figures beside a
+    config.toml of the user's own, with no results.h5."""
     found = _replaced_files(out)
     if not found:
         return False
-    results = out / RESULTS_NAME
-    foreign = not (out / "config.toml").is_file() or (
-        results.exists() and not _written_by_silodem(results))
+    foreign = not ((out / "config.toml").is_file() and _written_by_silodem(out / RESULTS_NAME))
     if foreign:
         raise foreign_files(out, [str(f.relative_to(out)) for f in found], "run",
                             "no silodem run wrote it (no config.toml and silodem results.h5 "
                             "there)", flag)
     return True
+
+
+def check_config_kept(source: str, out: Path, toml_text: str, flag: str = "--out") -> None:
+    """InputError when the config file given (``source``, as the command line took it) is
+    ``out``'s own config.toml and the run would write another text there (``toml_text``, the
+    resolved config): a run rewrote the very file it was given, its comments and layout lost
+    (or its values changed, with --set), without a word."""
+    given, target = Path(source), out / "config.toml"
+    try:
+        same = given.is_file() and target.is_file() and given.samefile(target)
+        same = same and given.read_text(encoding="utf-8") != toml_text
+    except (OSError, UnicodeDecodeError, ValueError):
+        same = False
+    if same:
+        raise InputError(f"{flag} {out}: the config given, {source}, is that folder's "
+                         "config.toml, which the run replaces with its resolved config; copy "
+                         "it and run the copy, or give another --out")
 
 
 def replacing_note(out: Path, flag: str = "out") -> str | None:
