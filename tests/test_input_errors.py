@@ -771,6 +771,22 @@ def test_ctrl_c_while_the_command_line_is_imported_is_one_line_and_exit_130():
     assert (result.returncode, result.stderr) == (130, "interrupted\n")
 
 
+@pytest.mark.parametrize("args, code", [(["show", "paper-case2"], 0), (["scenarios"], 0),
+                                        (["show", "no-such-scenario"], 2)])
+def test_a_reader_gone_from_the_output_pipe_leaves_the_commands_own_exit_code(args, code):
+    """`silodem ... | head -1`: once the reader had gone, click ended every command at once with
+    exit code 1 and no word (a finished run and a validation whose checks all passed alike).
+    With the pipe closed before the first line, the command ends with its own code, and
+    nothing is printed on stderr but its own error."""
+    proc = subprocess.Popen([sys.executable, "-m", "silodem", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == code, err
+    assert err == ("" if code == 0 else err.splitlines()[0] + "\n")
+    assert "Traceback" not in err and "BrokenPipe" not in err
+
+
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_while_the_script_exits_is_one_line(sig, code):
     """After its command ended, the interpreter's exit takes a good part of a second: a

@@ -6,14 +6,59 @@ here in the same line and exit code 130 instead of a traceback."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
 
 
+class ReaderGone:
+    """A text stream (``sys.stdout``, ``sys.stderr``) whose writes go nowhere once its reader
+    has gone (EPIPE: ``silodem show paper-case2 | head -3``), so the command goes on and exits
+    with its own code: click ended any command at once with exit code 1 and no word, a finished
+    run and a validation whose checks all passed alike.  Only the text shown is lost; what the
+    command writes into files is not.  The stream's file descriptor is pointed at /dev/null,
+    so the buffer's last flush, at exit too, has somewhere to go."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def _gone(self) -> None:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, self._stream.fileno())
+        except (OSError, ValueError):  # no descriptor: its writes keep failing, and are dropped
+            pass
+        finally:
+            os.close(devnull)
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+            with contextlib.suppress(BrokenPipeError):
+                self._stream.flush()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 def main() -> None:
-    """Import :mod:`silodem.cli` under a Ctrl-C guard and run its ``main``; then answer a
-    signal during the interpreter's exit in one line (``exit_on_signals``)."""
+    """Import :mod:`silodem.cli` under a Ctrl-C guard and run its ``main``, with output that
+    a reader who has gone does not stop (``ReaderGone``); then answer a signal during the
+    interpreter's exit in one line (``exit_on_signals``)."""
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is not None and hasattr(stream, "fileno"):
+            setattr(sys, name, ReaderGone(stream))
     try:
         from silodem.cli import main as cli_main
     except KeyboardInterrupt:
