@@ -187,9 +187,16 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
         for name in ("animation.gif", "report.html", "settled.png", "figures/fig2.png"):
             (out / name).write_bytes(b"the run so far")
         (out / "notes.txt").write_text("mine")
+        with h5py.File(out / "checkpoint.h5") as h5:
+            saved_at = int(h5.attrs["step"])
         result = cli("run", "--resume", str(out))
         assert result.returncode == 0, result.stderr[-2000:]
         assert_same_as_reference(out, ref)
+        # the summary's wall time is the resumed leg's, and it says so
+        with h5py.File(out / "results.h5") as h5:
+            steps, dt = int(h5.attrs["steps"]), float(h5.attrs["dt"])
+        assert (f"{steps} steps of dt = {dt:.3g} s, {steps - saved_at} "
+                f"of them after the resume from step {saved_at}, in ") in result.stdout
         for name in ("animation.gif", "report.html", "settled.png", "figures/fig2.png"):
             assert not (out / name).exists(), name  # (SETS: no report, no pictures)
         assert (out / "notes.txt").read_text() == "mine"

@@ -38,15 +38,18 @@ class RunSummary:
     # the warnings' texts printed on stderr as they came; one rewritten since (the running
     # total of lost grains) has a new text, which the summary then gives
     warnings_shown: frozenset[str] = frozenset()
+    resumed_at: int = 0  # the step a resumed run went on from (0: not resumed)
 
     def lines(self, *, shown_above: bool = False) -> list[str]:
         """The summary's lines.  ``shown_above``: stdout and stderr are one stream (a
         terminal, or ``2>&1``), where the warnings printed as they came are counted, not
         printed twice."""
         e = self.events
+        leg = (f", {self.steps - self.resumed_at} of them after the resume from step "
+               f"{self.resumed_at}," if self.resumed_at else "")  # (the wall time is theirs)
         out = [
-            (f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s in "
-            f"{self.wall_seconds:.1f} s wall time"),
+            (f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s{leg} in "
+             f"{self.wall_seconds:.1f} s wall time"),
             (f"fill: {e.get('n_poured', 0)} grains in {e.get('fill_time', 0):.2f} s; settled in "
             f"{e.get('settle_time', 0):.2f} s to a fill level of {e.get('fill_level', 0):.2f} m"),
         ]
@@ -182,7 +185,8 @@ def _run_in(cfg: Config, out: Path, progress: bool,
         # a second signal's stop in the moment after the final write, before the handlers
         # were put back: the results are complete all the same
         guard.stop_signal = exc.signum
-    return _finish(cfg, guard, run, toml_text, t0, frozenset(live["printed"]))
+    resumed_at = resume_from.step if resume_from is not None else 0
+    return _finish(cfg, guard, run, toml_text, t0, frozenset(live["printed"]), resumed_at)
 
 
 def _write_final(guard: RunGuard, run: SiloRun, toml_text: str) -> None:
@@ -254,7 +258,7 @@ def _run_with_bar(cfg: Config, guard: RunGuard, recorders: list, live: dict,
 
 
 def _finish(cfg: Config, guard: RunGuard, run: SiloRun, toml_text: str, t0: float,
-            shown: frozenset[str]) -> RunSummary:
+            shown: frozenset[str], resumed_at: int = 0) -> RunSummary:
     """Remove the checkpoint of the ended run, whose complete results.h5 is written
     (``_write_final``), draw its pictures and report; a signal on the way, or one that came in
     its last chunk or during the final write, ends it with a line that says where its results
@@ -275,7 +279,7 @@ def _finish(cfg: Config, guard: RunGuard, run: SiloRun, toml_text: str, t0: floa
         if noted:  # its KeyboardInterrupt was raised in a callback that dropped it (a weakref's)
             raise KeyboardInterrupt
         return RunSummary(cfg.name, out, time.perf_counter() - t0, run.sim.steps, run.dt,
-                          dict(run.events), list(run.warnings), shown)
+                          dict(run.events), list(run.warnings), shown, resumed_at)
     except KeyboardInterrupt as exc:
         signum = noted[0] if noted else signal_of(exc)
         raise RunInterrupted(f"after the run's results were written to {out / 'results.h5'}; "
