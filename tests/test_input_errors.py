@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -127,6 +128,28 @@ def test_a_set_that_breaks_a_sections_check_is_named(capsys):
     was not named, although the message names its key."""
     line = refused(capsys, "show", "paper-case2", "--set", "material.radius_min=0.2")
     assert line.endswith("(from --set material.radius_min=0.2)"), line
+
+
+@pytest.mark.parametrize("sets, first", [
+    (["material.radius_max=2"], "silo.outlet_width (1.0) must exceed the largest grain"),
+    (["silo.cell_width=1e6"], "silo.wall_height (6.0) must exceed the hopper height"),
+    (["measure.circle_x=[1,2]", "seed=3"], "measurement circles need all four lists")])
+def test_a_set_that_breaks_a_check_across_keys_is_named(capsys, tmp_path, sets, first):
+    """A --set that broke a check of other keys (a grain wider than the outlet: the message
+    names silo.outlet_width) was not named. The config without the --set values is valid, so
+    they are: every one given, in order. A file's own mistake is not put on them."""
+    args = [a for item in sets for a in ("--set", item)]
+    line = refused(capsys, "show", "paper-case2", *args)
+    assert line.startswith(f"config error: {first}")
+    assert line.endswith(f"(after --set {', '.join(sets)})"), line
+    bad = tmp_path / "bad.toml"  # invalid before any --set: the file is named, not the sets
+    text = config_to_toml(load_config("paper-case2"))
+    text, count = re.subn(r"^radius_max = 0\.11\b", "radius_max = 2.0", text,
+                          flags=re.MULTILINE)
+    assert count == 1
+    bad.write_text(text, encoding="utf-8")
+    line = refused(capsys, "show", str(bad), "--set", "seed=3")
+    assert "must exceed the largest grain" in line and line.endswith(f"(in {bad})"), line
 
 
 def test_a_quoted_dotted_key_is_named_as_written(capsys, tmp_path):

@@ -7,6 +7,7 @@ without ``.toml``.
 
 from __future__ import annotations
 
+import copy
 import tomllib
 from collections.abc import Iterable
 from importlib import resources
@@ -224,6 +225,14 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = (), flag: str = "--set
         raise InputError(message) from None
 
 
+def _valid(data: dict[str, Any]) -> bool:
+    try:
+        Config.model_validate(data)
+    except ValidationError:
+        return False
+    return True
+
+
 def revalidated(cfg: Config) -> Config:
     """``cfg`` validated again (pydantic's ``model_copy(update=...)`` and attribute
     assignment skip the checks): InputError, one line, naming the key that is out of range,
@@ -256,11 +265,17 @@ def load_config(source: str, sets: Iterable[str] = (), flag: str = "--set") -> C
     sets = list(sets)
     data = _read_source(str(source))
     empty = not data
+    given = copy.deepcopy(data) if sets else None
     apply_sets(data, sets, flag)
     try:
         return _validate(data, sets, flag)
     except InputError as exc:
         message = str(exc)
+        if f"(from {flag} " not in message and given is not None and _valid(given):
+            # a check across keys that the --set values broke (outlet_width against a
+            # radius_max set): the error names another key, so name them
+            raise InputError(f"{message} (after {flag} "
+                             f"{', '.join(shorten(item) for item in sets)})") from None
         if f"(from {flag} " in message or _path_kind(Path(source)) != "file":
             raise  # a --set's value, or an embedded scenario (whose values are valid)
         raise InputError(f"{message} (in {source}{', an empty file' if empty else ''})") \
