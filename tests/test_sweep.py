@@ -704,6 +704,47 @@ def test_a_failing_run_is_reported_kept_aside_and_retried(tmp_path, monkeypatch)
     assert not (study_dir / "failed" / bad.id).exists()
 
 
+def test_the_failed_sweeps_line_says_which_failures_a_new_attempt_repeats():
+    """Runs stopped as unstable or refused (run_task's 'unstable: ', 'bad input: ') are
+    deterministic: the line said 'run the command again to retry them', which repeats the
+    failure. It says so for those, and offers the retry for the others (a worker's death)."""
+    from silodem.study.execute import failed_runs_text
+
+    out = Path("studies/s")
+    head = ("error: 2 of 5 runs failed (first: a: unstable: grain 3 left); see "
+            "studies/s/report.html; ")
+    lost = {"a": "unstable: grain 3 left", "b": "KilledWorker: worker died"}
+    assert failed_runs_text(lost, 5, out) == head + (
+        "run the command again to retry the 1 that failed otherwise; the 1 stopped as "
+        "unstable or refused will fail the same way again until its config changes (folders "
+        "in studies/s/failed)")
+    both = {"a": "unstable: grain 3 left", "b": "bad input: outlet narrower than a grain"}
+    assert failed_runs_text(both, 5, out) == head + (
+        "they will fail the same way again until their configs change (folders in "
+        "studies/s/failed)")
+    assert failed_runs_text({"b": "OSError: disk full"}, 5, out).endswith(
+        "; run the command again to retry them")
+
+
+def test_a_sweep_says_when_it_replaces_another_study_file(tmp_path):
+    """A study run into the folder of another replaced its study.toml without a word; its
+    runs stay (reused by any study that plans them again). The same study says nothing."""
+    from silodem.study.execute import other_study_note, prepare
+
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    assert other_study_note(plan, study_dir) is None  # no folder yet
+    prepare(plan, study_dir)
+    assert other_study_note(plan, study_dir) is None
+    edited = tmp_path / "edited.toml"
+    edited.write_text(TINY.replace("[20.0, 30.0]", "[20.0, 30.0, 40.0]"), encoding="utf-8")
+    note = other_study_note(expand(load_study(str(edited)), quick=True), study_dir)
+    assert note == (f"silodem: replacing {study_dir / 'study.toml'}, another study file's "
+                    f"text; the finished runs in {study_dir / 'runs'} are kept (a study that "
+                    "plans one again reuses it), and results.csv and report.html become this "
+                    "study's")
+
+
 def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
     """The Hertz-Mindlin law added keys to the schema (``plan.LATER_KEYS``); a study planned
     before keeps its run ids, so that its finished runs are found and not run again.  The

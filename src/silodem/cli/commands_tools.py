@@ -82,7 +82,13 @@ def sweep(
         shutdown_shield,
         workers_phrase,
     )
-    from silodem.study.execute import check_study_folder, is_finished, stopped_sweep_text
+    from silodem.study.execute import (
+        check_study_folder,
+        failed_runs_text,
+        is_finished,
+        other_study_note,
+        stopped_sweep_text,
+    )
 
     check_workers(workers, "--workers", local=scheduler is None)
     if scheduler is not None and not scheduler.strip():
@@ -111,6 +117,9 @@ def sweep(
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
         f"-> {out_dir}; " + (f"the {todo} not finished yet run on {where}" if todo else
                              "all finished already: nothing to run"))
+    replacing = other_study_note(plan, out_dir)
+    if replacing is not None:
+        Console(stderr=True, soft_wrap=True).print(replacing, markup=False, highlight=False)
     try:
         _quiet_dask_client()  # (imports distributed: a good part of a second)
         outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
@@ -134,10 +143,7 @@ def sweep(
             f"their cells are empty (first: {first_id}: {first_error}); delete the run's "
             "folder and run the command again to redo it")
     if outcome.failed:
-        first_id, first_error = next(iter(outcome.failed.items()))
-        fail(f"error: {len(outcome.failed)} of {len(plan.runs)} runs failed (first: "
-             f"{first_id}: {first_error}); see {out_dir / 'report.html'}; run the command "
-             "again to retry them", 1)
+        fail(failed_runs_text(outcome.failed, len(plan.runs), out_dir), 1)
 
 
 def _quiet_dask_client() -> None:

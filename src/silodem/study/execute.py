@@ -226,6 +226,23 @@ def check_study_folder(out_dir: Path) -> None:
                             "it is not a study's folder (no study.toml)", "--out")
 
 
+def other_study_note(plan: StudyPlan, out_dir: Path) -> str | None:
+    """The note of a sweep into a folder whose study.toml is another text than ``plan``'s (an
+    edited study, or another one), which the sweep replaces: nothing else is lost, since the
+    finished runs stay in runs/ (any study that plans them again finds them), but results.csv
+    and the report become this study's. None when the file is this study's, or absent."""
+    path = Path(out_dir) / "study.toml"
+    try:
+        old = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+    if old == plan.study.text:
+        return None
+    return (f"silodem: replacing {path}, another study file's text; the finished runs in "
+            f"{Path(out_dir) / 'runs'} are kept (a study that plans one again reuses it), and "
+            "results.csv and report.html become this study's")
+
+
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
     """Create the study folder, save the study file, return the runs still to do."""
     if out_dir.exists() and not out_dir.is_dir():
@@ -357,6 +374,29 @@ def _gather(futures: list, by_key: dict[str, PlannedRun], outcome: StudyOutcome,
         _record(outcome, run, result)
         if on_done is not None:
             on_done(run, result)
+
+
+LASTING = ("unstable: ", "bad input: ")  # run_task's failures that a new attempt repeats
+
+
+def failed_runs_text(failed: dict[str, str], total: int, out_dir: Path) -> str:
+    """The line of a sweep some of whose ``total`` runs ``failed`` (run id -> run_task's
+    error): how many, the first, and what running the command again does. A run stopped as
+    unstable, or refused, is deterministic and fails the same way until its config changes
+    (its folder is kept in ``out_dir/failed``); one lost to a worker's death or a full disk
+    may finish when run again."""
+    first_id, first_error = next(iter(failed.items()))
+    lasting = sum(error.startswith(LASTING) for error in failed.values())
+    text = (f"error: {len(failed)} of {total} runs failed (first: {first_id}: {first_error}); "
+            f"see {Path(out_dir) / 'report.html'}; ")
+    if lasting == 0:
+        return text + "run the command again to retry them"
+    until = "its config changes" if lasting == 1 else "their configs change"
+    same = f"will fail the same way again until {until} (folders in {Path(out_dir) / 'failed'})"
+    if lasting == len(failed):
+        return text + f"{'it' if lasting == 1 else 'they'} {same}"
+    return (text + f"run the command again to retry the {len(failed) - lasting} that failed "
+            f"otherwise; the {lasting} stopped as unstable or refused {same}")
 
 
 def stopped_sweep_text(plan: StudyPlan, out_dir: Path, signum: int) -> str:
