@@ -152,6 +152,22 @@ def test_a_set_that_breaks_a_check_across_keys_is_named(capsys, tmp_path, sets, 
     assert "must exceed the largest grain" in line and line.endswith(f"(in {bad})"), line
 
 
+def test_a_set_key_with_an_empty_part_and_a_toml_date_are_named_as_written(capsys, tmp_path):
+    """`--set .kn=1` was refused as the unknown key '""', and a TOML date given for a number
+    was quoted as Python's datetime.date(1979, 5, 27)."""
+    for item in (".kn=1", "material..kn=1", "material.=1"):
+        line = refused(capsys, "show", "--set", item)
+        key = item.partition("=")[0]
+        assert line == (f"error: --set '{item}': the key '{key}' has an empty part (write "
+                        "dotted.key=value, e.g. --set material.kn=2e7)")
+    when = tmp_path / "when.toml"
+    when.write_text("seed = 1979-05-27\n", encoding="utf-8")
+    assert "seed: Input should be a valid integer (got the date 1979-05-27)" in refused(
+        capsys, "show", str(when))
+    when.write_text("seed = 07:32:00\n", encoding="utf-8")
+    assert "(got the time 07:32:00)" in refused(capsys, "show", str(when))
+
+
 def test_a_quoted_dotted_key_is_named_as_written(capsys, tmp_path):
     """'"settle.threshold" = 0.01' is one key named settle.threshold at the top level (TOML):
     the message said "unknown key 'settle.threshold' (did you mean 'settle.threshold'?)"."""

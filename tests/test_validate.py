@@ -404,7 +404,7 @@ def test_run_validation_refuses_an_unknown_case_before_running_any():
     from silodem.validate.runner import run_validation
 
     said = []
-    with pytest.raises(ValueError, match="unknown validation case nosuch.*statics"):
+    with pytest.raises(ValueError, match="unknown validation case 'nosuch'.*statics"):
         run_validation(only=["statics", "nosuch"], progress=said.append)
     assert said == []
 

@@ -7,6 +7,7 @@ and what is allowed; the command line prints it as is and exits with code 2, no 
 
 from __future__ import annotations
 
+import datetime
 import difflib
 import json
 import re
@@ -189,6 +190,10 @@ def format_value(value: Any, limit: int = 60) -> str:
         text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     elif isinstance(value, int):  # a long one by its digits (not its first 57: another number)
         return short_repr(value, limit)
+    elif isinstance(value, datetime.date | datetime.time):  # a TOML date or time, as written
+        kind = ("date and time" if isinstance(value, datetime.datetime) else
+                "date" if isinstance(value, datetime.date) else "time")
+        text = f"the {kind} {value.isoformat()}"
     else:
         text = repr(value)
     return shorten(text, limit)

@@ -144,7 +144,11 @@ def _split_set(item: str, flag: str = "--set") -> tuple[list[str], str]:
         raise InputError(
             f"{flag} '{shorten(item)}': expected dotted.key=value, e.g. {flag} material.kn=2e7"
         )
-    return [p.strip() for p in key.split(".")], value.strip()
+    parts = [p.strip() for p in key.split(".")]
+    if not all(parts):  # '.kn', 'material..kn': the message quoted the key '""'
+        raise InputError(f"{flag} '{shorten(item)}': the key '{shorten(key)}' has an empty part "
+                         f"(write dotted.key=value, e.g. {flag} material.kn=2e7)")
+    return parts, value.strip()
 
 
 def _check_key(parts: list[str], item: str, flag: str = "--set") -> type[BaseModel] | None:

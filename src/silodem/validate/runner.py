@@ -62,7 +62,7 @@ def check_cases(names: Iterable[str]) -> None:
     """Raise ValueError naming the names that are not families (of ``NAMES``)."""
     unknown = sorted(set(names) - set(NAMES))
     if unknown:
-        raise ValueError(f"unknown validation case {', '.join(unknown)}; "
+        raise ValueError(f"unknown validation case {', '.join(map(repr, unknown))}; "
                          f"the cases are {', '.join(NAMES)}")
 
 
