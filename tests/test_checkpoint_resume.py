@@ -785,6 +785,8 @@ def test_bytes_changed_on_disk_in_a_checkpoints_arrays_are_refused(uninterrupted
     with pytest.raises(CheckpointError, match="cannot be read as a checkpoint") as exc:
         read_checkpoint(path)
     assert "\n" not in str(exc.value)
+    assert str(exc.value).endswith("the file is damaged; no run can go on from it (remove it "
+                                   "to start the run again)")
 
 
 def test_a_refused_resume_prints_one_line_and_no_progress_bar(uninterrupted, tmp_path):

@@ -250,7 +250,8 @@ def test_a_checkpoint_whose_frames_file_is_gone_is_refused_naming_it(frames, tmp
         rec.write_out()
     state = rec.state()
     (tmp_path / "frames" / "frames-000003-000003.h5").unlink()
-    with pytest.raises(ValueError, match=r"frames-000003-000003\.h5 is missing \(1 of 6"):
+    with pytest.raises(ValueError, match=r"frames-000003-000003\.h5 is missing \(1 of 6 "
+                       r"missing; the run can be resumed once they are back\)"):
         FramesRecorder(0.1, store_dir=tmp_path / "frames").restore(state)
 
 

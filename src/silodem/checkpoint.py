@@ -385,7 +385,9 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
         raise
     except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
         raise CheckpointError(f"{path} cannot be read as a checkpoint "
-                              f"({type(exc).__name__}: {exc})") from None
+                              f"({type(exc).__name__}: {one_line(exc)}): the file is damaged; "
+                              "no run can go on from it (remove it to start the run "
+                              "again)") from None
     toml_text = data.pop("config_toml", None)
     if not isinstance(toml_text, str):
         raise CheckpointError(f"{path} holds no config (its config_toml is "

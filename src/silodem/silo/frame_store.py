@@ -149,7 +149,8 @@ class FrameStore:
         gone = [n for n in self.names if not (self.folder / n).is_file()]
         if gone:
             raise ValueError(f"the saved frames' file {self.folder / gone[0]} is missing "
-                             f"({len(gone)} of {len(self.names)} missing)")
+                             f"({len(gone)} of {len(self.names)} missing; the run can be "
+                             "resumed once they are back)")
         for name, rows in zip(self.names, self.rows.tolist(), strict=True):
             path = self.folder / name
             try:
