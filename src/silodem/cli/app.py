@@ -52,7 +52,7 @@ def _options(
 SourceArg = Annotated[
     str,
     typer.Argument(
-        metavar="[SCENARIO|FILE.toml]",
+        metavar="SCENARIO|FILE.toml",
         help="An embedded scenario name (see 'silodem scenarios') or the path of a TOML "
         "config file.",
         show_default=True,

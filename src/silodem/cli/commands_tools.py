@@ -163,18 +163,19 @@ _MAX_BENCH_STEPS = 10**12  # as silo.checks.MAX_STEPS; a 64-bit step count beyon
 
 @app.command()
 def bench(
-    n: Annotated[int, typer.Option("--n", help="Number of grains (about; the lattice of the "
-                                   "reference deck decides the exact count).")] = 31700,
+    n: Annotated[int, typer.Option("--n", help="Number of grains, 10 to 20,000,000 (about; "
+                                   "the lattice of the reference deck decides the exact "
+                                   "count).")] = 31700,
     threads: Annotated[int, typer.Option("--threads", help="CPU threads of the kernels "
                                          "(and MPI ranks of LAMMPS with --lammps).")] = 1,
     steps: Annotated[int, typer.Option("--steps", help="Timed steps.")] = 2000,
     settle: Annotated[int, typer.Option("--settle", help="Untimed steps first (compilation, "
                                         "fall, start of the flow), as the deck's SETTLE.")] = 10000,
     rows: Annotated[int | None, typer.Option(
-        "--rows", help="The deck's NY (column height: 0.352 NY m) instead of NY = 2 NX; the "
-        "silo is widened to about --n grains. A tall column is still falling after --settle "
-        "steps: --rows 200 --settle 20000 times a packed, discharging 3e5-grain silo "
-        "(docs/performance.md).")] = None,
+        "--rows", help="The deck's NY (column height: 0.352 NY m; 4 to --n / 4) instead of "
+        "NY = 2 NX; the silo is widened to about --n grains. A tall column is still falling "
+        "after --settle steps: --rows 200 --settle 20000 times a packed, discharging "
+        "3e5-grain silo (docs/performance.md).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     lammps: Annotated[bool, typer.Option(
         "--lammps",
