@@ -408,6 +408,23 @@ def test_a_warning_rewritten_after_it_was_printed_is_in_the_summary():
         "warning: soft contacts", "warning: grains lost in all: 65 grain(s)"]
 
 
+def test_the_summary_counts_one_grain_as_one_and_a_resumed_runs_steps_apart():
+    """'fill: 1 grains' read wrong; after a resume the step count (the whole run's) stood
+    beside the wall time of the resumed leg alone."""
+    from silodem.run import RunSummary
+
+    events = {"n_poured": 1, "fill_time": 0.5, "settle_time": 1.0, "fill_level": 0.2}
+    lines = RunSummary("x", Path("out"), 2.0, 1000, 1e-3, events).lines()
+    assert lines[:2] == ["scenario x: 1000 steps of dt = 0.001 s in 2.0 s wall time",
+                         "fill: 1 grain in 0.50 s; settled in 1.00 s to a fill level of 0.20 m"]
+    resumed = RunSummary("x", Path("out"), 2.0, 1000, 1e-3, {**events, "n_poured": 2},
+                         resumed_at=600).lines()
+    assert resumed[:2] == [
+        ("scenario x: 1000 steps of dt = 0.001 s, 400 of them after the resume from step 600, "
+         "in 2.0 s wall time"),
+        "fill: 2 grains in 0.50 s; settled in 1.00 s to a fill level of 0.20 m"]
+
+
 def test_a_warning_with_brackets_is_printed_as_written():
     """Warnings went to rich as markup: a '[m]' in one vanished, a '[/]' would have ended the
     run in rich's MarkupError."""

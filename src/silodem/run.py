@@ -47,11 +47,13 @@ class RunSummary:
         e = self.events
         leg = (f", {self.steps - self.resumed_at} of them after the resume from step "
                f"{self.resumed_at}," if self.resumed_at else "")  # (the wall time is theirs)
+        poured = e.get("n_poured", 0)
         out = [
             (f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s{leg} in "
              f"{self.wall_seconds:.1f} s wall time"),
-            (f"fill: {e.get('n_poured', 0)} grains in {e.get('fill_time', 0):.2f} s; settled in "
-            f"{e.get('settle_time', 0):.2f} s to a fill level of {e.get('fill_level', 0):.2f} m"),
+            (f"fill: {poured} grain{'' if poured == 1 else 's'} in "
+             f"{e.get('fill_time', 0):.2f} s; settled in {e.get('settle_time', 0):.2f} s to a "
+             f"fill level of {e.get('fill_level', 0):.2f} m"),
         ]
         if "discharge_end_reason" in e:
             out.append(
