@@ -34,7 +34,7 @@ from silodem.report.analysis import (
     surface_height,
 )
 from silodem.report.eurocode import _hopper_numbers, add_loads, highest_wall_contact, hopper_loads
-from silodem.report.key_numbers import add_numbers
+from silodem.report.key_numbers import _fmt, add_numbers
 from silodem.report.load import load_results
 from silodem.report.numbers import significant
 from silodem.run import run_simulation
@@ -1357,6 +1357,16 @@ def test_a_free_janssen_fit_above_the_coulomb_limit_is_flagged(synth):
     assert any(t.endswith("(> tan phi_P: not Janssen)") for t in labels), labels
     # not judged: an exact fit to two bins (no error) and a fit at its lower bound (no wall
     # support), which the row calls ~0 already (frictionless walls: tan phi_P = 0)
+    # above the limit within its error (a case-2 run: 0.515 +- 0.23 for 0.445): said, as no
+    # measure of the walls, not as the law's failure
+    c = copy.copy(a)
+    c.janssen_free = dataclasses.replace(a.janssen_free, mu_w_err=0.1)
+    c.geom, c.numbers = {**a.geom, "mu_wall": a.janssen_free.mu_w - 0.05}, []
+    add_numbers(c)
+    assert not above_coulomb(c.janssen_free, c.geom["mu_wall"])
+    assert _number(c, row).endswith(
+        f"; above tan phi_P = {_fmt(c.geom['mu_wall'], 3)}, the most friction the walls can "
+        "carry, if within its error: no measure of the walls' friction")
     exact = dataclasses.replace(b.janssen_free, mu_w_err=math.nan)
     assert not above_coulomb(exact, 0.2)
     bound = dataclasses.replace(b.janssen_free, mu_w=1e-6, mu_w_err=4e-7)

@@ -244,6 +244,10 @@ def test_fig8_draws_the_errors_and_pales_the_changes_within_them(synth):
         assert container.patches[left].get_alpha() == 0.35
     assert bars["vertical stress"].patches[centre].get_alpha() is None
     assert "not resolved" in _caption("fig8_change")
+    # the key of the pale bars is drawn in the bars' own two colours, pale (it was grey)
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == ["horizontal stress", "vertical stress",
+                     "pale: within its error, not resolved"]
 
 
 # --- 5. where the flow pattern is read ---------------------------------------------------------

@@ -156,8 +156,9 @@ FEW_MOBILISED = 0.5  # of tan(phi_P): below it the loads' wall friction is not m
 
 def mobilisation_row(share: float) -> tuple[str, str, str]:
     """The key number on the loads' assumption: EN's loads (and K, fitted with mu_w = tan
-    phi_P) take the wall friction fully mobilised; the share the cell walls carry after
-    filling, sum(tau) / sum(sigma_n) over tan(phi_P).  Under FEW_MOBILISED the row says that
+    phi_P) take the wall friction fully mobilised; the friction the cell walls mobilise after
+    filling, sum(tau) / sum(sigma_n), as a share of tan(phi_P) (not the share of the fill's
+    weight they carry, which the gate-load row gives).  Under FEW_MOBILISED the row says that
     the settled silo does not show the wall support the loads assume (its pressures are then
     nearer hydrostatic, and K takes up the missing friction).  Under 0 it says more: tau is
     the grains' shear traction on the walls, counted downward (wall_profiles' tau, along each
@@ -168,7 +169,8 @@ def mobilisation_row(share: float) -> tuple[str, str, str]:
     docs/validation.md's statics check), not a smaller share of the support the loads
     assume."""
     label = ("EN 1991-4 loads' wall friction, mu = tan phi_P fully mobilised (as for K): the "
-             "share the cell walls carry after filling")
+             "friction the cell walls mobilise after filling, sum(tau) / sum(sigma_n), as a "
+             "share of tan phi_P")
     value = f"{significant(100 * share, 2)} %"
     if walls_held_up(share):
         value += (": negative: net, the walls' friction on the grains points down, so the cell "

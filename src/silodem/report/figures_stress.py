@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.patches import Polygon
+from matplotlib.legend_handler import HandlerTuple
+from matplotlib.patches import Patch, Polygon
 
 from silodem import theory as th
 from silodem.report.analysis import BATCHES, Analysis, above_coulomb
@@ -334,7 +335,7 @@ def fig_evolution(a: Analysis) -> Figure | None:
         sel = np.isin(wb["wall"], edges) & (wb["z"] >= a.switch[0]) & (wb["z"] <= a.switch[1])
         if sel.any():
             ax1.plot(t, rolling_mean(wb["normal"][:, sel].mean(axis=1), n_smooth), color="k",
-                     lw=1.2, alpha=0.7, label="wall normal stress, switch zone")
+                     lw=1.2, alpha=0.7, label="wall normal stress, mean over the switch zone")
     ax1.set_ylabel("stress [Pa]")
     ax1.set_ylim(bottom=0)
     legend_right(ax1, fontsize=7)
@@ -372,8 +373,6 @@ def fig_change(a: Analysis) -> Figure | None:
         for bar, p, e in zip(bars, pct, err):
             if np.isfinite(p) and not resolved(p, e):
                 bar.set_alpha(0.35)
-    ax.bar([np.nan], [np.nan], color="0.6", alpha=0.35,
-           label="pale: within its error, not resolved")
     ax.axhline(0, color="k", lw=0.8)
     # the wall peak's bar is the wall normal stress, each window's largest in the switch zone
     ticks = ["wall peak (normal,\neach window's own)" if n == "wall peak" else n for n in names]
@@ -382,7 +381,11 @@ def fig_change(a: Analysis) -> Figure | None:
     ax.set_title("Change of the switch-zone stresses from filling to discharge\n(error bars: "
                  f"+- 1 standard error, batch means of each window's samples in {BATCHES} "
                  "blocks)", fontsize=10)
-    legend_right(ax, fontsize=8)
+    handles, labels = ax.get_legend_handles_labels()  # the pale key in both bars' colours
+    pale = tuple(Patch(color=h.patches[0].get_facecolor(), alpha=0.35) for h in handles)
+    legend_right(ax, handles=[*handles, pale],
+                 labels=[*labels, "pale: within its error, not resolved"],
+                 handler_map={tuple: HandlerTuple(ndivide=None)}, fontsize=8)
     tight_layout(fig)
     return fig
 

@@ -320,10 +320,10 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
                      "warnings say what is missing).</p>")
     for spec, png in figures:
         b64 = base64.b64encode(png).decode("ascii")
-        label = f"{spec.paper} equivalent. " if spec.paper else ""
+        label = f"<b>{html.escape(spec.paper)} equivalent.</b> " if spec.paper else ""
         parts.append(f"<figure id='{spec.name}'><img alt='{html.escape(spec.name)}' "
-                     f"src='data:image/png;base64,{b64}'><figcaption><b>{html.escape(label)}"
-                     f"</b>{html.escape(spec.caption_for(a))}</figcaption></figure>")
+                     f"src='data:image/png;base64,{b64}'><figcaption>{label}"
+                     f"{html.escape(spec.caption_for(a))}</figcaption></figure>")
     parts.append("<h2>Force network snapshots</h2>")
     if len(snapshots) < len(_SNAPSHOT_CAPTIONS):
         shown = {name for name, _, _ in snapshots}

@@ -224,6 +224,10 @@ def add_numbers(a: Analysis) -> None:
         if above_coulomb(j, g["mu_wall"]):
             mu += (f"; above tan phi_P = {_fmt(g['mu_wall'], 3)}, the most friction the walls "
                    "can carry: this profile does not follow Janssen's law")
+        elif not j.mu_w_at_bound and j.mu_w > g["mu_wall"] * (1.0 + 1e-6):  # (within its
+            # error: not flagged as the law's failure, but no reading of the walls either)
+            mu += (f"; above tan phi_P = {_fmt(g['mu_wall'], 3)}, the most friction the walls "
+                   "can carry, if within its error: no measure of the walls' friction")
         value = f"{_janssen_K(j, 'fill')}, {mu}"
         n.append(("Janssen free fit after filling: K, mu_w", value, "-"))
     _bottom_rows(a)
