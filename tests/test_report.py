@@ -73,7 +73,7 @@ def test_run_writes_a_self_contained_report(run_dir):
 def test_a_quick_run_report_says_what_a_quick_silo_is_for(run_dir, tmp_path):
     """A --quick run (its config named '<scenario>-quick') gets the caveat that its small silo
     checks a setup and its numbers are not the full-size silo's; a run of its own size not."""
-    from silodem.report.html import QUICK_CAVEAT
+    from silodem.report.html import quick_caveat
 
     copy = tmp_path / "q"
     shutil.copytree(run_dir, copy)
@@ -86,9 +86,38 @@ def test_a_quick_run_report_says_what_a_quick_silo_is_for(run_dir, tmp_path):
     assert exc.value.code == 0
     import html as html_module
 
-    caveat = html_module.escape(QUICK_CAVEAT)
+    caveat = html_module.escape(quick_caveat(hopper=True))  # (tiny-hopper)
+    assert "a hopper a few grains tall" in caveat
+    assert "hopper" not in quick_caveat(hopper=False)
     assert caveat in (copy / "report.html").read_text(encoding="utf-8")
     assert caveat not in (run_dir / "report.html").read_text(encoding="utf-8")
+
+
+def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_after():
+    """A flat silo made from paper-case2 with --set showed case 2's description ('Cell +
+    hopper silo ...') and nothing else: the report now lists the keys that differ from the
+    scenario (or its --quick variant), in the schema's order; none for the scenario itself
+    or for a config of another name."""
+    from silodem.report.html import changes_html
+    from silodem.scenario_files import changes_from_scenario, load_config, quick_variant
+
+    sets = ['discharge.gate_speed=0.3', 'silo.kind="flat"', "seed=5"]
+    cfg = load_config("paper-case2", sets)
+    expected = ["seed = 5", 'silo.kind = "flat"', "discharge.gate_speed = 0.3"]
+    assert changes_from_scenario(cfg) == ("paper-case2", expected)
+    assert changes_from_scenario(quick_variant(cfg)) == ("paper-case2", expected)
+    assert changes_from_scenario(quick_variant(load_config("paper-case2"))) == (
+        "paper-case2", [])
+    unset = load_config("paper-case2", ["material.restitution=0.5",
+                                        "material.damping_ratio=0.2"])
+    assert changes_from_scenario(unset)[1] == ["material.restitution = unset",
+                                               "material.damping_ratio = 0.2"]
+    assert changes_from_scenario(cfg.model_copy(update={"name": "mine"})) is None
+    assert changes_html(quick_variant(cfg)) == (
+        "<p>The description above is that of the scenario paper-case2 --quick; this run's "
+        "config differs from it in: seed = 5; silo.kind = &quot;flat&quot;; "
+        "discharge.gate_speed = 0.3.</p>")
+    assert changes_html(load_config("paper-case1")) == ""
 
 
 def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):

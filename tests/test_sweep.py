@@ -1050,11 +1050,11 @@ def test_a_quick_study_report_says_which_silo_ran(serial):
     # and what such a silo is for (the tiny study here is a --quick one)
     import html
 
-    from silodem.report.html import QUICK_CAVEAT
+    from silodem.report.html import quick_caveat
 
     assert serial[0].quick
     report = (serial[1] / "report.html").read_text(encoding="utf-8")
-    assert html.escape(QUICK_CAVEAT) in report
+    assert html.escape(quick_caveat(hopper=True)) in report  # (paper-case2's hopper)
 
 
 def test_signals_while_the_local_cluster_starts_are_held_not_lost():

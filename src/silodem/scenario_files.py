@@ -369,3 +369,31 @@ def quick_overrides(cfg: Config, small: Config, sets: Iterable[str]) -> str:
         if before != after and entry not in said:
             said.append(entry)
     return ", ".join(said)
+
+
+def _dotted(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if isinstance(value, dict):
+            out.update(_dotted(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def changes_from_scenario(cfg: Config) -> tuple[str, list[str]] | None:
+    """(scenario, ['key = value', ...]) for a config named as an embedded scenario, or as its
+    --quick variant, with the keys (dotted, in the schema's order) whose values differ from
+    that scenario's (or its --quick variant's): what ``--set`` or an edited copy changed, which
+    the scenario's description, shown with the config, does not say.  None for a config of
+    another name."""
+    base_name = cfg.name.removesuffix(QUICK_SUFFIX)
+    if base_name not in _scenario_files():
+        return None
+    base = load_config(base_name)
+    if cfg.name != base_name:
+        base = quick_variant(base)
+    ours, theirs = _dotted(cfg.model_dump()), _dotted(base.model_dump())
+    return base_name, [f"{key} = {'unset' if value is None else _toml_value(value)}"
+                       for key, value in ours.items()
+                       if key != "description" and theirs.get(key) != value]

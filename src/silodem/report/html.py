@@ -152,11 +152,31 @@ def render_figures(a: Analysis, fig_dir: Path) -> list[tuple[FigureSpec, bytes]]
     return out
 
 
-QUICK_CAVEAT = ("A --quick silo is small: 0.6 of the cell width with the same outlet, 0.36 of "
-                "the grains (about 150 in the paper's case 2), a hopper a few grains tall. It "
-                "checks a setup in seconds; its stresses, flow pattern, dead zones and fill -> "
-                "discharge changes (its discharge window falls while the silo is emptying "
-                "fast) are not those of the full-size silo.")
+def changes_html(cfg) -> str:
+    """The paragraph naming what a run's config changed from the embedded scenario it is
+    named after (``scenario_files.changes_from_scenario``): a flat silo of mixed grains, made
+    from paper-case2 with --set, showed case 2's description alone.  '' when nothing did."""
+    from silodem.scenario_files import changes_from_scenario
+
+    changed = changes_from_scenario(cfg)
+    if changed is None or not changed[1]:
+        return ""
+    name, keys = changed
+    quick = " --quick" if cfg.name != name else ""
+    return (f"<p>The description above is that of the scenario {html.escape(name)}"
+            f"{quick}; this run's config differs from it in: {html.escape('; '.join(keys))}."
+            "</p>")
+
+
+def quick_caveat(hopper: bool) -> str:
+    """What a --quick silo is for (``scenario_files.quick_variant``): a ``hopper`` silo's
+    hopper is then a few grains tall (the note said so of flat silos too, and gave case 2's
+    grain count in every report)."""
+    return ("A --quick silo is small: 0.6 of the cell width with the same outlet, 0.36 of the "
+            f"grains{', a hopper a few grains tall' if hopper else ''}. It checks a setup in "
+            "seconds; its stresses, flow pattern, dead zones and fill -> discharge changes (its "
+            "discharge window falls while the silo is emptying fast) are not those of the "
+            "full-size silo.")
 
 
 # the style and the table of a run's report.html and a study's (study/report.py)
@@ -293,9 +313,10 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              "results.h5 in this page's folder, status "
              f"{html.escape(str(res.attrs.get('status', '?')))}.</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>", banner_html(a),
-             f"<p>{html.escape(cfg.description)}</p>", intro]
+             f"<p>{html.escape(cfg.description)}</p>", changes_html(cfg), intro]
     if cfg.name.endswith(QUICK_SUFFIX):  # (scenario_files.quick_variant names it so)
-        parts.append(f"<p class='warn'>{html.escape(QUICK_CAVEAT)}</p>")
+        parts.append(f"<p class='warn'>{html.escape(quick_caveat(cfg.silo.kind == 'hopper'))}"
+                     "</p>")
     if res.warnings:
         parts.append("<h2>Warnings</h2><ul>" + "".join(
             f"<li class='warn'>{html.escape(w)}</li>" for w in res.warnings) + "</ul>")

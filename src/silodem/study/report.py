@@ -35,7 +35,7 @@ from silodem.report.draw import (
     shade_phases,
     tight_layout,
 )
-from silodem.report.html import PAGE_CSS, QUICK_CAVEAT, html_table
+from silodem.report.html import PAGE_CSS, html_table, quick_caveat
 from silodem.report.numbers import UNLOADED, poorly_determined, significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import (
@@ -543,7 +543,8 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
             ("written", time.strftime("%Y-%m-%d %H:%M:%S"), "")]
     parts += ["<h2>Study</h2>", html_table([(a, b) for a, b, _ in meta], ("item", "value"))]
     if plan.quick:
-        parts.append(f"<p class='warn'>{html.escape(QUICK_CAVEAT)}</p>")
+        hopper = any(run.cfg.silo.kind == "hopper" for run in plan.runs)
+        parts.append(f"<p class='warn'>{html.escape(quick_caveat(hopper))}</p>")
     parts.append(
         "<p>Stresses are compressive positive [Pa]: 2D forces per unit length divided by the "
         "grains' out-of-plane thickness (material.thickness). The switch "
