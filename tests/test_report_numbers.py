@@ -625,8 +625,14 @@ def test_key_numbers_of_the_report(synth):
     # during discharge the zone's largest, 6500 Pa at its lowest bin (the hopper's 0.375 m),
     # has 20000 Pa under it at 0.25 m: the zone's edge on a rising stress, not a peak
     assert _number(a, "switch-zone peak of the wall normal stress, during discharge") == (
-        "6,500 at z = 0.375 m (hopper wall): the zone's lower edge on a stress that goes on "
-        "rising down the wall, not a local peak")
+        "6,500 at z = 0.375 m (hopper wall): the zone's lowest wall bin, on a stress that goes "
+        "on rising down the wall, not a local peak")
+    # ... which the largest of the whole wall names, with where it lies (the profiles' 9000
+    # and 20000 Pa at z = 0.25 m, PEAK_FILL and PROFILE_DIS, under the zone)
+    assert _number(a, "largest wall normal stress on the side walls, after filling") == (
+        "9,000 at z = 0.25 m (hopper wall, below the switch zone)")
+    assert _number(a, "largest wall normal stress on the side walls, during discharge") == (
+        "20,000 at z = 0.25 m (hopper wall, below the switch zone)")
     ratio = 4500.0 / float(_janssen_sigma_h(SURF_FILL - 0.5, K_TRUE))
     assert float(_number(a, "switch-zone peak / Janssen")) == pytest.approx(ratio, rel=5e-3)
     # a peak below the junction, on the hopper walls: the cell's Janssen where the cell ends

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from silodem import theory as th
-from silodem.measure.wall_profiles import rises_past
+from silodem.measure.wall_profiles import peak_in_zone, rises_past
 from silodem.report import eurocode
 from silodem.report.analysis import (
     BATCHES,
@@ -123,9 +123,24 @@ def _peak_note(edge, z: float) -> str:
     past = rises_past(edge.z, edge.sigma_n, z)
     if past is None:
         return where
-    return (f"{where}: the zone's {'lower' if past == 'below' else 'upper'} edge on a stress "
-            f"that goes on rising {'down' if past == 'below' else 'up'} the wall, not a local "
-            "peak")
+    return (f"{where}: the zone's {'lowest' if past == 'below' else 'highest'} wall bin, on a "
+            f"stress that goes on rising {'down' if past == 'below' else 'up'} the wall, not a "
+            "local peak")
+
+
+def _largest_row(edge, switch: tuple[float, float], label: str) -> tuple[str, str, str]:
+    """The largest wall normal stress on the side walls (``edge``, both sides' mean per bin)
+    and where: the switch-zone peak is the largest within the zone only, and a case-2 run's
+    largest discharge pressure, 30 % above it, lay on the hopper wall below the zone."""
+    v, z = peak_in_zone(edge.z, edge.sigma_n, -np.inf, np.inf)
+    if not np.isfinite(v):
+        return (f"largest wall normal stress on the side walls, {label}", "n/a (no bin)", "Pa")
+    k = np.flatnonzero(edge.z == z)[0]
+    where = ("in the switch zone" if switch[0] <= z <= switch[1] else
+             f"{'below' if z < switch[0] else 'above'} the switch zone")
+    wall = "vertical wall" if edge.on_vertical[k] else "hopper wall"
+    return (f"largest wall normal stress on the side walls, {label}",
+            f"{pascals(v)} at z = {_fmt(z, 3)} m ({wall}, {where})", "Pa")
 
 
 def _pour_row(a: Analysis) -> None:
@@ -204,6 +219,9 @@ def add_numbers(a: Analysis) -> None:
             v, z = a.peaks[key]
             n.append((f"switch-zone peak of the wall normal stress, {label}",
                       f"{pascals(v)} at z = {_fmt(z, 3)} m{_peak_note(a.edge[key], z)}", "Pa"))
+    for key, label in a.labels.items():
+        if key in a.edge:
+            n.append(_largest_row(a.edge[key], a.switch, label))
     for key, label in a.labels.items():
         if key in a.mu_mobilised:
             what = (f"mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
