@@ -656,8 +656,8 @@ def test_key_numbers_of_the_report(synth):
                           "does not measure)")
     assert _first_float(_number(a, "Janssen K fitted to the cell wall profile, after")) == (
         pytest.approx(K_TRUE, rel=5e-3))
-    assert _number(a, "measured mean vertical stress q on the junction, after") == "5,000"
-    assert _number(a, "measured mean vertical stress q on the junction, during") == "6,000"
+    assert _number(a, "measured mean vertical stress q at the junction level, after") == "5,000"
+    assert _number(a, "measured mean vertical stress q at the junction level, during") == "6,000"
     rate = _number(a, "steady discharge rate W (of a slot of thickness t = ")
     assert _first_float(rate) == pytest.approx(W_RATE, rel=5e-4)
     assert "slid open" not in rate  # the gate was removed at once

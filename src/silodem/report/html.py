@@ -59,8 +59,9 @@ FIGURES = [
                lambda a: fs.fig_horizontal(a, "fill")),
     FigureSpec("fig3b_vertical_filling", "Fig. 3b",
                "Vertical stress along the silo wall {fill}: Love-Weber sigma_zz near the "
-               "walls and over the cross-section, Janssen's sigma_v, the hydrostatic line, and "
-               "the planar and conical hopper solutions.", lambda a: fs.fig_vertical(a, "fill")),
+               "walls and over the cross-section, Janssen's sigma_v, the hydrostatic line, and, "
+               "in a hopper silo, the planar and conical hopper solutions.",
+               lambda a: fs.fig_vertical(a, "fill")),
     FigureSpec("fig4_switch_zone_network", "Fig. 4",
                "Contact force network at the switch zone after filling and during discharge "
                "(same force scale): line width and colour grow with the normal force.",
@@ -80,8 +81,8 @@ FIGURES = [
                "Horizontal and vertical stress at the switch zone (measurement circles) and "
                "their ratio through filling, settling and discharge. The ratio leaves out the "
                f"samples whose sigma_v is under {UNLOADED:g} x its median over the run (the "
-               "rule of a study's CV of the ratio): a ratio of two near-zero stresses, as at "
-               "the start of filling and in the emptied silo, is noise; where a 0.2 s stretch "
+               "same rule as a study's CV of the ratio): a ratio of two near-zero stresses, as "
+               "at the start of filling and in the emptied silo, is noise; where a 0.2 s stretch "
                "has no sample left, the curve has a gap.", fs.fig_evolution),
     FigureSpec("fig8_change", "Fig. 8",
                "Percentage change of the switch-zone stresses from the end of filling to the "

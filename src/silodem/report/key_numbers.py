@@ -266,7 +266,8 @@ def add_numbers(a: Analysis) -> None:
     n.extend(eurocode.key_numbers(a.en1991_4, a.res.cfg.measure))
     for key, hop in a.hopper.items():
         when = a.labels[key]
-        label = f"measured mean vertical stress q on the junction, {when} (hopper theory input)"
+        label = (f"measured mean vertical stress q at the junction level, {when} (hopper "
+                 "theory input)")
         n.append((label, pascals(hop["q"]), "Pa"))
         if "D_fit" in hop:  # (no error: a bounded 1-parameter fit, often to a few bins)
             label = (f"Walker distribution factor D fitted on the hopper walls (planar), {when}, "
