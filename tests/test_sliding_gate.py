@@ -288,3 +288,29 @@ def test_pictures_of_a_snapshot_draw_the_gate_and_its_force_lines_where_it_stood
         gate = [ln for ln in ax.get_lines() if list(ln.get_ydata()) == [-0.01, -0.01]]
         assert [list(ln.get_xdata()) for ln in gate] == [gate_x]
         np.testing.assert_allclose(lines.get_segments()[0][1], (end_x, -0.01), atol=1e-12)
+
+
+@pytest.mark.parametrize("clear", [0.0, 10.0 / 3.0])
+def test_the_discharge_rate_figure_marks_when_a_sliding_gate_cleared_the_outlet(clear):
+    """A gate sliding at 0.3 m/s across a 1 m outlet clears it 3.33 s after it began to move
+    (event gate_opening_time): the figure's two panels mark that moment, and its time axis
+    counts from the beginning of the slide. A gate withdrawn at once has no mark."""
+    from types import SimpleNamespace
+
+    from silodem.measure.discharge import flow_rate_series, steady_rate
+    from silodem.report.figures_flow import fig_discharge_rate
+
+    t = np.linspace(0.0, 8.0, 161)
+    mass = np.clip(t - clear, 0.0, None) * 100.0  # 100 kg/s once the outlet is clear
+    events = {"gate_opening_time": clear} if clear else {}
+    a = SimpleNamespace(res=SimpleNamespace(events=events),
+                        flow={"t": t, "mass": mass, "rate": steady_rate(t, mass),
+                              "series": flow_rate_series(t, mass)})
+    ax1, ax2 = fig_discharge_rate(a).axes
+    for ax in (ax1, ax2):
+        marks = [line.get_xdata()[0] for line in ax.get_lines() if line.get_linestyle() == "--"]
+        assert marks == ([pytest.approx(clear, rel=1e-12)] if clear else [])
+    labels = [text.get_text() for text in ax2.get_legend().get_texts()]
+    assert ("outlet clear: the sliding gate open" in labels) == bool(clear)
+    assert ax2.get_xlabel() == ("time since the gate began to open [s]" if clear else
+                                "time since the gate opened [s]")

@@ -88,7 +88,8 @@ def fig_switch_network(a: Analysis) -> Figure | None:
 
 
 def fig_discharge_rate(a: Analysis) -> Figure | None:
-    """Discharged mass and mass flow rate against time, with the steady rate and its error."""
+    """Discharged mass and mass flow rate against time, with the steady rate and its error,
+    and where a gate slides open, the moment it clears the outlet (event gate_opening_time)."""
     f = a.flow
     if "t" not in f or f["t"].size < 2:
         return None
@@ -110,7 +111,13 @@ def fig_discharge_rate(a: Analysis) -> Figure | None:
         ax2.axhspan(r.rate - r.err, r.rate + r.err, color="#d62728", alpha=0.25)
         ax2.axhline(r.rate, color="#d62728", lw=1.5, label="steady rate +- standard error")
         ax2.axvspan(r.t0, r.t1, color="0.9", zorder=0, label="interval of the steady fit")
-    ax2.set_xlabel("time since the gate opened [s]")
+    clear = float(a.res.events.get("gate_opening_time", 0.0))  # a gate that slides open
+    if clear > 0.0:
+        for ax in (ax1, ax2):
+            ax.axvline(clear, color="0.35", lw=1.0, ls="--",
+                       label="outlet clear: the sliding gate open" if ax is ax2 else None)
+    ax2.set_xlabel("time since the gate began to open [s]" if clear > 0.0 else
+                   "time since the gate opened [s]")
     ax2.set_ylabel("mass flow rate [kg/s]")
     ax2.legend(fontsize=8)
     tight_layout(fig)

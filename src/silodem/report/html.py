@@ -116,7 +116,8 @@ FIGURES = [
     FigureSpec("discharge_rate", "",
                "Discharged mass and mass flow rate; the steady rate is the slope between 15 % "
                "and 75 % of the discharged mass, its error the standard error of 5 block "
-               "slopes.", ff.fig_discharge_rate),
+               "slopes; where the gate slides open (discharge.gate_speed), a dashed line marks "
+               "the moment it cleared the outlet.", ff.fig_discharge_rate),
     FigureSpec("velocity_field", "",
                "Mean grain velocity on a grid over the discharge window, and the flow pattern "
                "as measured in this run: mass flow when the mass flow index v_wall / v_axis "
