@@ -487,7 +487,9 @@ def test_a_new_run_in_a_used_folder_removes_the_old_runs_files_first(tmp_path):
                  "frames/frames-000000-000999.h5", "frames/.frames-001000-001001.h5.tmp",
                  ".checkpoint.h5.tmp", ".results.h5.tmp"):  # (saves a SIGKILL cut short)
         (out / name).write_bytes(b"old run")
-    (out / "config.toml").write_text("# the old run's\n")  # what makes it a run's folder
+    (out / "config.toml").write_text("# the old run's\n")  # with the diagnosis of an unstable
+    # run whose second Ctrl-C stopped its saves before results.h5: what makes it a run's folder
+    (out / "diagnostic.json").write_text('{"silodem_version": "0.1.0", "kind": "engine"}')
     (out / "notes.txt").write_text("mine")
     (out / "frames" / "mine.txt").write_text("mine")
     result = cli(*run_args(out))  # output.png, measure.report and VTK output are off in SETS
@@ -530,27 +532,36 @@ def test_a_run_into_a_folder_of_files_no_run_wrote_is_refused_and_deletes_nothin
 
 def test_a_run_given_its_folders_own_config_rewrites_it_only_as_it_was(tmp_path, capsys):
     """silodem run DIR/config.toml --out DIR replaced the file it was given with the resolved
-    config: a hand-written one lost its comments, one changed by --set its values. Refused in
-    one line (exit 2), the file kept; the config a run wrote there, run as it is, passes."""
+    config: a hand-written one lost its comments, one changed by --set or --quick its values.
+    Refused in one line (exit 2), the file kept. A config silodem wrote, run as it is, passes,
+    also one whose comments another version worded otherwise."""
     from silodem.cli import main
+    from silodem.errors import InputError
     from silodem.run_folder import check_config_kept
     from silodem.scenario_files import config_to_toml, load_config
 
     out = tmp_path / "mine"
     out.mkdir()
-    mine = "# my own notes\n" + config_to_toml(load_config("paper-case2"))
+    cfg = load_config("paper-case2")
+    mine = "# my own notes\n" + config_to_toml(cfg)
     (out / "config.toml").write_text(mine, encoding="utf-8")
-    for extra in ([], ["--set", "seed=3"]):
+    for extra in ([], ["--set", "seed=3"], ["--quick"]):
         with pytest.raises(SystemExit) as exc:
-            main(["run", str(out / "config.toml"), "--quick", "--out", str(out), *extra])
+            main(["run", str(out / "config.toml"), "--out", str(out), *extra])
         assert exc.value.code == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "is that folder's config.toml" in err
         assert (out / "config.toml").read_text(encoding="utf-8") == mine
-    resolved = config_to_toml(load_config(str(out / "config.toml")))
-    (out / "config.toml").write_text(resolved, encoding="utf-8")
-    check_config_kept(str(out / "config.toml"), out, resolved)  # the same text: no refusal
-    check_config_kept(str(out / "config.toml"), tmp_path / "elsewhere", "other")
+    written = config_to_toml(cfg)
+    older = written.replace("normal restitution coefficient e of a contact [-], which sets",
+                            "normal restitution coefficient e of a contact [-]; sets")
+    assert older != written
+    for text in (written, older):
+        (out / "config.toml").write_text(text, encoding="utf-8")
+        check_config_kept(str(out / "config.toml"), out, cfg)  # its own values: no refusal
+    with pytest.raises(InputError, match="is that folder's config.toml"):
+        check_config_kept(str(out / "config.toml"), out, load_config("paper-case2", ["seed=3"]))
+    check_config_kept(str(out / "config.toml"), tmp_path / "elsewhere", cfg)  # another file
 
 
 def test_a_run_over_an_earlier_run_says_it_replaces_it(tmp_path):

@@ -93,11 +93,13 @@ def test_a_quick_run_report_says_what_a_quick_silo_is_for(run_dir, tmp_path):
     assert caveat not in (run_dir / "report.html").read_text(encoding="utf-8")
 
 
-def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_after():
+def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_after(
+        tmp_path, monkeypatch):
     """A flat silo made from paper-case2 with --set showed case 2's description ('Cell +
     hopper silo ...') and nothing else: the report now lists the keys that differ from the
     scenario (or its --quick variant), in the schema's order; none for the scenario itself
-    or for a config of another name."""
+    or for a config of another name. The scenario is the embedded one, whatever file of its
+    name the working folder holds."""
     from silodem.report.html import changes_html
     from silodem.scenario_files import changes_from_scenario, load_config, quick_variant
 
@@ -114,10 +116,15 @@ def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_af
                                                "material.damping_ratio = 0.2"]
     assert changes_from_scenario(cfg.model_copy(update={"name": "mine"})) is None
     assert changes_html(quick_variant(cfg)) == (
-        "<p>The description above is that of the scenario paper-case2 --quick; this run's "
-        "config differs from it in: seed = 5; silo.kind = &quot;flat&quot;; "
-        "discharge.gate_speed = 0.3.</p>")
+        "<p>This run's config is named after the scenario paper-case2 --quick and differs "
+        "from it in: seed = 5; silo.kind = &quot;flat&quot;; discharge.gate_speed = 0.3.</p>")
     assert changes_html(load_config("paper-case1")) == ""
+    # a description changed too is named (the line had called it the scenario's)
+    mine = load_config("paper-case2", ['description="my flat test"'])
+    assert changes_from_scenario(mine)[1] == ['description = "my flat test"']
+    monkeypatch.chdir(tmp_path)  # a file named as the scenario here is not the scenario
+    (tmp_path / "paper-case2").write_text("not TOML at all", encoding="utf-8")
+    assert changes_from_scenario(cfg) == ("paper-case2", expected)
 
 
 def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):

@@ -16,7 +16,9 @@ import statistics
 import h5py
 import numpy as np
 import pytest
+from matplotlib.colors import to_hex
 from matplotlib.container import BarContainer
+from matplotlib.patches import Rectangle
 from measure_helpers import tiny_hopper_config
 from test_report_numbers import SURF_FILL, _number, _pct, write_synthetic
 
@@ -245,9 +247,17 @@ def test_fig8_draws_the_errors_and_pales_the_changes_within_them(synth):
     assert bars["vertical stress"].patches[centre].get_alpha() is None
     assert "not resolved" in _caption("fig8_change")
     # the key of the pale bars is drawn in the bars' own two colours, pale (it was grey)
-    texts = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert texts == ["horizontal stress", "vertical stress",
-                     "pale: within its error, not resolved"]
+    legend = ax.get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == [
+        "horizontal stress", "vertical stress", "pale: within its error, not resolved"]
+    keys = [(to_hex(r.get_facecolor(), keep_alpha=False), r.get_alpha())
+            for r in legend.findobj(Rectangle) if r is not legend.legendPatch]
+    colours = [to_hex(bars[name].patches[centre].get_facecolor(), keep_alpha=False)
+               for name in ("horizontal stress", "vertical stress")]
+    # each kind's key in full colour (switch_left's pale first bar gave it a pale key) and the
+    # pale bars' key in both colours, pale
+    assert keys == [(colours[0], None), (colours[1], None), (colours[0], 0.35),
+                    (colours[1], 0.35)]
 
 
 # --- 5. where the flow pattern is read ---------------------------------------------------------

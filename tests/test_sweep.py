@@ -726,7 +726,7 @@ def test_the_failed_sweeps_line_says_which_failures_a_new_attempt_repeats():
         "; run the command again to retry them")
 
 
-def test_a_sweep_says_when_it_replaces_another_study_file(tmp_path):
+def test_a_sweep_says_when_it_replaces_another_study_file(tmp_path, capsys, monkeypatch):
     """A study run into the folder of another replaced its study.toml without a word; its
     runs stay (reused by any study that plans them again). The same study says nothing."""
     from silodem.study.execute import other_study_note, prepare
@@ -743,6 +743,20 @@ def test_a_sweep_says_when_it_replaces_another_study_file(tmp_path):
                     f"text; the finished runs in {study_dir / 'runs'} are kept (a study that "
                     "plans one again reuses it), and results.csv and report.html become this "
                     "study's")
+    # the command line says it once the file is replaced: a scheduler that cannot be reached
+    # leaves the file as it was, and its error is the one line on stderr
+    from test_input_errors import refused
+
+    from silodem.study import cluster as study_cluster
+    from silodem.study.execute import replaced_study_file
+
+    monkeypatch.setattr(study_cluster, "CONNECT_TIMEOUT_S", 2.0)
+    old = (study_dir / "study.toml").read_text(encoding="utf-8")
+    line = refused(capsys, "sweep", str(edited), "--quick", "--out", str(study_dir),
+                   "--scheduler", "tcp://127.0.0.1:1")
+    assert line.startswith("error: cannot reach the Dask scheduler at tcp://127.0.0.1:1")
+    assert (study_dir / "study.toml").read_text(encoding="utf-8") == old
+    assert not replaced_study_file(expand(load_study(str(edited)), quick=True), study_dir)
 
 
 def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():

@@ -18,13 +18,18 @@ class ReaderGone:
     with its own code: click ended any command at once with exit code 1 and no word, a finished
     run and a validation whose checks all passed alike.  Only the text shown is lost; what the
     command writes into files is not.  The stream's file descriptor is pointed at /dev/null,
-    so the buffer's last flush, at exit too, has somewhere to go."""
+    so the buffer's last flush, at exit too, has somewhere to go.  Its ``buffer`` (the bytes
+    beneath, which click writes to where the text stream's encoding is not one it trusts) is
+    wrapped alike."""
 
     def __init__(self, stream) -> None:
         self._stream = stream
 
     def _gone(self) -> None:
-        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+        except OSError:  # (no /dev/null: the writes keep failing, and are dropped)
+            return
         try:
             os.dup2(devnull, self._stream.fileno())
         except (OSError, ValueError):  # no descriptor: its writes keep failing, and are dropped
@@ -48,6 +53,10 @@ class ReaderGone:
                 self._stream.flush()
 
     def __getattr__(self, name: str):
+        if name == "_stream":  # (not set yet: a copy, an unpickling)
+            raise AttributeError(name)
+        if name == "buffer":
+            return ReaderGone(self._stream.buffer)
         return getattr(self._stream, name)
 
 
@@ -57,8 +66,13 @@ def main() -> None:
     interpreter's exit in one line (``exit_on_signals``)."""
     for name in ("stdout", "stderr"):
         stream = getattr(sys, name)
-        if stream is not None and hasattr(stream, "fileno"):
-            setattr(sys, name, ReaderGone(stream))
+        if stream is None or isinstance(stream, ReaderGone) or not hasattr(stream, "fileno"):
+            continue
+        # a character the stream's encoding lacks (ASCII under LC_ALL=C: the config's '§')
+        # is written as an escape, not a UnicodeEncodeError's traceback
+        with contextlib.suppress(AttributeError, ValueError, OSError):
+            stream.reconfigure(errors="backslashreplace")
+        setattr(sys, name, ReaderGone(stream))
     try:
         from silodem.cli import main as cli_main
     except KeyboardInterrupt:

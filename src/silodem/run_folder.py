@@ -71,6 +71,22 @@ def _written_by_silodem(results: Path) -> bool:
     return _silodem_attrs(results) is not None
 
 
+def _a_runs_record(out: Path) -> bool:
+    """Whether ``out`` holds a file only a silodem run writes: its results.h5 or failure.h5
+    (attribute ``silodem_version``), or its diagnostic.json (key ``silodem_version``).  An
+    unstable run stopped by a second signal, or whose results.h5 could not be written, leaves
+    the last two without the first."""
+    import json
+
+    if _written_by_silodem(out / RESULTS_NAME) or _written_by_silodem(out / FAILURE_NAME):
+        return True
+    try:
+        diagnosis = json.loads((out / DIAGNOSTIC_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(diagnosis, dict) and "silodem_version" in diagnosis
+
+
 def foreign_files(out: Path, found: list[str], writer: str, why: str, flag: str) -> InputError:
     """The refusal of a folder ``out`` whose files ``found`` (names relative to it) a new
     ``writer`` ("run", "study") there would replace, though ``why`` says it did not write
@@ -82,14 +98,14 @@ def foreign_files(out: Path, found: list[str], writer: str, why: str, flag: str)
 
 def check_replaceable(out: Path, flag: str = "out") -> bool:
     """Whether ``out`` holds an earlier run's files, which a new run there replaces; InputError
-    if it holds files of those names that no silodem run wrote (no config.toml and silodem
-    results.h5 beside them): a user's own results.h5 or figures/*.png in a folder given as
-    ``--out`` were deleted without a word, and so were a report.html and figures beside a
-    config.toml of the user's own, with no results.h5."""
+    if it holds files of those names that no silodem run wrote (no config.toml and a run's
+    own record, :func:`_a_runs_record`, beside them): a user's own results.h5 or figures/*.png
+    in a folder given as ``--out`` were deleted without a word, and so were a report.html and
+    figures beside a config.toml of the user's own, with no results.h5."""
     found = _replaced_files(out)
     if not found:
         return False
-    foreign = not ((out / "config.toml").is_file() and _written_by_silodem(out / RESULTS_NAME))
+    foreign = not ((out / "config.toml").is_file() and _a_runs_record(out))
     if foreign:
         raise foreign_files(out, [str(f.relative_to(out)) for f in found], "run",
                             "no silodem run wrote it (no config.toml and silodem results.h5 "
@@ -97,18 +113,28 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
     return True
 
 
-def check_config_kept(source: str, out: Path, toml_text: str, flag: str = "--out") -> None:
+def check_config_kept(source: str, out: Path, cfg: Any, flag: str = "--out") -> None:
     """InputError when the config file given (``source``, as the command line took it) is
-    ``out``'s own config.toml and the run would write another text there (``toml_text``, the
-    resolved config): a run rewrote the very file it was given, its comments and layout lost
-    (or its values changed, with --set), without a word."""
+    ``out``'s own config.toml and the run would replace it with something else: a file not
+    written by silodem (no ``config_to_toml`` header: its comments and layout would go), or one
+    whose values differ from the run's config ``cfg`` (``--set``, ``--quick``).  A run rewrote
+    the very file it was given without a word.  A config a run wrote there, run again as it
+    is, passes, also one written by another version (its comments' words may differ)."""
+    from silodem.scenario_files import CONFIG_HEADER, load_config
+
     given, target = Path(source), out / "config.toml"
     try:
-        same = given.is_file() and target.is_file() and given.samefile(target)
-        same = same and given.read_text(encoding="utf-8") != toml_text
+        if not (given.is_file() and target.is_file() and given.samefile(target)):
+            return
+        kept = given.read_text(encoding="utf-8").startswith(CONFIG_HEADER)
     except (OSError, UnicodeDecodeError, ValueError):
-        same = False
-    if same:
+        return
+    if kept:
+        try:
+            kept = load_config(str(given)).model_dump() == cfg.model_dump()
+        except InputError:
+            kept = False
+    if not kept:
         raise InputError(f"{flag} {out}: the config given, {source}, is that folder's "
                          "config.toml, which the run replaces with its resolved config; copy "
                          "it and run the copy, or give another --out")

@@ -309,13 +309,16 @@ def _field_lines(model: BaseModel, width: int) -> list[str]:
     return lines
 
 
+CONFIG_HEADER = "# silodem configuration:"  # the first line of config_to_toml's text
+
+
 def config_to_toml(cfg: Config) -> str:
     """The complete TOML of ``cfg``: every key, defaults included (unset ones as comments).
 
     :func:`load_config` reads the text back to a Config equal to ``cfg``.
     """
     out = [
-        f"# silodem configuration: {one_line(cfg.name)}",
+        f"{CONFIG_HEADER} {one_line(cfg.name)}",
         *([f"# {one_line(cfg.description)}"] if cfg.description else []),
         "# Every key is listed, defaults included; units are SI (see docs/scenarios.md).",
         "",
@@ -388,12 +391,15 @@ def changes_from_scenario(cfg: Config) -> tuple[str, list[str]] | None:
     the scenario's description, shown with the config, does not say.  None for a config of
     another name."""
     base_name = cfg.name.removesuffix(QUICK_SUFFIX)
-    if base_name not in _scenario_files():
+    files = _scenario_files()
+    if base_name not in files:
         return None
-    base = load_config(base_name)
+    # the embedded file itself: load_config would take a file of that name in the working
+    # folder first (a report then compared the run with it, or failed on a non-TOML one)
+    text = files[base_name].read_text(encoding="utf-8")
+    base = _validate(parse_toml(text, f"scenario {base_name}"))
     if cfg.name != base_name:
         base = quick_variant(base)
     ours, theirs = _dotted(cfg.model_dump()), _dotted(base.model_dump())
     return base_name, [f"{key} = {'unset' if value is None else _toml_value(value)}"
-                       for key, value in ours.items()
-                       if key != "description" and theirs.get(key) != value]
+                       for key, value in ours.items() if theirs.get(key) != value]

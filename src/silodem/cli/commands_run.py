@@ -154,11 +154,10 @@ def run(
 
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     from silodem.run_folder import check_config_kept, check_not_in_use, replacing_note
-    from silodem.scenario_files import config_to_toml
 
     check_not_in_use(out_dir)  # (a run writing there: not 'an unfinished run' to resume)
     check_out(out_dir)
-    check_config_kept(source, out_dir, config_to_toml(cfg))
+    check_config_kept(source, out_dir, cfg)
 
     replacing = replacing_note(out_dir, "--out")  # (a finished run was replaced unsaid)
 

@@ -87,6 +87,7 @@ def sweep(
         failed_runs_text,
         is_finished,
         other_study_note,
+        replaced_study_file,
         stopped_sweep_text,
     )
 
@@ -117,9 +118,7 @@ def sweep(
     say(f"silodem: study '{plan.name}'{' (--quick)' if quick else ''}: {len(plan.runs)} runs "
         f"-> {out_dir}; " + (f"the {todo} not finished yet run on {where}" if todo else
                              "all finished already: nothing to run"))
-    replacing = other_study_note(plan, out_dir)
-    if replacing is not None:
-        Console(stderr=True, soft_wrap=True).print(replacing, markup=False, highlight=False)
+    replacing = other_study_note(plan, out_dir)  # (said once the sweep has replaced it)
     try:
         _quiet_dask_client()  # (imports distributed: a good part of a second)
         outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
@@ -129,6 +128,10 @@ def sweep(
         with shutdown_shield(stopping=True):
             text = stopped_sweep_text(plan, out_dir, signum)
         raise RunInterrupted(text, signum) from None
+    finally:  # only once it was replaced (a scheduler that cannot be reached leaves it be)
+        if replacing is not None and replaced_study_file(plan, out_dir):
+            Console(stderr=True, soft_wrap=True).print(replacing, markup=False,
+                                                       highlight=False)
     say(f"{outcome.computed} computed, {outcome.skipped} already finished, "
         f"{len(outcome.failed)} failed, in {outcome.wall_s:.1f} s")
     say(f"table: {outcome.table_path}")

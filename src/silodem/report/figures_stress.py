@@ -364,8 +364,9 @@ def fig_change(a: Analysis) -> Figure | None:
     fig = Figure(figsize=(10, 4.8), dpi=100)  # (room for the legend on the right)
     ax = fig.subplots()
     x = np.arange(len(names))
-    for shift, comp, label, color in ((-0.2, "sigma_h", "horizontal stress", "#1f77b4"),
-                                      (0.2, "sigma_v", "vertical stress", "#ff7f0e")):
+    kinds = ((-0.2, "sigma_h", "horizontal stress", "#1f77b4"),
+             (0.2, "sigma_v", "vertical stress", "#ff7f0e"))
+    for shift, comp, label, color in kinds:
         pct = np.array([a.change[n].get(f"{comp}_change_pct", np.nan) for n in names])
         err = np.array([a.change[n].get(f"{comp}_change_pct_err", np.nan) for n in names])
         bars = ax.bar(x + shift, pct, 0.4, yerr=np.nan_to_num(err), color=color, label=label,
@@ -381,10 +382,13 @@ def fig_change(a: Analysis) -> Figure | None:
     ax.set_title("Change of the switch-zone stresses from filling to discharge\n(error bars: "
                  f"+- 1 standard error, batch means of each window's samples in {BATCHES} "
                  "blocks)", fontsize=10)
-    handles, labels = ax.get_legend_handles_labels()  # the pale key in both bars' colours
-    pale = tuple(Patch(color=h.patches[0].get_facecolor(), alpha=0.35) for h in handles)
+    # the key drawn from the colours, not from each kind's first bar (drawn pale when its
+    # change was not resolved), with the pale bars' key in both colours (it was grey)
+    handles = [Patch(color=color) for *_, color in kinds]
+    pale = tuple(Patch(color=color, alpha=0.35) for *_, color in kinds)
     legend_right(ax, handles=[*handles, pale],
-                 labels=[*labels, "pale: within its error, not resolved"],
+                 labels=[label for _, _, label, _ in kinds]
+                 + ["pale: within its error, not resolved"],
                  handler_map={tuple: HandlerTuple(ndivide=None)}, fontsize=8)
     tight_layout(fig)
     return fig

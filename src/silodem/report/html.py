@@ -165,9 +165,8 @@ def changes_html(cfg) -> str:
         return ""
     name, keys = changed
     quick = " --quick" if cfg.name != name else ""
-    return (f"<p>The description above is that of the scenario {html.escape(name)}"
-            f"{quick}; this run's config differs from it in: {html.escape('; '.join(keys))}."
-            "</p>")
+    return (f"<p>This run's config is named after the scenario {html.escape(name)}{quick} "
+            f"and differs from it in: {html.escape('; '.join(keys))}.</p>")
 
 
 def quick_caveat(hopper: bool) -> str:

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from silodem import theory as th
-from silodem.measure.wall_profiles import peak_in_zone, rises_past
+from silodem.measure.wall_profiles import rises_past
 from silodem.report import eurocode
 from silodem.report.analysis import (
     BATCHES,
@@ -129,13 +129,14 @@ def _peak_note(edge, z: float) -> str:
 
 
 def _largest_row(edge, switch: tuple[float, float], label: str) -> tuple[str, str, str]:
-    """The largest wall normal stress on the side walls (``edge``, both sides' mean per bin)
-    and where: the switch-zone peak is the largest within the zone only, and a case-2 run's
-    largest discharge pressure, 30 % above it, lay on the hopper wall below the zone."""
-    v, z = peak_in_zone(edge.z, edge.sigma_n, -np.inf, np.inf)
-    if not np.isfinite(v):
+    """The largest wall normal stress on the side walls (``edge``'s profile) and where: the
+    switch-zone peak is the largest within the zone only, and a case-2 run's largest
+    discharge pressure, 30 % above it, lay on the hopper wall below the zone."""
+    sigma = np.where(np.isfinite(edge.sigma_n), edge.sigma_n, -np.inf)
+    if not np.isfinite(sigma).any():
         return (f"largest wall normal stress on the side walls, {label}", "n/a (no bin)", "Pa")
-    k = np.flatnonzero(edge.z == z)[0]
+    k = int(np.argmax(sigma))
+    v, z = float(sigma[k]), float(edge.z[k])
     where = ("in the switch zone" if switch[0] <= z <= switch[1] else
              f"{'below' if z < switch[0] else 'above'} the switch zone")
     wall = "vertical wall" if edge.on_vertical[k] else "hopper wall"

@@ -243,6 +243,14 @@ def other_study_note(plan: StudyPlan, out_dir: Path) -> str | None:
             "results.csv and report.html become this study's")
 
 
+def replaced_study_file(plan: StudyPlan, out_dir: Path) -> bool:
+    """Whether ``out_dir``'s study.toml is ``plan``'s study file (``prepare`` wrote it)."""
+    try:
+        return (Path(out_dir) / "study.toml").read_text(encoding="utf-8") == plan.study.text
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
     """Create the study folder, save the study file, return the runs still to do."""
     if out_dir.exists() and not out_dir.is_dir():
