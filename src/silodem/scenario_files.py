@@ -229,6 +229,18 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = (), flag: str = "--set
         raise InputError(message) from None
 
 
+def _breaking(given: dict[str, Any], sets: list[str], flag: str) -> list[str]:
+    """The ``sets`` that make the valid raw config ``given`` invalid: those that do it alone,
+    where any does; else those without which the rest pass (only together do they: a wider
+    cell and a steeper hopper); else all of them."""
+    def valid_with(items: list[str]) -> bool:
+        return _valid(apply_sets(copy.deepcopy(given), items, flag))
+
+    alone = [item for item in sets if not valid_with([item])]
+    needed = [k for k, item in enumerate(sets) if valid_with(sets[:k] + sets[k + 1:])]
+    return alone or [sets[k] for k in needed] or sets
+
+
 def _valid(data: dict[str, Any]) -> bool:
     try:
         Config.model_validate(data)
@@ -279,7 +291,8 @@ def load_config(source: str, sets: Iterable[str] = (), flag: str = "--set") -> C
             # a check across keys that the --set values broke (outlet_width against a
             # radius_max set): the error names another key, so name them
             raise InputError(f"{message} (after {flag} "
-                             f"{', '.join(shorten(item) for item in sets)})") from None
+                             f"{', '.join(map(shorten, _breaking(given, sets, flag)))})") \
+                from None
         if f"(from {flag} " in message or _path_kind(Path(source)) != "file":
             raise  # a --set's value, or an embedded scenario (whose values are valid)
         raise InputError(f"{message} (in {source}{', an empty file' if empty else ''})") \
