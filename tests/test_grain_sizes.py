@@ -193,5 +193,9 @@ def test_the_composition_figure_of_a_mixture_draws_each_sizes_share():
              if line.get_label().startswith("r = ")}
     np.testing.assert_allclose(drawn["r = 1 m"], [100, 100] + [0] * 8)
     np.testing.assert_allclose(drawn["r = 2 m"], [0, 0] + [100] * 8)
+    band = [p for p in top.collections if p.get_label().startswith("chance")]
+    outline = band[0].get_paths()[0].vertices[:, 1]  # (the band's lows and highs)
+    assert outline.min() == pytest.approx(np.nanmin(c.chance_lo), rel=1e-12)
+    assert outline.max() == pytest.approx(np.nanmax(c.chance_hi), rel=1e-12)
     one_size = discharge_composition(np.arange(20.0), np.ones(20))
     assert len(fig_composition(types.SimpleNamespace(flow={"composition": one_size})).axes) == 1

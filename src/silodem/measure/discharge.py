@@ -150,6 +150,45 @@ class Composition:
     sizes: np.ndarray  # the distinct radii, for a mixture of a few sizes (else empty) [m]
     size_share: np.ndarray  # (share, size): each size's share of the share's mass [-]
     fill_share: np.ndarray  # each size's share of the fill's mass [-]
+    # diameter_ratio's 5th and 95th percentiles per share over random orders of the same
+    # grains (``random_order_band``): what chance alone gives [-]
+    chance_lo: np.ndarray
+    chance_hi: np.ndarray
+
+
+CHANCE_ORDERS = 200  # random departure orders behind a composition's chance band
+CHANCE_SEED = 20261125  # their generator's seed: the band is the same at every reading
+
+
+def _share_index(r: np.ndarray, parts: int) -> np.ndarray:
+    """The share of ``parts`` equal shares of the mass of disks of radii ``r`` [m], taken in
+    that order, that each disk belongs to: the one its mass's middle falls in."""
+    mass = r * r
+    middle = (np.cumsum(mass) - 0.5 * mass) / np.sum(mass)
+    return np.minimum((middle * parts).astype(np.int64), parts - 1)
+
+
+def _share_ratios(r: np.ndarray, parts: int, fill_d: float) -> np.ndarray:
+    """Each share's (:func:`_share_index`) mass mean diameter over ``fill_d`` [-]; NaN for a
+    share no grain's middle falls in (a grain heavier than a share beside it)."""
+    part, mass = _share_index(r, parts), r * r
+    with np.errstate(invalid="ignore"):
+        cubes = np.bincount(part, weights=mass * r, minlength=parts)
+        return 2.0 * cubes / np.bincount(part, weights=mass, minlength=parts) / fill_d
+
+
+def random_order_band(r: npt.ArrayLike, parts: int, fill_d: float,
+                      orders: int = CHANCE_ORDERS) -> tuple[np.ndarray, np.ndarray]:
+    """(5th, 95th percentile) per share of :func:`_share_ratios` over ``orders`` random
+    orders of the grains that left (radii ``r`` [m]), drawn with a fixed seed: the scatter
+    that chance alone gives a discharge whose sizes do not segregate.  A share outside it
+    shows segregation beyond chance (a permutation test at 10 %, two-sided, per share)."""
+    r = np.asarray(r, dtype=float)
+    rng = np.random.default_rng(CHANCE_SEED)
+    ratios = np.array([_share_ratios(rng.permutation(r), parts, fill_d)
+                       for _ in range(orders)])
+    lo, hi = np.nanpercentile(ratios, [5.0, 95.0], axis=0)
+    return lo, hi
 
 
 def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
@@ -169,12 +208,10 @@ def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
         return None
     order = np.argsort(exit_time[gone], kind="stable")
     r = radius[gone][order]
-    mass = r * r
-    middle = (np.cumsum(mass) - 0.5 * mass) / np.sum(mass)
-    part = np.minimum((middle * parts).astype(np.int64), parts - 1)
+    mass, part = r * r, _share_index(r, parts)
     fill_d = mass_mean_diameter(radius)
-    ratio = np.array([mass_mean_diameter(r[part == k]) for k in range(parts)]) / fill_d
-    # (mass_mean_diameter of an empty part, a grain heavier than a share beside it: NaN)
+    ratio = _share_ratios(r, parts, fill_d)
+    chance_lo, chance_hi = random_order_band(r, parts, fill_d)
     sizes = np.unique(radius)
     if sizes.size > few:
         sizes = np.zeros(0)
@@ -187,7 +224,7 @@ def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
     fill_share = np.array([np.sum(radius[radius == size] ** 2) for size in sizes]) / np.sum(
         radius**2)
     return Composition((np.arange(parts) + 0.5) / parts, ratio, fill_d, sizes, size_share,
-                       fill_share)
+                       fill_share, chance_lo, chance_hi)
 
 
 def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,7 @@ from silodem.report.draw import (
     draw_grains,
     draw_walls,
     grain_disks,
+    legend_right,
     silo_axes,
     tight_layout,
 )
@@ -204,21 +205,24 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
 
 def fig_composition(a: Analysis) -> Figure | None:
     """Size segregation in the discharge (``measure.discharge.discharge_composition``): each
-    tenth of the discharged mass's mass mean diameter over the fill's, and for a mixture of a
-    few sizes each size's share of that tenth's mass beside its share of the fill."""
+    tenth of the discharged mass's mass mean diameter over the fill's, with the band chance
+    alone gives, and for a mixture of a few sizes each size's share of that tenth's mass
+    beside its share of the fill."""
     c = a.flow.get("composition")
     if c is None:
         return None
     mixture = c.sizes.size > 1
-    fig = Figure(figsize=(8, 6.5 if mixture else 3.8), dpi=100)
+    fig = Figure(figsize=(10.5, 6.5 if mixture else 3.8), dpi=100)  # (legends on the right)
     axes = fig.subplots(2 if mixture else 1, 1, sharex=True, squeeze=False)[:, 0]
     x = 100 * c.fraction
     ax = axes[0]
     ax.axhline(1.0, color="0.5", lw=1, ls="--", label="the fill's (no segregation)")
+    ax.fill_between(x, c.chance_lo, c.chance_hi, color="0.85",
+                    label="chance: 90 % of random\ndeparture orders of the\nsame grains")
     ax.plot(x, c.diameter_ratio, "o-", color="k", lw=1.5,
             label="each tenth of the discharged mass")
     ax.set_ylabel("mass mean diameter /\nthe fill's [-]")
-    ax.legend(fontsize=8)
+    legend_right(ax, fontsize=8)  # (inside, it hid the tenths in the band's middle)
     if mixture:
         ax2 = axes[1]
         for j, size in enumerate(c.sizes):
@@ -226,7 +230,7 @@ def fig_composition(a: Analysis) -> Figure | None:
                             label=f"r = {significant(size, 3)} m")[0]
             ax2.axhline(100 * c.fill_share[j], color=line.get_color(), lw=1, ls="--")
         ax2.set_ylabel("share of the tenth's mass [%]\n(dashed: of the fill's)")
-        ax2.legend(fontsize=8)
+        legend_right(ax2, fontsize=8)
     axes[-1].set_xlabel("discharged mass, middle of each tenth [%]")
     tight_layout(fig)
     return fig

@@ -129,7 +129,9 @@ FIGURES = [
                "Size segregation in the discharge: the grains that left, in the order they "
                "left, cut into ten parts of equal mass; each part's mass mean diameter "
                "sum(m d) / sum(m) over that of the grains in the silo at the gate opening "
-               "(1 throughout: no segregation), and, for a mixture of a few sizes, each size's "
+               "(1 throughout: no segregation), with the band 90 % of random departure orders "
+               "of the same grains fall in (what chance alone gives: one tenth in ten lies "
+               "outside it by chance), and, for a mixture of a few sizes, each size's "
                "share of each part's mass beside its share of the fill.", ff.fig_composition),
     FigureSpec("dead_zones", "",
                "Grains at the gate opening coloured by the time they left the silo; the dead "

@@ -347,6 +347,11 @@ def add_numbers(a: Analysis) -> None:
         value = (f"{_fmt(c.diameter_ratio[0], 3)} / {_fmt(c.diameter_ratio[-1], 3)} "
                  f"({_fmt(np.nanmin(c.diameter_ratio), 3)} - "
                  f"{_fmt(np.nanmax(c.diameter_ratio), 3)})")
+        outside = int(np.sum((c.diameter_ratio < c.chance_lo) | (c.diameter_ratio > c.chance_hi)))
+        value += (f"; chance alone (random departure orders of these grains) gives "
+                  f"{_fmt(np.nanmin(c.chance_lo), 3)} - {_fmt(np.nanmax(c.chance_hi), 3)}: "
+                  + ("every tenth within it" if outside == 0 else
+                     f"{outside} of {c.diameter_ratio.size} tenths outside it"))
         n.append((label, value, "-"))
     if "beverloo_C" in f:
         hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
