@@ -147,6 +147,14 @@ def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):
     fig = fs.fig_coordination(a)
     for ax in fig.axes:
         assert ax.get_ylim()[1] >= peak
+    # the cycles' time along the top: cycles x dt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    (seconds,) = fig.axes[0].child_axes
+    assert seconds.get_xlabel() == "time [s]"
+    np.testing.assert_allclose(seconds.get_xlim(),
+                               np.array(fig.axes[0].get_xlim()) * a.res.attrs["dt"], rtol=1e-12)
     label = fs.fig_horizontal(a, "fill").axes[0].get_xlabel()
     assert label == "horizontal stress sigma_h on the wall [Pa]"
     _assert_bottom_load(a, ("left_floor", "right_floor", "gate"))

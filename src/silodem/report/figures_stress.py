@@ -82,7 +82,8 @@ def _zone(ax, a: Analysis) -> None:
 
 
 def fig_coordination(a: Analysis) -> Figure | None:
-    """Fig. 2: coordination number against cycles at the junction and in the circles."""
+    """Fig. 2: coordination number against cycles at the junction and in the circles, with
+    the time [s] they make (cycles x dt) along the top."""
     m = a.res.group("measure")
     if m is None:
         return None
@@ -100,6 +101,10 @@ def fig_coordination(a: Analysis) -> Figure | None:
     where = ("at the cell-hopper junction" if a.res.cfg.silo.kind == "hopper"
              else "in the band over the floor")
     ax1.set_title(f"(a) {where} (eq. 10: C_n = sum n_c / N_p)", fontsize=10)
+    dt = float(a.res.attrs.get("dt", np.nan))  # the paper's cycles, and the time they make
+    if np.isfinite(dt) and dt > 0.0:
+        seconds = ax1.secondary_xaxis("top", functions=(lambda s: s * dt, lambda t: t / dt))
+        seconds.set_xlabel("time [s]", fontsize=9)
     c = m["circles"]
     for k, name in enumerate(c["name"]):
         ax2.plot(step, rolling_mean(c["coordination"][:, k], 9), lw=1.4, label=str(name))

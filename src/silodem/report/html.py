@@ -42,7 +42,8 @@ class FigureSpec:
 
 FIGURES = [
     FigureSpec("fig2_coordination", "Fig. 2",
-               "Coordination number C_n = sum(n_c)/N_p (eq. 10) against cycles, in a band across "
+               "Coordination number C_n = sum(n_c)/N_p (eq. 10) against cycles (their time "
+               "along the top), in a band across "
                "the silo at the cell-hopper junction (over the floor in a flat silo) and in the "
                "measurement circles. Shading: "
                "filling, settling, discharge. Ordered packings of equal disks give 4 (square) "
