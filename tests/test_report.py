@@ -127,6 +127,29 @@ def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_af
     assert changes_from_scenario(cfg) == ("paper-case2", expected)
 
 
+def test_a_run_no_real_silo_has_gets_a_box_saying_so_at_the_top():
+    """paper-case1 --quick: 2256 kg/m^3 from grains of 1607, and 68 of 166 grains lost through
+    the walls; its key numbers were shown as a sound run's. A bulk density above the grains'
+    own, or more than 5 % of the grains lost, puts a box at the top; a sound run has none."""
+    from types import SimpleNamespace
+
+    from silodem.report.html import unphysical_html
+
+    def analysis(rho_b, poured, lost):
+        cfg = SimpleNamespace(material=SimpleNamespace(density=1607.0))
+        events = {"n_poured": poured, "lost_count": lost}
+        return SimpleNamespace(res=SimpleNamespace(cfg=cfg, events=events), rho_b=rho_b)
+
+    box = unphysical_html(analysis(2256.0, 166, 68))
+    assert box.startswith("<p class='unfinished' id='unphysical'>Not a physical packing: its "
+                          "bulk density, 2256 kg/m^3, is above the grains&#x27; own 1607; 68 "
+                          "of its 166 grains (41 %) were lost through the walls.")
+    assert "bulk density" not in unphysical_html(analysis(1300.0, 166, 68))
+    assert unphysical_html(analysis(1300.0, 166, 8)) == ""  # 4.8 %: under 5 %
+    assert "9 of its 166 grains (5 %)" in unphysical_html(analysis(1300.0, 166, 9))
+    assert unphysical_html(analysis(float("nan"), 0, 0)) == ""
+
+
 def test_flat_silo_report_speaks_of_its_floor_not_a_hopper(tmp_path):
     """A flat-bottomed silo: the report has no hopper angle and no wedge-hopper paragraph, and
     Fig. 2's axis reaches the largest coordination number measured (it was cut at 6.5)."""
