@@ -237,8 +237,10 @@ def _breaking(given: dict[str, Any], sets: list[str], flag: str) -> list[str]:
         return _valid(apply_sets(copy.deepcopy(given), items, flag))
 
     alone = [item for item in sets if not valid_with([item])]
-    needed = [k for k, item in enumerate(sets) if valid_with(sets[:k] + sets[k + 1:])]
-    return alone or [sets[k] for k in needed] or sets
+    if alone:
+        return alone
+    needed = [item for k, item in enumerate(sets) if valid_with(sets[:k] + sets[k + 1:])]
+    return needed or sets
 
 
 def _valid(data: dict[str, Any]) -> bool:
