@@ -389,13 +389,25 @@ def quick_overrides(cfg: Config, small: Config, sets: Iterable[str]) -> str:
     return ", ".join(said)
 
 
-def _dotted(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+def flat_table(table: dict[str, Any], where: str) -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``, in the table's order (TOML's bare dotted keys
+    are nested tables; a config's dump has its sections).  ValueError naming ``where`` for an
+    empty table, and for a key given twice (quoted ``"a.b"`` beside ``[a] b``)."""
     out: dict[str, Any] = {}
-    for key, value in data.items():
-        if isinstance(value, dict):
-            out.update(_dotted(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
+
+    def walk(node: dict, prefix: str) -> None:
+        for key, value in node.items():
+            dotted = f"{prefix}{key}"
+            if isinstance(value, dict):
+                if not value:
+                    raise ValueError(f"[{where}] '{shorten(dotted)}' is an empty table")
+                walk(value, dotted + ".")
+            else:
+                if dotted in out:
+                    raise ValueError(f"[{where}] gives '{shorten(dotted)}' twice")
+                out[dotted] = value
+
+    walk(table, "")
     return out
 
 
@@ -415,6 +427,7 @@ def changes_from_scenario(cfg: Config) -> tuple[str, list[str]] | None:
     base = _validate(parse_toml(text, f"scenario {base_name}"))
     if cfg.name != base_name:
         base = quick_variant(base)
-    ours, theirs = _dotted(cfg.model_dump()), _dotted(base.model_dump())
+    ours = flat_table(cfg.model_dump(), "config")
+    theirs = flat_table(base.model_dump(), "config")
     return base_name, [f"{key} = {'unset' if value is None else _toml_value(value)}"
                        for key, value in ours.items() if theirs.get(key) != value]

@@ -168,10 +168,11 @@ def _share_index(r: np.ndarray, parts: int) -> np.ndarray:
     return np.minimum((middle * parts).astype(np.int64), parts - 1)
 
 
-def _share_ratios(r: np.ndarray, parts: int, fill_d: float) -> np.ndarray:
-    """Each share's (:func:`_share_index`) mass mean diameter over ``fill_d`` [-]; NaN for a
-    share no grain's middle falls in (a grain heavier than a share beside it)."""
-    part, mass = _share_index(r, parts), r * r
+def _share_ratios(r: np.ndarray, part: np.ndarray, parts: int, fill_d: float) -> np.ndarray:
+    """Each of the ``parts`` shares' mass mean diameter over ``fill_d`` [-], the grains of
+    radii ``r`` [m] in the shares ``part`` (:func:`_share_index`); NaN for a share no grain's
+    middle falls in (a grain heavier than a share beside it)."""
+    mass = r * r
     with np.errstate(invalid="ignore"):
         cubes = np.bincount(part, weights=mass * r, minlength=parts)
         return 2.0 * cubes / np.bincount(part, weights=mass, minlength=parts) / fill_d
@@ -179,14 +180,15 @@ def _share_ratios(r: np.ndarray, parts: int, fill_d: float) -> np.ndarray:
 
 def random_order_band(r: npt.ArrayLike, parts: int, fill_d: float,
                       orders: int = CHANCE_ORDERS) -> tuple[np.ndarray, np.ndarray]:
-    """(5th, 95th percentile) per share of :func:`_share_ratios` over ``orders`` random
-    orders of the grains that left (radii ``r`` [m]), drawn with a fixed seed: the scatter
+    """(5th, 95th percentile) of each share's ratio (:func:`_share_ratios`) over ``orders``
+    random orders of the grains that left (radii ``r`` [m]), drawn with a fixed seed: the scatter
     that chance alone gives a discharge whose sizes do not segregate.  A share outside it
     shows segregation beyond chance (a permutation test at 10 %, two-sided, per share)."""
     r = np.asarray(r, dtype=float)
     rng = np.random.default_rng(CHANCE_SEED)
-    ratios = np.array([_share_ratios(rng.permutation(r), parts, fill_d)
-                       for _ in range(orders)])
+    shuffled = (rng.permutation(r) for _ in range(orders))
+    ratios = np.array([_share_ratios(s, _share_index(s, parts), parts, fill_d)
+                       for s in shuffled])
     lo, hi = np.nanpercentile(ratios, [5.0, 95.0], axis=0)
     return lo, hi
 
@@ -210,7 +212,7 @@ def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
     r = radius[gone][order]
     mass, part = r * r, _share_index(r, parts)
     fill_d = mass_mean_diameter(radius)
-    ratio = _share_ratios(r, parts, fill_d)
+    ratio = _share_ratios(r, part, parts, fill_d)
     chance_lo, chance_hi = random_order_band(r, parts, fill_d)
     sizes = np.unique(radius)
     if sizes.size > few:

@@ -47,6 +47,14 @@ def walls_held_up(mu_mobilised: float) -> bool:
     return mu_mobilised < 0.0
 
 
+def overpacked(rho_b: float, rho_grain: float) -> bool:
+    """A bulk density rho_b [kg/m^3] above the grains' own rho_grain: only grains that
+    overlap far more than a contact law allows pack more mass into an area than solid grain
+    (porosity < 0), as paper case 1's soft Table 1 springs do; every stress measured on them
+    is suspect.  NaN (no density) is not judged."""
+    return rho_b > rho_grain
+
+
 ABOVE_HYDROSTATIC = {  # what a K above 1 (above_hydrostatic) is, by window: the key numbers
     "fill": ("above 1 by more than its error: as fitted, the walls are pressed harder than the "
              "fill's vertical stress, a passive-like state, not the K of a fill at rest under "

@@ -16,6 +16,7 @@ from silodem.report import figures_flow as ff
 from silodem.report import figures_stress as fs
 from silodem.report.analysis import BATCHES, UNSETTLED, Analysis, analyse
 from silodem.report.draw import png_bytes
+from silodem.report.flags import overpacked
 from silodem.report.load import load_results
 from silodem.report.numbers import UNLOADED
 from silodem.report.unfinished import banner_html, note_line
@@ -168,7 +169,7 @@ def unphysical_html(a: Analysis) -> str:
     1607, 41 % lost), with the flags in single rows further down."""
     cfg, events = a.res.cfg, a.res.events
     said = []
-    if np.isfinite(a.rho_b) and a.rho_b > cfg.material.density:
+    if overpacked(a.rho_b, cfg.material.density):
         said.append(f"its bulk density, {a.rho_b:.0f} kg/m^3, is above the grains' own "
                     f"{cfg.material.density:g}")
     poured, lost = int(events.get("n_poured", 0)), int(events.get("lost_count", 0))

@@ -27,6 +27,7 @@ from silodem.report.flags import (
     ABOVE_HYDROSTATIC,
     WALLS_HELD_UP,
     above_hydrostatic,
+    overpacked,
     walls_held_up,
 )
 from silodem.report.numbers import pascals, poorly_determined, resolved, significant
@@ -49,10 +50,8 @@ def _fmt(v: float, digits: int = 4) -> str:
 
 
 def _bulk_density_text(rho_b: float, rho_grain: float) -> str:
-    """rho_b, flagged when it exceeds the grains' own density: only grains that overlap far
-    more than a contact law allows pack more mass into an area than solid grain (porosity < 0),
-    as paper case 1's soft Table 1 springs do; every stress measured on them is suspect."""
-    if rho_b > rho_grain:
+    """rho_b, flagged when it exceeds the grains' own density (:func:`overpacked`)."""
+    if overpacked(rho_b, rho_grain):
         return (f"{_fmt(rho_b)} (above the grain density {_fmt(rho_grain)}: the grains overlap "
                 "far beyond a contact's range; stiffer contacts are needed)")
     return _fmt(rho_b)

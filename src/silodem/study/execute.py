@@ -45,6 +45,7 @@ if TYPE_CHECKING:
 SUMMARY_NAME = "summary.json"
 ATTEMPT_NAME = "attempt.json"
 RESULTS_NAME = "results.h5"
+UNSTABLE, REFUSED = "unstable", "bad input"  # run_task's failures, which a new attempt repeats
 TASK_RETRIES = 2  # re-runs of a task that raised an unexpected error (a full disk, a lost file)
 
 
@@ -151,7 +152,7 @@ def run_task(cfg_data: dict[str, Any], study_dir: str, run_id: str) -> dict[str,
         except OSError:
             shutil.rmtree(tmp, ignore_errors=True)
             where = "(folder not kept)"
-        kind = "unstable" if isinstance(exc, UnstableRunError) else "bad input"
+        kind = UNSTABLE if isinstance(exc, UnstableRunError) else REFUSED
         error = one_line(exc).replace(str(tmp), where)  # its files are in failed/ now
         return {**info, "status": "failed", "error": f"{kind}: {error}",
                 "wall_s": time.perf_counter() - t0}
@@ -232,11 +233,7 @@ def other_study_note(plan: StudyPlan, out_dir: Path) -> str | None:
     finished runs stay in runs/ (any study that plans them again finds them), but results.csv
     and the report become this study's. None when the file is this study's, or absent."""
     path = Path(out_dir) / "study.toml"
-    try:
-        old = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
-        return None
-    if old == plan.study.text:
+    if _study_file_text(out_dir) in (None, plan.study.text):
         return None
     return (f"silodem: replacing {path}, another study file's text; the finished runs in "
             f"{Path(out_dir) / 'runs'} are kept (a study that plans one again reuses it), and "
@@ -245,10 +242,15 @@ def other_study_note(plan: StudyPlan, out_dir: Path) -> str | None:
 
 def replaced_study_file(plan: StudyPlan, out_dir: Path) -> bool:
     """Whether ``out_dir``'s study.toml is ``plan``'s study file (``prepare`` wrote it)."""
+    return _study_file_text(out_dir) == plan.study.text
+
+
+def _study_file_text(out_dir: Path) -> str | None:
+    """The text of ``out_dir``'s study.toml; None where there is none to read."""
     try:
-        return (Path(out_dir) / "study.toml").read_text(encoding="utf-8") == plan.study.text
+        return (Path(out_dir) / "study.toml").read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
-        return False
+        return None
 
 
 def prepare(plan: StudyPlan, out_dir: Path) -> list[PlannedRun]:
@@ -384,7 +386,6 @@ def _gather(futures: list, by_key: dict[str, PlannedRun], outcome: StudyOutcome,
             on_done(run, result)
 
 
-LASTING = ("unstable: ", "bad input: ")  # run_task's failures that a new attempt repeats
 
 
 def failed_runs_text(failed: dict[str, str], total: int, out_dir: Path) -> str:
@@ -394,7 +395,8 @@ def failed_runs_text(failed: dict[str, str], total: int, out_dir: Path) -> str:
     (its folder is kept in ``out_dir/failed``); one lost to a worker's death or a full disk
     may finish when run again."""
     first_id, first_error = next(iter(failed.items()))
-    lasting = sum(error.startswith(LASTING) for error in failed.values())
+    lasting = sum(error.startswith((f"{UNSTABLE}: ", f"{REFUSED}: "))
+                  for error in failed.values())
     text = (f"error: {len(failed)} of {total} runs failed (first: {first_id}: {first_error}); "
             f"see {Path(out_dir) / 'report.html'}; ")
     if lasting == 0:

@@ -51,6 +51,7 @@ from silodem.errors import (
     submodel,
     unknown_key_message,
 )
+from silodem.scenario_files import flat_table
 
 GRID_BASE = "base"  # a [grid] key whose values are base scenarios, not a config key
 RESERVED_KEYS = {"seed": "give the seeds in the study's 'seeds' list",
@@ -59,25 +60,9 @@ RESERVED_KEYS = {"seed": "give the seeds in the study's 'seeds' list",
 
 
 def _flatten(table: Any, where: str) -> Any:
-    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}`` (TOML's bare dotted keys are nested tables)."""
-    if not isinstance(table, dict):
-        return table
-    out: dict[str, Any] = {}
-
-    def walk(node: dict, prefix: str) -> None:
-        for key, value in node.items():
-            dotted = f"{prefix}{key}"
-            if isinstance(value, dict):
-                if not value:
-                    raise ValueError(f"[{where}] '{shorten(dotted)}' is an empty table")
-                walk(value, dotted + ".")
-            else:
-                if dotted in out:
-                    raise ValueError(f"[{where}] gives '{shorten(dotted)}' twice")
-                out[dotted] = value
-
-    walk(table, "")
-    return out
+    """A study's ``[set]`` or ``[grid]`` table with dotted keys (``scenario_files.flat_table``;
+    anything else as it is, for the schema to refuse)."""
+    return flat_table(table, where) if isinstance(table, dict) else table
 
 
 def _same_value(a: Any, b: Any) -> bool:
