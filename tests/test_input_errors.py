@@ -157,6 +157,35 @@ def test_a_set_that_breaks_a_check_across_keys_is_named(capsys, tmp_path, sets, 
     assert "must exceed the largest grain" in line and line.endswith(f"(in {bad})"), line
 
 
+@pytest.mark.parametrize("sets, first, named", [
+    (["discharge.clog_time=0.01", "seed=3"], "discharge.clog_time = 0.01 s is shorter",
+     ["discharge.clog_time=0.01"]),
+    (["time.safety=0.4", "fill.initial_speed=300", "seed=3"],
+     "fill.initial_speed = 300 m/s carries a poured grain 0.143 m",
+     ["time.safety=0.4", "fill.initial_speed=300"])])
+def test_a_set_that_makes_values_unusable_together_is_named(capsys, tmp_path, sets, first,
+                                                            named):
+    """`run`'s checks of values that make no run together (silo.checks.check_numbers) did not
+    name the --set that broke a config that runs without them. A clog time shorter than a
+    grain's fall is its own --set's; 300 m/s carries a poured grain 300 x 0.000476 = 0.143 m
+    in a step at time.safety 0.4 (dt = 0.4 dt_crit, dt_crit = 1.19e-3 s), more than the
+    0.09 m radius, but 0.071 m at the default 0.2: only together do they break it. A file's
+    own such mistake is not put on a --set."""
+    args = [a for item in sets for a in ("--set", item)]
+    line = refused(capsys, "run", "paper-case2", *args, "--out", str(tmp_path / "r"))
+    assert line.startswith(f"error: {first}"), line
+    assert line.endswith(f"(after --set {', '.join(named)})"), line
+    assert not (tmp_path / "r").exists()  # refused before any folder is made
+    bad = tmp_path / "bad.toml"
+    text = config_to_toml(load_config("paper-case2"))
+    text, count = re.subn(r"^clog_time = 2\.0\b", "clog_time = 0.01", text, flags=re.MULTILINE)
+    assert count == 1
+    bad.write_text(text, encoding="utf-8")
+    line = refused(capsys, "run", str(bad), "--set", "seed=3", "--out", str(tmp_path / "r"))
+    assert line.startswith("error: discharge.clog_time = 0.01 s is shorter"), line
+    assert "after --set" not in line
+
+
 def test_a_set_key_with_an_empty_part_and_a_toml_date_are_named_as_written(capsys, tmp_path):
     """`--set .kn=1` was refused as the unknown key '""', and a TOML date given for a number
     was quoted as Python's datetime.date(1979, 5, 27)."""

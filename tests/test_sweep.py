@@ -16,6 +16,7 @@ import socket
 import threading
 import time
 import tomllib
+import warnings
 from pathlib import Path
 
 import h5py
@@ -702,6 +703,19 @@ def test_a_failing_run_is_reported_kept_aside_and_retried(tmp_path, monkeypatch)
     assert again.computed == 1 and again.skipped == 1 and not again.failed
     assert _run_folders(study_dir) == sorted(r.id for r in plan.runs)
     assert not (study_dir / "failed" / bad.id).exists()
+
+    # from Python, another study's file replaced comes as a SilodemWarning (the command line
+    # prints the note); here the same runs under another description: nothing is re-run
+    from silodem.api import SilodemWarning
+
+    renamed = tmp_path / "renamed.toml"
+    renamed.write_text('description = "the same grid"\n' + TINY, encoding="utf-8")
+    with pytest.warns(SilodemWarning, match="^replacing .*study.toml, another study file's"):
+        other = run_study(expand(load_study(str(renamed)), quick=True), study_dir, serial=True)
+    assert other.skipped == 2 and other.computed == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SilodemWarning)  # its own file again: no word
+        run_study(expand(load_study(str(renamed)), quick=True), study_dir, serial=True)
 
 
 def test_the_failed_sweeps_line_says_which_failures_a_new_attempt_repeats():

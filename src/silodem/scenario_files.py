@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 import tomllib
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -230,12 +230,16 @@ def _validate(data: dict[str, Any], sets: Iterable[str] = (), flag: str = "--set
 
 
 def _breaking(given: dict[str, Any], sets: list[str], flag: str) -> list[str]:
-    """The ``sets`` that make the valid raw config ``given`` invalid: those that do it alone,
-    where any does; else those without which the rest pass (only together do they: a wider
-    cell and a steeper hopper); else all of them."""
-    def valid_with(items: list[str]) -> bool:
-        return _valid(apply_sets(copy.deepcopy(given), items, flag))
+    """The ``sets`` that make the valid raw config ``given`` invalid (:func:`breaking_sets`)."""
+    return breaking_sets(sets, lambda items: _valid(apply_sets(copy.deepcopy(given), items,
+                                                               flag)))
 
+
+def breaking_sets(sets: list[str], valid_with: Callable[[list[str]], bool]) -> list[str]:
+    """The ``sets`` that break a config valid without them (``valid_with(items)``: is it
+    valid with these alone?): those that do it alone, where any does; else those without
+    which the rest pass (only together do they: a wider cell and a steeper hopper); else all
+    of them."""
     alone = [item for item in sets if not valid_with([item])]
     if alone:
         return alone

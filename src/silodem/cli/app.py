@@ -13,7 +13,7 @@ from typing import Annotated
 
 import typer
 
-from silodem.errors import one_line
+from silodem.errors import one_line, shorten
 from silodem.scenario_files import load_config, quick_overrides, quick_variant
 
 app = typer.Typer(
@@ -102,6 +102,33 @@ def read_config(source: str, sets: list[str] | None, quick: bool,
         notes.append(f"silodem: --quick changed what --set gave: {changed} (it shrinks the "
                      "silo after --set)")
     return small
+
+
+def runnable_config(source: str, sets: list[str] | None, quick: bool,
+                    notes: list[str] | None = None):
+    """:func:`read_config`, then the checks of values that make no run together
+    (``silo.checks.check_numbers``): an InputError naming the ``--set`` values that broke a
+    config that runs without them, as a schema check's does (``load_config``)."""
+    from silodem.errors import InputError
+    from silodem.scenario_files import breaking_sets
+    from silodem.silo.checks import check_numbers
+
+    cfg = read_config(source, sets, quick, notes)
+    try:
+        check_numbers(cfg)
+    except InputError as exc:
+        def runs_with(items: list[str]) -> bool:
+            try:
+                check_numbers(read_config(source, items, quick))
+            except InputError:
+                return False
+            return True
+
+        if not sets or not runs_with([]):
+            raise
+        culprits = ", ".join(map(shorten, breaking_sets(list(sets), runs_with)))
+        raise InputError(f"{exc} (after --set {culprits})") from None
+    return cfg
 
 
 def given(ctx: typer.Context, name: str) -> bool:

@@ -20,6 +20,7 @@ from silodem.cli.app import (
     check_threads,
     given,
     read_config,
+    runnable_config,
 )
 from silodem.errors import InputError, RunInterrupted, one_line
 from silodem.scenario_files import DEFAULT_SCENARIO, config_to_toml, list_scenarios
@@ -147,12 +148,10 @@ def run(
         raise InputError(f"{source} is a study (a grid of runs): run it with 'silodem sweep "
                          f"{source}'")
     notes: list[str] = []
-    cfg = read_config(source, sets, quick, notes)
+    # values that make no run together are refused before any folder is made
+    cfg = runnable_config(source, sets, quick, notes)
     out_dir = out if out is not None else Path("runs") / cfg.name
     from silodem.run import run_simulation  # imports numba: only when running
-    from silodem.silo.checks import check_numbers
-
-    check_numbers(cfg)  # values that make no run together: refused before any folder is made
     from silodem.run_folder import check_config_kept, check_not_in_use, replacing_note
 
     check_not_in_use(out_dir)  # (a run writing there: not 'an unfinished run' to resume)

@@ -73,9 +73,12 @@ def sweep(
     one line says how many).
     """
     import signal
+    import warnings
 
+    from silodem.api import SilodemWarning
     from silodem.errors import RunInterrupted, Terminated
     from silodem.study import expand, load_study, run_study
+    from silodem.study.api import REPLACING
     from silodem.study.cluster import (
         check_workers,
         default_workers,
@@ -121,7 +124,10 @@ def sweep(
     replacing = other_study_note(plan, out_dir)  # (said once the sweep has replaced it)
     try:
         _quiet_dask_client()  # (imports distributed: a good part of a second)
-        outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers, progress=True)
+        with warnings.catch_warnings():  # (its note is printed below, the command line's way)
+            warnings.filterwarnings("ignore", message=REPLACING, category=SilodemWarning)
+            outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers,
+                                progress=True)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (errors.Terminated); the cluster is
         # closed: count what is kept, say how to go on (a bare 'interrupted' before)
         signum = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -15,8 +16,10 @@ from silodem.study.cluster import check_workers, close_cluster, connect
 from silodem.study.execute import (
     StudyOutcome,
     is_finished,
+    other_study_note,
     prepare,
     read_summary,
+    replaced_study_file,
     run_on_client,
     run_serial,
 )
@@ -26,6 +29,14 @@ if TYPE_CHECKING:
     from distributed import Client
 
 TABLE_NAME = "results.csv"
+REPLACING = "replacing "  # how the warning of another study's study.toml replaced begins
+
+
+def _warn(text: str) -> None:
+    """``text`` as a :class:`silodem.api.SilodemWarning` from the caller of run_study."""
+    from silodem.api import SilodemWarning
+
+    warnings.warn(text, SilodemWarning, stacklevel=3)
 
 
 def collect_rows(plan: StudyPlan, out_dir: Path) -> list[dict[str, Any]]:
@@ -121,7 +132,8 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     Where: ``serial`` in this process; else on ``client`` (a dask.distributed Client) if
     given; else on the scheduler at ``scheduler``; else on a new LocalCluster of ``workers``
     single-threaded processes (default one per core), closed at the end.  Nothing is started
-    when every run is finished already."""
+    when every run is finished already.  A study.toml of another study in ``out_dir`` is
+    replaced with a :class:`silodem.api.SilodemWarning` (its finished runs are kept)."""
     if not isinstance(plan, StudyPlan):
         raise InputError(f"run_study takes a plan from expand(load_study(...)); got a "
                          f"{type(plan).__name__}")
@@ -141,8 +153,11 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
                                                   for r in plan.runs):
         # before the folder is made: a scheduler that cannot be reached leaves none
         own, cluster, where = connect(scheduler, workers, say)
+    replacing = other_study_note(plan, out_dir)
     try:
         todo = prepare(plan, out_dir)
+        if replacing is not None and replaced_study_file(plan, out_dir):
+            _warn(replacing.removeprefix("silodem: "))  # (the command line says it its way)
         if not todo:
             outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs),
                                    where=_earlier_hosts(plan, out_dir))
