@@ -197,5 +197,10 @@ def test_the_composition_figure_of_a_mixture_draws_each_sizes_share():
     outline = band[0].get_paths()[0].vertices[:, 1]  # (the band's lows and highs)
     assert outline.min() == pytest.approx(np.nanmin(c.chance_lo), rel=1e-12)
     assert outline.max() == pytest.approx(np.nanmax(c.chance_hi), rel=1e-12)
+    for j, label in enumerate(("chance, r = 1 m", "chance, r = 2 m")):  # each size's band
+        size_band = [p for p in shares.collections if p.get_label() == label]
+        outline = size_band[0].get_paths()[0].vertices[:, 1]
+        assert outline.min() == pytest.approx(100 * np.nanmin(c.share_lo[:, j]), abs=1e-9)
+        assert outline.max() == pytest.approx(100 * np.nanmax(c.share_hi[:, j]), abs=1e-9)
     one_size = discharge_composition(np.arange(20.0), np.ones(20))
     assert len(fig_composition(types.SimpleNamespace(flow={"composition": one_size})).axes) == 1

@@ -198,12 +198,13 @@ def test_the_chance_band_is_the_scatter_of_random_orders_of_the_same_grains():
     percentiles of each tenth's ratio over 200 random orders) against a brute-force reference
     of 2000 other random orders, each tenth's mass mean diameter taken grain by grain. The
     percentiles of 200 draws scatter by about 0.0016 here, so they agree within 0.006. The
-    small grains leaving first lie far outside it; one size has a band of exactly 1."""
+    small grains leaving first lie far outside it; one size has a band of exactly 1. The band
+    of each size's share of a tenth's mass against the same reference."""
     rng = np.random.default_rng(7)
     r = rng.permutation(np.repeat([0.08, 0.12], 1000))
     c = discharge_composition(np.arange(2000.0), r)
     fill_d = 2 * np.sum(r**3) / np.sum(r**2)
-    reference = []
+    reference, small_shares = [], []
     for _ in range(2000):
         order = rng.permutation(r)
         mass = order**2
@@ -211,9 +212,20 @@ def test_the_chance_band_is_the_scatter_of_random_orders_of_the_same_grains():
         tenth = np.minimum((middle * 10).astype(int), 9)
         reference.append([2 * np.sum(order[tenth == k] ** 3) / np.sum(order[tenth == k] ** 2)
                           for k in range(10)])
+        small_mass = [np.sum(order[tenth == k] ** 2 * (order[tenth == k] == 0.08))
+                      / np.sum(order[tenth == k] ** 2) for k in range(10)]
+        small_shares.append(small_mass)
     lo, hi = np.percentile(np.array(reference) / fill_d, [5.0, 95.0], axis=0)
     np.testing.assert_allclose(c.chance_lo, lo, atol=6e-3)
     np.testing.assert_allclose(c.chance_hi, hi, atol=6e-3)
+    # the small grains' share of each tenth's mass (the fill's: 64 / (64 + 144) = 0.3077)
+    # scatters by about +-0.047; the 5th percentile of 200 draws by about 0.0045: within 0.012
+    share_lo, share_hi = np.percentile(np.array(small_shares), [5.0, 95.0], axis=0)
+    np.testing.assert_allclose(c.sizes, [0.08, 0.12])
+    np.testing.assert_allclose(c.share_lo[:, 0], share_lo, atol=0.012)
+    np.testing.assert_allclose(c.share_hi[:, 0], share_hi, atol=0.012)
+    np.testing.assert_allclose(c.share_lo[:, 1], 1 - c.share_hi[:, 0], atol=1e-12)
+    assert np.all((share_lo < 64 / 208) & (64 / 208 < share_hi))
     assert np.all(c.chance_hi - c.chance_lo > 0.02)  # a real scatter, about +-1.7 %
     small_first = discharge_composition(np.arange(2000.0), np.sort(r))
     assert small_first.diameter_ratio[0] < small_first.chance_lo[0] - 0.1  # (16 / 21.5)

@@ -154,6 +154,9 @@ class Composition:
     # grains (``random_order_band``): what chance alone gives [-]
     chance_lo: np.ndarray
     chance_hi: np.ndarray
+    # size_share's, the same way: (share, size) [-]
+    share_lo: np.ndarray
+    share_hi: np.ndarray
 
 
 CHANCE_ORDERS = 200  # random departure orders behind a composition's chance band
@@ -178,19 +181,44 @@ def _share_ratios(r: np.ndarray, part: np.ndarray, parts: int, fill_d: float) ->
         return 2.0 * cubes / np.bincount(part, weights=mass, minlength=parts) / fill_d
 
 
+def _size_shares(r: np.ndarray, part: np.ndarray, parts: int,
+                 sizes: np.ndarray) -> np.ndarray:
+    """(share, size): each of ``sizes``' share of each of the ``parts`` shares' mass [-], the
+    grains of radii ``r`` [m] in the shares ``part``; NaN for a share no grain's middle falls
+    in."""
+    mass = r * r
+    part_mass = np.bincount(part, weights=mass, minlength=parts)
+    shares = np.zeros((parts, sizes.size))
+    with np.errstate(invalid="ignore"):
+        for j, size in enumerate(sizes):
+            shares[:, j] = np.bincount(part, weights=mass * (r == size),
+                                       minlength=parts) / part_mass
+    return shares
+
+
 def random_order_band(r: npt.ArrayLike, parts: int, fill_d: float,
-                      orders: int = CHANCE_ORDERS) -> tuple[np.ndarray, np.ndarray]:
-    """(5th, 95th percentile) of each share's ratio (:func:`_share_ratios`) over ``orders``
-    random orders of the grains that left (radii ``r`` [m]), drawn with a fixed seed: the scatter
-    that chance alone gives a discharge whose sizes do not segregate.  A share outside it
-    shows segregation beyond chance (a permutation test at 10 %, two-sided, per share)."""
+                      orders: int = CHANCE_ORDERS,
+                      sizes: npt.ArrayLike = ()) -> tuple[np.ndarray, ...]:
+    """(5th, 95th percentile) of each share's ratio (:func:`_share_ratios`), then of each of
+    ``sizes``' share of its mass ((share, size) arrays, :func:`_size_shares`), over
+    ``orders`` random orders of the grains that left (radii ``r`` [m]), drawn with a fixed
+    seed: the scatter that chance alone gives a discharge whose sizes do not segregate.  A
+    share outside it shows segregation beyond chance (a permutation test at 10 %,
+    two-sided, per share)."""
     r = np.asarray(r, dtype=float)
+    sizes = np.asarray(sizes, dtype=float)
     rng = np.random.default_rng(CHANCE_SEED)
-    shuffled = (rng.permutation(r) for _ in range(orders))
-    ratios = np.array([_share_ratios(s, _share_index(s, parts), parts, fill_d)
-                       for s in shuffled])
-    lo, hi = np.nanpercentile(ratios, [5.0, 95.0], axis=0)
-    return lo, hi
+    ratios, shares = [], []
+    for _ in range(orders):
+        s = rng.permutation(r)
+        part = _share_index(s, parts)
+        ratios.append(_share_ratios(s, part, parts, fill_d))
+        shares.append(_size_shares(s, part, parts, sizes))
+    lo, hi = np.nanpercentile(np.array(ratios), [5.0, 95.0], axis=0)
+    if not sizes.size:
+        return lo, hi, np.zeros((parts, 0)), np.zeros((parts, 0))
+    share_lo, share_hi = np.nanpercentile(np.array(shares), [5.0, 95.0], axis=0)
+    return lo, hi, share_lo, share_hi
 
 
 def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
@@ -202,7 +230,8 @@ def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
     (:func:`mass_mean_diameter`) over the fill's is 1 throughout when the sizes do not
     segregate. With at most ``few`` distinct radii (a discrete mixture), each size's share
     of each part's mass too, the normalised mass fraction of segregation studies being that
-    over the fill's share. None when fewer than ``parts`` grains left."""
+    over the fill's share. Both with the band chance alone gives (:func:`random_order_band`).
+    None when fewer than ``parts`` grains left."""
     exit_time = np.asarray(exit_time, dtype=float)
     radius = np.asarray(radius, dtype=float)
     gone = np.isfinite(exit_time)
@@ -210,23 +239,16 @@ def discharge_composition(exit_time: npt.ArrayLike, radius: npt.ArrayLike,
         return None
     order = np.argsort(exit_time[gone], kind="stable")
     r = radius[gone][order]
-    mass, part = r * r, _share_index(r, parts)
+    part = _share_index(r, parts)
     fill_d = mass_mean_diameter(radius)
-    ratio = _share_ratios(r, part, parts, fill_d)
-    chance_lo, chance_hi = random_order_band(r, parts, fill_d)
     sizes = np.unique(radius)
     if sizes.size > few:
         sizes = np.zeros(0)
-    size_share = np.zeros((parts, sizes.size))
-    part_mass = np.bincount(part, weights=mass, minlength=parts)
-    for j, size in enumerate(sizes):
-        with np.errstate(invalid="ignore"):  # (a part no grain's middle fell in: NaN)
-            size_share[:, j] = np.bincount(part, weights=mass * (r == size),
-                                           minlength=parts) / part_mass
     fill_share = np.array([np.sum(radius[radius == size] ** 2) for size in sizes]) / np.sum(
         radius**2)
-    return Composition((np.arange(parts) + 0.5) / parts, ratio, fill_d, sizes, size_share,
-                       fill_share, chance_lo, chance_hi)
+    return Composition((np.arange(parts) + 0.5) / parts, _share_ratios(r, part, parts, fill_d),
+                       fill_d, sizes, _size_shares(r, part, parts, sizes), fill_share,
+                       *random_order_band(r, parts, fill_d, sizes=sizes))
 
 
 def lost_grains(flow: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -207,7 +207,7 @@ def fig_composition(a: Analysis) -> Figure | None:
     """Size segregation in the discharge (``measure.discharge.discharge_composition``): each
     tenth of the discharged mass's mass mean diameter over the fill's, with the band chance
     alone gives, and for a mixture of a few sizes each size's share of that tenth's mass
-    beside its share of the fill."""
+    beside its share of the fill, with its band too."""
     c = a.flow.get("composition")
     if c is None:
         return None
@@ -229,7 +229,11 @@ def fig_composition(a: Analysis) -> Figure | None:
             line = ax2.plot(x, 100 * c.size_share[:, j], "o-", lw=1.5,
                             label=f"r = {significant(size, 3)} m")[0]
             ax2.axhline(100 * c.fill_share[j], color=line.get_color(), lw=1, ls="--")
-        ax2.set_ylabel("share of the tenth's mass [%]\n(dashed: of the fill's)")
+            ax2.fill_between(x, 100 * c.share_lo[:, j], 100 * c.share_hi[:, j],
+                             color=line.get_color(), alpha=0.18, lw=0,
+                             label=f"chance, r = {significant(size, 3)} m")
+        ax2.set_ylabel("share of the tenth's mass [%]\n(dashed: of the fill's;\n"
+                       "bands: chance, as above)")
         legend_right(ax2, fontsize=8)
     axes[-1].set_xlabel("discharged mass, middle of each tenth [%]")
     tight_layout(fig)
