@@ -29,7 +29,7 @@ def _reading(time, uid, x, z):
     return Reading(float(time), 0, x, z, np.full(n, R), zeros, zeros, np.ones(n),
                    np.asarray(uid, np.int64), none.astype(np.int64), none.astype(np.int64),
                    none, none, none.astype(np.int64), none.astype(np.int64), none, none,
-                   none, none, np.zeros((n, 2, 2)), zeros)
+                   none, none, np.zeros((n, 2, 2)), zeros, none, none)
 
 
 def _tiny():

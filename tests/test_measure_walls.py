@@ -129,3 +129,45 @@ def test_the_bottom_load_sums_the_floor_and_gate_bins_over_their_spans():
     assert force == pytest.approx(1600.0, rel=1e-12)
     assert pressure == pytest.approx(1600.0 / 0.6, rel=1e-12)
     assert all(np.isnan(bottom_load(normal[:1], s0[:1], s1[:1], wall[:1], names, 0.5)))
+
+
+def test_a_sliding_gates_stress_is_binned_along_the_gate_where_it_is_now():
+    """A sliding gate moves from where the walls were built: its contacts were binned by their
+    distance from the built gate's end A, so a grain a quarter along a gate slid by half its
+    length was put three quarters along (in the other of its two 0.2 m bins). They are binned
+    along the gate as it is now: the bin whose span holds a quarter of its length."""
+    import types
+
+    from silodem.measure.reading import make_reading
+    from silodem.measure.recorders import _ProfilesPart
+    from silodem.silo.geometry import build_walls, silo_shape
+
+    cfg = _column_config()
+    built = build_walls(cfg)
+    profiles = _ProfilesPart(cfg, silo_shape(cfg), built)
+    g = built.index("gate")
+    length = float(np.hypot(built.bx[g] - built.ax[g], built.by[g] - built.ay[g]))
+    tangent = np.array([built.bx[g] - built.ax[g], built.by[g] - built.ay[g]]) / length
+    shift = 0.5 * length * tangent  # slid along itself by half its length
+    now = types.SimpleNamespace(ax=built.ax.copy(), ay=built.ay.copy(), bx=built.bx.copy(),
+                                by=built.by.copy())
+    now.ax[g] += shift[0]
+    now.bx[g] += shift[0]
+    r, force = 0.05, 30.0  # a grain resting on the gate a quarter along, pushed up [m, N]
+    x, z = now.ax[g] + 0.25 * length * tangent[0], built.ay[g] + r
+    one, none = np.ones(1), np.zeros(0)
+    rd = make_reading(0.0, 0, np.array([x]), np.array([z]), np.array([r]), np.zeros(1),
+                      np.zeros(1), one, np.zeros(1, np.int64), none.astype(np.int64),
+                      none.astype(np.int64), none, none, np.zeros(1, np.int64),
+                      np.array([g]), np.zeros(1), np.array([force]), now)
+    profiles.record(rd)
+    bins = profiles.bins
+    on_gate = bins.wall == g
+    quarter = np.flatnonzero(on_gate & (bins.s0 <= 0.25 * length) & (0.25 * length < bins.s1))
+    three_quarters = np.flatnonzero(on_gate & (bins.s0 <= 0.75 * length)
+                                    & (0.75 * length < bins.s1))
+    assert quarter.size == 1 and three_quarters.size == 1 and quarter[0] != three_quarters[0]
+    pressure = profiles.normal[-1]
+    area = bins.length[quarter[0]] * cfg.material.thickness
+    assert pressure[quarter[0]] == pytest.approx(force / area, rel=1e-12)
+    assert np.count_nonzero(pressure) == 1

@@ -21,7 +21,8 @@ if TYPE_CHECKING:
 class Reading:
     """Grains (x, z = y, r [m], vx, vz [m/s], mass [kg], uid), grain-grain contacts (i, j,
     force on j fx, fz [N]), grain-wall contacts (grain, wall, force on the grain [N], contact
-    point [m]), moments (n, 2, 2) [N m] and contacts per grain."""
+    point [m]), moments (n, 2, 2) [N m], contacts per grain, and each wall's end A as it is
+    now (wall_ax, wall_az [m]: a sliding gate's has moved from where it was built)."""
 
     time: float
     step: int
@@ -44,6 +45,8 @@ class Reading:
     w_cz: np.ndarray
     moments: np.ndarray
     counts: np.ndarray
+    wall_ax: np.ndarray
+    wall_az: np.ndarray
 
     @property
     def n(self) -> int:
@@ -62,7 +65,8 @@ def make_reading(time: float, step: int, x: np.ndarray, z: np.ndarray, r: np.nda
     moments = grain_moments(n, x, z, r, i, j, fx, fz, w_grain, w_cx, w_cz, w_fx, w_fz)
     counts = contacts_per_grain(n, i, j, w_grain)
     return Reading(float(time), int(step), x, z, r, vx, vz, mass, uid, i, j, fx, fz, w_grain,
-                   w_wall, w_fx, w_fz, w_cx, w_cz, moments, counts)
+                   w_wall, w_fx, w_fz, w_cx, w_cz, moments, counts,
+                   np.array(walls.ax, dtype=float), np.array(walls.ay, dtype=float))
 
 
 def read_simulation(sim: Simulation) -> Reading:

@@ -123,7 +123,6 @@ class _CirclesPart:
 
 class _ProfilesPart:
     def __init__(self, cfg: Config, shape, walls) -> None:
-        self.walls = walls
         self.shape = shape
         self.bins = wall_bins(walls.ax, walls.ay, walls.bx, walls.by, regions.bin_length(cfg))
         self.z_edges = regions.profile_edges(cfg, shape)
@@ -140,9 +139,9 @@ class _ProfilesPart:
         self.slices: list = []
 
     def record(self, rd: Reading) -> None:
-        w = self.walls
-        sn, tau = wall_stress(self.bins, w.ax, w.ay, rd.w_wall, rd.w_cx, rd.w_cz, rd.w_fx,
-                              rd.w_fz, self.thickness)
+        # along each wall from its end A where it is now: a sliding gate's bins move with it
+        sn, tau = wall_stress(self.bins, rd.wall_ax, rd.wall_az, rd.w_wall, rd.w_cx, rd.w_cz,
+                              rd.w_fx, rd.w_fz, self.thickness)
         self.normal.append(sn)
         self.shear.append(tau)
         dl, dr = regions.edge_distance(self.shape, rd.x, rd.z)
