@@ -387,7 +387,11 @@ def test_run_warnings_print_once_when_stdout_and_stderr_are_one_stream(tmp_path)
     final = [line for line in lines if line.startswith(total)]
     assert [line for line in lines if line.startswith("warning: ")] == live + final
     assert len(final) == 1 and final == [line for line in summary if line.startswith(total)]
-    assert f"warnings: {len(once)} printed above as they came" in lines
+    running = [line for line in live if line.startswith(so_far)]
+    assert len(running) == 1  # (rewritten in place, a total is printed as it first comes)
+    # every line printed above is counted, the running total too (3 said 4 lines before)
+    assert (f"warnings: {len(live)} printed above as they came (with the running total of "
+            "grains lost, whose end follows)") in lines
 
 
 def test_a_warning_rewritten_after_it_was_printed_is_in_the_summary():
@@ -406,6 +410,13 @@ def test_a_warning_rewritten_after_it_was_printed_is_in_the_summary():
         "warning: grains lost in all: 65 grain(s)"]
     assert [line for line in summary.lines() if line.startswith("warning")] == [
         "warning: soft contacts", "warning: grains lost in all: 65 grain(s)"]
+    from silodem.silo.procedure import LOST_TOTAL
+
+    said = RunSummary("x", Path("out"), 1.0, 10, 1e-3, {},
+                      ["soft contacts", "grains lost in all: 65 grain(s)"],
+                      frozenset({"soft contacts", LOST_TOTAL}))  # 'so far' printed above
+    assert ("warnings: 2 printed above as they came (with the running total of grains lost, "
+            "whose end follows)") in said.lines(shown_above=True)
 
 
 def test_the_summary_counts_one_grain_as_one_and_a_resumed_runs_steps_apart():

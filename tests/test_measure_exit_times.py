@@ -14,7 +14,7 @@ from measure_helpers import tiny_hopper_config
 
 from silodem.measure.discharge import dead_zone
 from silodem.measure.reading import Reading
-from silodem.measure.recorders import _FlowPart, lost_before_discharge
+from silodem.measure.recorders import _FlowPart
 from silodem.silo.geometry import silo_shape
 
 T_OPEN = 3.0  # [s]
@@ -69,15 +69,15 @@ def _samples():
     ]
 
 
-def test_lost_before_discharge_is_a_centre_outside_the_silo():
+def test_a_grain_pushed_out_is_a_centre_outside_the_silo():
     _, shape = _tiny()
     z_j = 0.4 * math.tan(math.radians(50.0))
     x_wall = 0.4 * (1 - 0.15 / z_j)  # the left hopper wall at z = 0.15 m
     # under the silo: over the outlet (0.4-0.8 m, 0.1 m of room) sunk into the gate, not
     # lost; under the hopper wall, lost
-    got = lost_before_discharge(shape, [0.6, 0.6, 0.35, 0.2, 0.95, -0.02, 1.22, x_wall + 1e-6,
-                                        x_wall - 1e-6],
-                                [0.0, -1e-9, -0.03, -1e-9, -0.03, 1.5, 1.5, 0.15, 0.15], 0.1)
+    got = shape.pushed_out([0.6, 0.6, 0.35, 0.2, 0.95, -0.02, 1.22, x_wall + 1e-6,
+                            x_wall - 1e-6],
+                           [0.0, -1e-9, -0.03, -1e-9, -0.03, 1.5, 1.5, 0.15, 0.15], 0.1)
     np.testing.assert_array_equal(got, [False, False, False, True, True, True, True, False,
                                         True])
 

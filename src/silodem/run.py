@@ -62,9 +62,11 @@ class RunSummary:
                 f"{e['discharge_time']:.2f} s (ended by: {e['discharge_end_reason']})"
             )
         shown = self.warnings_shown if shown_above else frozenset()
-        above = sum(w in shown for w in self.warnings)
+        above = sum(w in shown for w in self.warnings) + (LOST_TOTAL in shown)
         if above:
-            out.append(f"warnings: {above} printed above as they came")
+            total = (" (with the running total of grains lost, whose end follows)"
+                     if LOST_TOTAL in shown else "")
+            out.append(f"warnings: {above} printed above as they came{total}")
         out += [f"warning: {w}" for w in self.warnings if w not in shown]
         out.append(f"results: {self.out_dir}")
         return out
@@ -313,6 +315,7 @@ def _warn_new(console, live: dict) -> None:
         if w.startswith(LOST_TOTAL):  # a running total: said as such, the summary gives the end
             console.print("[yellow]warning:[/] grains lost so far: "
                           + escape(w.removeprefix(LOST_TOTAL)))
+            live["printed"].add(LOST_TOTAL)  # (counted in the summary; no warning is this)
             continue
         console.print(f"[yellow]warning:[/] {escape(w)}")  # (a '[...]' in it is no markup)
         live["printed"].add(w)

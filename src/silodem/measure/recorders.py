@@ -183,20 +183,6 @@ class _ProfilesPart:
             _dataset(pg, key, a[key], "Pa", components="xx,zz,xz; compression positive")
 
 
-def lost_before_discharge(shape, x: np.ndarray, z: np.ndarray, room: float) -> np.ndarray:
-    """True for the grains whose centre (x, z) [m] lies outside the silo when the gate opens:
-    under the floor (z < 0 away from the outlet: not within its span widened by ``room`` [m],
-    ``SiloShape.over_outlet``, the rule by which ``silo.procedure`` tells a discharged grain,
-    ``SiloShape.came_through_outlet``, for a grain at rest) or, above it, beyond a wall at its
-    height (``regions.edge_distance`` < 0); soft contacts push such grains through a wall
-    while filling (the procedure removes them only once they are far out), and they will not
-    discharge.  A grain sunk into the gate (z < 0 over the outlet) falls through the outlet
-    when it opens: it is not lost."""
-    x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
-    left, right = regions.edge_distance(shape, x, z)
-    return np.where(z < 0.0, ~shape.over_outlet(x, room), (left < 0.0) | (right < 0.0))
-
-
 class _FlowPart:
     def __init__(self, cfg: Config, shape) -> None:
         m = cfg.measure
@@ -229,9 +215,10 @@ class _FlowPart:
     def begin(self, t_open: float, uid: np.ndarray, x: np.ndarray, z: np.ndarray,
               r: np.ndarray, fill_level: float) -> None:
         """The gate opens at ``t_open`` [s] on the grains ``uid`` at (x, z) [m] of radii r [m]:
-        note their places; mark the grains lost before the discharge (centre below the
-        outlet, z < 0, or beyond a wall, pushed through it by too soft contacts while filling:
-        they did not discharge, so they get no exit time and no displacement, NaN); fit the
+        note their places; mark the grains lost before the discharge (centre outside the
+        silo, ``SiloShape.pushed_out``: through a wall, pushed by too soft contacts while
+        filling; they did not discharge, so they get no exit time and no displacement, NaN,
+        and the procedure counts them as lost wherever they fall); fit the
         mass-flow-index band (one diameter above the junction, a third of the remaining fill
         up to ``fill_level`` [m], between one diameter and B/2 high) under the free surface."""
         self.t_open = float(t_open)
@@ -240,7 +227,7 @@ class _FlowPart:
         self.mfi_band = (lo, lo + height)
         self.uid0 = np.asarray(uid, dtype=np.int64).copy()
         self.x0, self.z0, self.r0 = (np.asarray(v, dtype=float).copy() for v in (x, z, r))
-        self.lost = lost_before_discharge(self.shape, self.x0, self.z0, self.room)
+        self.lost = self.shape.pushed_out(self.x0, self.z0, self.room)
         self.lost_later = np.zeros(self.uid0.size, dtype=bool)
         self.exit_time = np.full(self.uid0.size, np.nan)
         self.max_disp = np.where(self.lost, np.nan, 0.0)
@@ -345,7 +332,7 @@ class _FlowPart:
             self.lost = np.array(state["flow.lost"], dtype=bool)
         else:  # a checkpoint written before the flag: from the grains' places at the opening,
             # and what was recorded of those grains undone (they had the first exit time)
-            self.lost = lost_before_discharge(self.shape, self.x0, self.z0, self.room)
+            self.lost = self.shape.pushed_out(self.x0, self.z0, self.room)
             self.exit_time[self.lost] = np.nan
             self.max_disp = np.where(self.lost, np.nan, self.max_disp)
         # a checkpoint written before the window's own record: the largest displacement so

@@ -37,13 +37,7 @@ def inside_silo(shape: SiloShape, x: npt.ArrayLike, z: npt.ArrayLike) -> np.ndar
     """True where the points (x, z) lie inside the silo (0 <= z <= wall top) [bool]."""
     x = np.asarray(x, dtype=float)
     z = np.asarray(z, dtype=float)
-    zc = np.clip(z, 0.0, shape.wall_top)
-    if shape.kind == "flat" or shape.junction <= 0:
-        lo, hi = np.zeros_like(zc), np.full_like(zc, shape.width)
-    else:
-        f = np.clip(zc / shape.junction, 0.0, 1.0)
-        lo = shape.outlet_left * (1.0 - f)
-        hi = shape.outlet_right + (shape.width - shape.outlet_right) * f
+    lo, hi = shape.inner_x_bounds(z)
     return (z >= 0.0) & (z <= shape.wall_top) & (x >= lo) & (x <= hi)
 
 
@@ -52,12 +46,7 @@ def edge_distance(shape: SiloShape, x: npt.ArrayLike,
     """Horizontal distance [m] of points from the left and from the right edge of the silo at
     their height (vertical wall above the junction, hopper wall below)."""
     x = np.asarray(x, dtype=float)
-    zc = np.clip(np.asarray(z, dtype=float), 0.0, shape.wall_top)
-    if shape.kind == "flat" or shape.junction <= 0:
-        return x, shape.width - x
-    f = np.clip(zc / shape.junction, 0.0, 1.0)
-    lo = shape.outlet_left * (1.0 - f)
-    hi = shape.outlet_right + (shape.width - shape.outlet_right) * f
+    lo, hi = shape.inner_x_bounds(z)
     return x - lo, hi - x
 
 

@@ -166,7 +166,7 @@ def unphysical_html(a: Analysis) -> str:
     density above the grains' own (they overlap far beyond a contact's range) or more than
     ``LOST_UNPHYSICAL`` of the poured grains lost through the walls; "" otherwise.  Its key
     numbers were shown as a sound run's (paper-case1 --quick: 2256 kg/m^3 from grains of
-    1607, 41 % lost), with the flags in single rows further down."""
+    1607, 43 % lost), with the flags in single rows further down."""
     cfg, events = a.res.cfg, a.res.events
     said = []
     if overpacked(a.rho_b, cfg.material.density):

@@ -104,11 +104,29 @@ class SiloShape:
 
     def inner_x_range(self, z: float) -> tuple[float, float]:
         """Horizontal extent of the silo's inside at height z [m] (0 <= z <= wall_top)."""
-        if self.kind == "flat" or z >= self.junction:
-            return 0.0, self.width
-        f = max(z, 0.0) / self.junction
-        right = self.outlet_right + (self.width - self.outlet_right) * f
-        return self.outlet_left * (1.0 - f), right
+        lo, hi = self.inner_x_bounds(z)
+        return float(lo), float(hi)
+
+    def inner_x_bounds(self, z: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """(left, right) edges [m] of the silo's inside at the heights ``z`` [m]: the hopper
+        walls below the junction (those of the outlet under it), the cell's walls above."""
+        z = np.asarray(z, dtype=float)
+        if self.kind == "flat" or self.junction <= 0.0:
+            return np.zeros_like(z), np.full_like(z, self.width)
+        f = np.clip(z / self.junction, 0.0, 1.0)
+        return (self.outlet_left * (1.0 - f),
+                self.outlet_right + (self.width - self.outlet_right) * f)
+
+    def pushed_out(self, x: npt.ArrayLike, z: npt.ArrayLike, room: float) -> np.ndarray:
+        """True where a grain centre (x, z) [m] lies outside the silo, pushed through a wall
+        by too soft contacts: under the floor away from the outlet (not within its span
+        widened by ``room`` [m], :meth:`over_outlet`, the rule of :meth:`came_through_outlet`
+        for a grain at rest) or, above it, beyond a wall at its height.  A grain sunk into
+        the closed gate (z < 0 over the outlet) falls through the outlet when it opens: it is
+        not pushed out."""
+        x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
+        lo, hi = self.inner_x_bounds(z)
+        return np.where(z < 0.0, ~self.over_outlet(x, room), (x < lo) | (x > hi))
 
     def came_through_outlet(self, x: np.ndarray, z: np.ndarray, vx: np.ndarray,
                             vz: np.ndarray, g: float, room: float) -> np.ndarray:

@@ -72,6 +72,9 @@ class ProcedureState:
     lost_count: int = 0
     lost_mass_discharge: float = 0.0  # of lost_mass, lost after the gate opened [kg]
     pending_radii: list[float] = field(default_factory=list)  # discharged, to re-insert [m]
+    # uids of the grains outside the silo when the gate opened (SiloShape.pushed_out): lost,
+    # wherever they fall (one under the floor may fall out under the outlet's span)
+    pushed_out: list[int] = field(default_factory=list)
 
 
 def neighbour_skin(cfg: Config) -> float:
@@ -239,6 +242,9 @@ class SiloRun:
         if self.cfg.discharge.enabled:
             self._begin("discharge")
             self._open_gate()
+            p = self.sim.particles
+            out = self.shape.pushed_out(p.view("x"), p.view("y"), outlet_room(self.cfg))
+            st.pushed_out = p.view("uid")[out].tolist()
             st.mass0 = self.sim.particles.total_mass()
             st.last_exit = self.sim.time
             self.events["discharge_start_time"] = self.sim.time
@@ -422,7 +428,8 @@ class SiloRun:
         """Remove grains that left the silo other than through the open outlet (pushed through
         a wall by too soft contacts, or thrown out): far beside or above the silo, or under
         it while the gate is closed or not come through the open outlet
-        (``SiloShape.came_through_outlet``); the recorders are told first
+        (``SiloShape.came_through_outlet``; never one outside the silo when the gate opened,
+        ``ProcedureState.pushed_out``); the recorders are told first
         (``Recorder.grains_lost``).  One warning names the first loss, and a second, rewritten
         at each later loss, holds the running total."""
         p, shape, st = self.sim.particles, self.shape, self.state
@@ -431,8 +438,11 @@ class SiloRun:
         out = (x < -margin) | (x > shape.width + margin) | (y > shape.wall_top + 20.0)
         under = y < self.z_remove
         if st.phase == "discharge":
-            under &= ~shape.came_through_outlet(x, y, p.view("vx"), p.view("vy"),
+            through = shape.came_through_outlet(x, y, p.view("vx"), p.view("vy"),
                                                 self.cfg.gravity, outlet_room(self.cfg))
+            if st.pushed_out:
+                through &= ~np.isin(p.view("uid"), st.pushed_out)
+            under &= ~through
         out |= under
         if not np.any(out):
             return

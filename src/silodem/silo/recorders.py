@@ -111,6 +111,7 @@ class TimeSeries(Recorder):
             ds = group.create_dataset(key, data=arr)
             ds.attrs["unit"] = unit
         group.attrs["phase_codes"] = PHASE_CODES_TEXT
+        group.attrs["interval"] = self.interval  # the configured one [s] (docs/output.md)
 
     def state(self) -> dict[str, Any]:
         return {"rows": np.array(self.rows, dtype=float).reshape(-1, len(self.columns))}
