@@ -109,3 +109,16 @@ def test_config_stiffnesses_combine_in_series_for_grain_and_wall_contacts():
     pair_overlap = r1 + r2 - (y[1] - y[0])
     assert floor_overlap == pytest.approx(mass.sum() * g / 7.5e5, rel=1e-6)
     assert pair_overlap == pytest.approx(mass[1] * g / 5e5, rel=1e-6)
+
+
+def test_the_top_of_the_grains_is_the_mean_of_the_five_highest_tops():
+    """The fill level (procedure and the mass-flow index's rows): by hand, tops 1.1, 2.2,
+    3.3, 4.4, 5.5, 6.6 and 0.5 -> (2.2 + 3.3 + 4.4 + 5.5 + 6.6) / 5 = 4.4; fewer than five
+    grains: all of them; none: 0."""
+    from silodem.engine.quantities import top_of_grains
+
+    y = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.4])
+    r = np.array([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.1])
+    assert top_of_grains(y, r) == pytest.approx(4.4, rel=1e-15)
+    assert top_of_grains(y[:2], r[:2]) == pytest.approx(1.65, rel=1e-15)
+    assert top_of_grains(np.zeros(0), np.zeros(0)) == 0.0

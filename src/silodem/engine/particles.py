@@ -1,8 +1,9 @@
 """Particle state: a struct of arrays with spare capacity (jax-md / LAMMPS style).
 
-Only the first ``n`` entries of each array are live.  Arrays are reordered (spatial sort) and
-compacted (removed grains) by the neighbour list at each rebuild, so code that must follow a
-grain across steps uses its permanent ``uid``, never its index.
+Only the first ``n`` entries of each array are live.  Arrays are compacted when grains are
+removed (``keep``, at once) and reordered (spatial sort) by the neighbour list at each
+rebuild, so code that must follow a grain across steps uses its permanent ``uid``, never its
+index.
 
 Units: positions [m], velocities [m/s], spin [rad/s], forces [N], torques [N m], mass [kg],
 moment of inertia [kg m^2].  Disks: m = rho*pi*r^2*t and I = m*r^2/2.

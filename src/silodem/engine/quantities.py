@@ -83,7 +83,8 @@ def unbalanced_force_ratio(sim: Simulation) -> float:
     """Mean unbalanced force on the grains / mean contact force (PFC2D's equilibrium ratio).
 
     The unbalanced force of a grain is |F_contacts + m g| [N]; the mean contact force is over the
-    touching contacts, grain-grain and grain-wall.  ``inf`` when nothing touches."""
+    touching contacts, grain-grain and grain-wall.  ``inf`` when nothing touches; 0 without
+    grains."""
     p, nb = sim.particles, sim.neighbors
     n = p.n
     if n == 0:
@@ -103,3 +104,13 @@ def mean_kinetic_energy(sim: Simulation) -> float:
     """Mean kinetic energy per grain [J] (0 with no grains)."""
     n = sim.particles.n
     return sim.particles.kinetic_energy() / n if n else 0.0
+
+
+def top_of_grains(y: np.ndarray, radius: np.ndarray, count: int = 5) -> float:
+    """Height of the top of a heap of grains centred at heights ``y`` [m], radii ``radius``
+    [m]: the mean of the ``count`` highest tops y + r [m] (a level that one grain bouncing
+    above the rest barely moves); 0 for no grains."""
+    if len(y) == 0:
+        return 0.0
+    tops = np.asarray(y, dtype=float) + np.asarray(radius, dtype=float)
+    return float(np.mean(np.sort(tops)[-min(count, tops.size):]))

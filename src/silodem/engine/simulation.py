@@ -35,10 +35,12 @@ from silodem.jit import specialised
 class Simulation:
     """Owns the particles, walls, neighbour list and clock.
 
-    Parameters: ``law`` grain-grain contact parameters (series values), ``dt`` time step [s],
-    ``gravity`` g [m/s^2] acting along -y, ``skin`` Verlet skin [m], ``cell_test`` whether
-    the list is kept past the global test while the test by cells holds (``list_validity``;
-    off: rebuilt as soon as the global test, max displacement > skin / 2, fails).
+    Parameters: ``law`` grain-grain contact parameters (series stiffnesses [N/m], or the
+    moduli 2 E*, 8 G* [Pa] of the Hertz-Mindlin law), ``dt`` time step [s], ``gravity`` g
+    [m/s^2] acting along -y, ``skin`` Verlet skin [m], ``cell_test`` whether the list is kept
+    past the global test while the test by cells holds (``list_validity``; off: rebuilt as
+    soon as the global test fails: ``list_validity.list_expired``, the displacements' bound
+    against the skin).
     """
 
     def __init__(self, particles: Particles, walls: Walls, law: GrainLaw, dt: float,
@@ -70,11 +72,6 @@ class Simulation:
     def invalidate(self) -> None:
         """Grains were added, removed or moved, or walls changed: rebuild before the next step."""
         self._stale = True
-
-    @property
-    def needs_rebuild(self) -> bool:
-        """True between a change of the system and the next step (contact lists are stale)."""
-        return self._stale
 
     def set_wall_active(self, name: str, active: bool) -> None:
         self.walls.set_active(name, active)

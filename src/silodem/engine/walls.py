@@ -47,8 +47,10 @@ class Walls:
         self.by = np.zeros(0)
         self.vx = np.zeros(0)
         self.vy = np.zeros(0)
-        self.kn = np.zeros(0)  # contact normal stiffness with a grain [N/m]
-        self.ks = np.zeros(0)  # contact shear stiffness with a grain [N/m]
+        # contact normal and shear stiffness with a grain [N/m] (linear law; the moduli
+        # 2 E*, 8 G* [Pa] under the Hertz-Mindlin law)
+        self.kn = np.zeros(0)
+        self.ks = np.zeros(0)
         self.mu = np.zeros(0)  # grain-wall friction coefficient tan(phi_P) [-]
         self.active = np.zeros(0, dtype=np.bool_)
         self.cap_a = np.zeros(0, dtype=np.int8)  # END_NONE, END_CAP or END_FACE
@@ -71,10 +73,9 @@ class Walls:
         velocity: tuple[float, float] = (0.0, 0.0),
         one_sided: bool = False,
     ) -> int:
-        """Add a segment from ``a`` to ``b`` [m] with contact stiffnesses [N/m] and friction [-];
+        """Add a segment from ``a`` to ``b`` [m] with contact stiffnesses [N/m] (moduli [Pa]
+        under the Hertz-Mindlin law) and friction [-];
         ``one_sided``: the inside is the left of a -> b."""
-        if len(self.names) >= 1024:
-            raise ValueError("at most 1024 walls (contact keys reserve 10 bits for the wall)")
         if name in self.names:
             raise ValueError(f"duplicate wall name {name!r}")
         if np.hypot(b[0] - a[0], b[1] - a[1]) <= 0.0:

@@ -10,11 +10,13 @@
   is round-off, not a flow.
 * Mass flow index MFI = v_wall / v_axis [-]: mean vertical velocity of the grains within one
   diameter of the walls over that on the axis, in a band above the junction (the floor of a
-  flat silo), while the free surface is well above the band.  Mass flow when MFI exceeds a
-  threshold (0.3: Johanson's index as used by Ketterhagen et al. 2009, Powder Technol. 195).
+  flat silo), while the free surface is well above the band.  Mass flow when MFI reaches a
+  threshold (0.3: Johanson's index as used by Ketterhagen et al. 2009, Powder Technol. 195)
+  and the dead zone holds under 1 % of the grains (``classify_flow``).
 * Dead zone: grains that were in the silo when the gate opened and, up to the end of the
   discharge window (the horizon of the velocity field and the MFI), neither left nor moved
-  more than a mean grain radius from their place.  Over the whole discharge, run until the
+  more than a mean grain radius from their place, nor more than ``DEAD_SHARE`` of the
+  column's mean descent (``dead_zone``).  Over the whole discharge, run until the
   silo is 90 % empty, the stagnant grains of a funnel flow creep and are finally pulled
   along as the last of the flow passes them: by then none had stayed within a radius.
 """

@@ -13,7 +13,8 @@ each, so a cell holds no more solid than the disks cover (its solid fraction rho
 passes the 0.907 of disks in a triangular packing only where the grains overlap each other);
 counted by centres, whole grains 0.2 m across made cells 0.8 m wide read 0.97.  The stress is
 the Love-Weber average of ``stress`` applied to each cell, each grain's moment M_p (of
-``stress.grain_moments``, compression positive) in the cell of its centre (Christoffersen,
+``stress.grain_moments``, negative under compression, hence the sign) in the cell of its
+centre (Christoffersen,
 Mehrabadi & Nemat-Nasser 1981).  Only the grains centred in the grid count, and the part of
 such a grain beyond the grid's outer edges (pressed into a wall, or hanging through the outlet)
 counts in the cell at that edge, as the part beyond a hopper wall counts in the cell the wall
@@ -205,12 +206,14 @@ class FieldsPart:
         self.thickness = cfg.material.thickness
         self.kernel = cfg.measure.field_kernel
         self.width = regions.field_width(cfg)
-        if self.kernel == "gaussian":  # point values: 1 where the centre is inside, else 0
+        # what each cell's sums are divided by: its area inside the silo [m^2] (box), or,
+        # the Gaussian's being point values, 1 where the cell's centre is inside, else 0
+        if self.kernel == "gaussian":
             xc, zc = np.meshgrid(0.5 * (self.x_edges[1:] + self.x_edges[:-1]),
                                  0.5 * (self.z_edges[1:] + self.z_edges[:-1]), indexing="ij")
-            self.volume_of = regions.inside_silo(shape, xc, zc).astype(float)
+            self.normaliser = regions.inside_silo(shape, xc, zc).astype(float)
         else:  # sums over each cell, divided by its area inside the silo
-            self.volume_of = self.area_inside
+            self.normaliser = self.area_inside
         size = (self.x_edges.size - 1, self.z_edges.size - 1)
         self.mass = {w: np.zeros(size) for w in self.WINDOWS}
         self.moments = {w: np.zeros((*size, 3)) for w in self.WINDOWS}
@@ -253,7 +256,6 @@ class FieldsPart:
         f.attrs["kernel"] = self.kernel
         if self.kernel == "gaussian":
             f.attrs["width"] = self.width
-        if self.kernel == "gaussian":
             gauss = "at the cell centre, Gaussian coarse-graining of width attrs['width']"
             meaning = {"density": gauss, "stress": gauss}
         else:
@@ -263,7 +265,7 @@ class FieldsPart:
         for w in self.WINDOWS:
             h = f.create_group(w)
             h.attrs["samples"] = self.samples[w]
-            density, stress = fields_of(self.mass[w], self.moments[w], self.volume_of,
+            density, stress = fields_of(self.mass[w], self.moments[w], self.normaliser,
                                         self.thickness, self.samples[w])
             dataset(h, "density", density, "kg/m^3",
                     meaning=f"bulk density: {meaning['density']}")

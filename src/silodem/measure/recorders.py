@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from silodem.config import Config
+from silodem.engine.quantities import top_of_grains
 from silodem.measure import regions
 from silodem.measure.fields import FieldsPart
 from silodem.measure.reading import Reading, read_simulation
@@ -301,10 +302,9 @@ class _FlowPart:
         dl, dr = regions.edge_distance(self.shape, rd.x, rd.z)
         near = band & ((dl < self.d) | (dr < self.d))
         axis = band & (np.abs(rd.x - 0.5 * self.shape.width) < self.d)
-        tops = np.sort(rd.z + rd.r)[-min(5, rd.n):]
         self.mfi_rows.append((t, rd.vz[near].mean() if near.any() else np.nan,
                               rd.vz[axis].mean() if axis.any() else np.nan, near.sum(),
-                              axis.sum(), float(np.mean(tops))))
+                              axis.sum(), top_of_grains(rd.z, rd.r)))
 
     def state(self) -> dict[str, Any]:
         out: dict[str, Any] = {"flow.t_open": self.t_open, "flow.uid0": self.uid0,

@@ -206,11 +206,13 @@ def law_key_names(cfg: Config) -> str:
 
 def check_numbers(cfg: Config) -> tuple[float, float]:
     """(dt, dt_crit) [s] of ``cfg``; InputError when the values, each valid, give no usable
-    run together (a zero, infinite or NaN time step, more than ``MAX_STEPS`` steps, a pouring
-    speed, or the speed of a fall from the top of the walls, that carries a grain more than
-    its radius in one step, grains poured at rest without
-    gravity, a clog time shorter than the first grain needs to leave
-    (:func:`shortest_clog_time`), or a loose fill with more grains than fit in the silo)."""
+    run together: contact stiffnesses (moduli) outside ``STIFFNESS_RANGE``; a zero,
+    infinite or NaN time step, or more than ``MAX_STEPS`` steps; lengths that size arrays
+    beyond memory or bands larger than the silo (:func:`check_sizes`); a pouring speed, or
+    the speed of a fall from the top of the walls, that carries a grain more than its radius
+    in one step; grains poured at rest without gravity; a clog time shorter than the first
+    grain needs to leave (:func:`shortest_clog_time`); a sliding gate that cannot open
+    (:func:`check_gate`); a loose fill with more grains than fit in the silo."""
     from silodem.silo.geometry import build_walls
 
     law_keys = law_key_names(cfg)
@@ -271,7 +273,6 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"{math.ceil(shortest * 1000.0) / 1000.0:g} s")
     check_gate(cfg, dt)
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
-        from silodem.silo.geometry import silo_shape
         from silodem.silo.procedure import loose_sites
 
         loose_sites(silo_shape(cfg), cfg.material.radius_max, cfg.fill.n_particles)
@@ -347,7 +348,7 @@ def phase_time_limits(cfg: Config) -> tuple[float, str]:
 
 
 MAX_STEPS = 1e12  # a run allowed more steps than this is refused
-STIFFNESS_RANGE = (1e-100, 1e100)  # contact stiffnesses outside are refused [N/m]
+STIFFNESS_RANGE = (1e-100, 1e100)  # contact stiffnesses [N/m] (or moduli [Pa]) outside: refused
 MAX_GRID_CELLS = 1e7  # velocity-field cells (3 sums each) [-]
 MAX_FIELD_CELLS = 1e6  # density and stress field cells (2 x 4 sums, 256 quadrature points) [-]
 MAX_WALL_BINS = 1e6  # wall-stress bins [-]
@@ -395,7 +396,6 @@ def check_sizes(cfg: Config) -> None:
     areas the silo does not have, and a zone of 1e20 m made the figures fail)."""
     from silodem.measure.gaussian import CUTOFF
     from silodem.measure.regions import bin_length, field_cell, field_width, grid_cell
-    from silodem.silo.geometry import silo_shape
     from silodem.silo.procedure import neighbour_skin
 
     shape = silo_shape(cfg)

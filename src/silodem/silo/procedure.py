@@ -506,7 +506,4 @@ class SiloRun:
     def fill_level(self) -> float:
         """Height of the top of the grains in the silo [m] (mean of the 5 highest tops)."""
         p = self.sim.particles
-        if p.n == 0:
-            return 0.0
-        tops = p.view("y") + p.view("radius")
-        return float(np.mean(np.sort(tops)[-min(5, p.n):]))
+        return q.top_of_grains(p.view("y"), p.view("radius"))
