@@ -507,7 +507,11 @@ def test_a_ratio_axis_says_where_it_cuts_the_curves():
     assert cut.get_ylim() == (0.0, 3.0) and fits.get_ylim() == (0.0, 3.0)
     assert [t.get_text() for t in cut.texts] == ["axis cut at 3: values up to 4.5"]
     assert len(fits.texts) == 0
+    near, just = plt.subplots()  # a value just above the cut: "values up to 3" said it was not
+    ratio_axis(just, [1.0, 3.0004])
+    assert [t.get_text() for t in just.texts] == ["axis cut at 3: values up to 3.0004"]
     plt.close(fig)
+    plt.close(near)
 
 
 def test_field_maps_paint_only_the_inside_of_the_silo(run_dir):

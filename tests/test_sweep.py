@@ -514,7 +514,18 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', 'material.friction_deg = []'),
      ["material.friction_deg", "no values"]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"silo.outlet_width" = [1.0, 9.0]'),
-     ["silo.outlet_width", "9"]),
+     ["silo.outlet_width", "9", ", run outlet_width=9 m, seed 3: "]),
+    # a [set] value that no run can have is put on [set], not on the first grid point; a
+    # list there is one the grid should have had
+    (TINY.replace('[set]\n', '[set]\n"silo.wall_height" = 1.0\n'),
+     ["bad.toml, [set] (every run): silo.wall_height (1.0) must exceed the hopper height"]),
+    (TINY.replace('[set]\n', '[set]\n"walls.friction_deg" = [20.0, 30.0]\n'),
+     [("[set] (every run): walls.friction_deg: Input should be a valid number (got [20.0, "
+      "30.0]); a list of values to run goes in [grid], not [set] (walls.friction_deg)")]),
+    # a list inside a grid's list is quoted (its label, 'phiG=30 deg', looked valid)
+    (TINY.replace("[20.0, 30.0]", "[20.0, [30.0]]"),
+     [("run phiG=30 deg, seed 3: material.friction_deg: Input should be a valid number (got "
+      "[30.0])")]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"seed" = [1, 2]'), ["seeds"]),
     (TINY.replace('seeds = [3]\n', ''), ["missing required key 'seeds'"]),
     # pydantic's words before: "List should have at least 1 item after validation, not 0"

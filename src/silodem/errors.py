@@ -183,7 +183,9 @@ def unknown_key_message(root: type[BaseModel], parts: Sequence[str]) -> str:
 
 
 def format_value(value: Any, limit: int = 60) -> str:
-    """A short TOML-like rendering of a scalar value, for ``(got ...)``."""
+    """A short TOML-like rendering of a scalar value or a list of them, for ``(got ...)``."""
+    if isinstance(value, list | tuple):
+        return shorten("[" + ", ".join(format_value(v, limit) for v in value) + "]", limit)
     if isinstance(value, bool):
         text = "true" if value else "false"
     elif isinstance(value, str):
@@ -293,7 +295,7 @@ def format_validation_error(
     else:
         has_value, value = _lookup(data, loc)
     got = ""
-    if has_value and not isinstance(value, dict | list | tuple | set):
+    if has_value and not isinstance(value, dict | set):
         got = f" (got {format_value(value)})"
     if not dotted or msg.startswith(dotted):
         text = f"config error: {msg}"

@@ -194,6 +194,49 @@ def _base_config(study: LoadedStudy, name: str) -> Config:
         raise InputError(f"study {study.source}: base '{name}': {exc}") from None
 
 
+def _run_config(bases: dict[str, dict], spec, point: dict[str, Any], seed: int, quick: bool,
+                check: bool) -> Config:
+    """The config of the run at grid ``point`` with ``seed``: its base, then [set], then the
+    point's values (``--quick``'s variant); InputError (without the run's name) where it is
+    not valid or, with ``check``, gives no usable run (``silo.checks.check_numbers``)."""
+    data = json.loads(json.dumps(bases[point.get(GRID_BASE, spec.base)]))  # a deep copy
+    for key, value in {**spec.set, **point}.items():
+        if key != GRID_BASE:
+            _put(data, key, value)
+    data["seed"] = seed
+    try:
+        cfg = Config.model_validate(data)
+    except ValidationError as exc:
+        msg = format_validation_error(exc, data, model=Config)
+        raise InputError(msg.removeprefix("config error: ")) from None
+    if quick:
+        cfg = quick_variant(cfg)
+    if check:
+        from silodem.silo.checks import check_numbers
+
+        check_numbers(cfg)
+    return cfg
+
+
+def _run_error(study: LoadedStudy, bases: dict[str, dict], point: dict[str, Any], seed: int,
+               quick: bool, check: bool, message: str) -> str:
+    """The line for the run at ``point`` whose config failed with ``message``: put on [set]
+    where the base with [set] alone fails the same way (every run has it: naming the first
+    grid point sent the user through the grid), else on the grid point."""
+    alone = {GRID_BASE: point[GRID_BASE]} if GRID_BASE in point else {}
+    if study.spec.set and alone != point:
+        try:
+            _run_config(bases, study.spec, alone, seed, quick, check)
+        except InputError as exc:
+            if str(exc) == message:
+                listed = [k for k, v in study.spec.set.items() if isinstance(v, list)
+                          and k in message]
+                hint = (f"; a list of values to run goes in [grid], not [set] ({listed[0]})"
+                        if listed else "")
+                return f"study {study.source}, [set] (every run): {message}{hint}"
+    return f"study {study.source}, run {label_of(point, seed)}: {message}"
+
+
 def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> StudyPlan:
     """Every run of ``study`` (seeds outermost, then the grid product in the order of its
     keys, the first key slowest).  ``check``: also refuse values that validate one by one but
@@ -212,30 +255,11 @@ def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> Study
     for seed in spec.seeds:
         for values in itertools.product(*(spec.grid[k] for k in keys)):
             point = dict(zip(keys, values))
-            where = f"study {study.source}, run {label_of(point, seed)}"
-            # a deep copy of plain data
-            data = json.loads(json.dumps(bases[point.get(GRID_BASE, spec.base)]))
-            for key, value in {**spec.set, **point}.items():
-                if key != GRID_BASE:
-                    _put(data, key, value)
-            data["seed"] = seed
             try:
-                cfg = Config.model_validate(data)
-            except ValidationError as exc:
-                msg = format_validation_error(exc, data, model=Config)
-                raise InputError(f"{where}: {msg.removeprefix('config error: ')}") from None
-            if quick:
-                try:
-                    cfg = quick_variant(cfg)
-                except InputError as exc:
-                    raise InputError(f"{where}: {exc}") from None
-            if check:
-                from silodem.silo.checks import check_numbers
-
-                try:
-                    check_numbers(cfg)
-                except InputError as exc:
-                    raise InputError(f"{where}: {exc}") from None
+                cfg = _run_config(bases, spec, point, seed, quick, check)
+            except InputError as exc:
+                raise InputError(_run_error(study, bases, point, seed, quick, check,
+                                            str(exc))) from None
             slug, digest = slug_of(point, seed), config_hash(cfg)
             run_id = f"{slug}-{digest}"
             if digest in seen:  # one simulation under two labels, e.g. two particle counts

@@ -197,14 +197,16 @@ def fig_evolution(plan: StudyPlan, out_dir: Path, lay: Layout, ratio: bool) -> F
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    what = (f"ratio sigma_h / sigma_v (grey: samples, black: 0.2 s running mean; samples with "
-            f"sigma_v under {UNLOADED:g} x its median left out, as in the CV)" if ratio
+    what = (f"ratio sigma_h / sigma_v (grey: samples, black: 0.2 s running mean;\nsamples "
+            f"with sigma_v under {UNLOADED:g} x its median left out, as in the CV)" if ratio
             else "horizontal and vertical stress, 0.2 s running mean")
     fig.suptitle(f"Switch zone: {what}", fontsize=9, x=0.02, y=0.995, ha="left", va="top")
-    top = 1.0 - 0.55 / fig.get_figheight()  # room for the title line and the legend line
+    extra = 0.15 * what.count("\n")  # a second title line [in] (the whole caption showed
+    # in no figure width: it ran past the right edge)
+    top = 1.0 - (0.55 + extra) / fig.get_figheight()  # room for the title and the legend
     tight_layout(fig, rect=(0, 0, 1, top))
     if handles:
-        fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.02, 1.0 - 0.25
+        fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.02, 1.0 - (0.25 + extra)
                    / fig.get_figheight()), ncol=len(labels), fontsize=7, frameon=False)
     return fig
 
