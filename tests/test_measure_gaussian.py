@@ -132,9 +132,9 @@ def test_a_gaussian_run_records_the_fields_of_its_settled_packing():
     mass, stress = gaussian_sums(grab.frame, f.x_edges, f.z_edges, 0.15)
     np.testing.assert_array_equal(f.mass["settled"], mass)
     np.testing.assert_array_equal(f.moments["settled"], -stress)
-    density, sigma = fields_of(f.mass["settled"], f.moments["settled"], f.volume_of,
+    density, sigma = fields_of(f.mass["settled"], f.moments["settled"], f.normaliser,
                                f.thickness, 1)
-    inside = f.volume_of > 0
+    inside = f.normaliser > 0
     assert np.all(np.isnan(density[~inside])) and np.all(np.isfinite(density[inside]))
     assert np.nanmax(sigma[..., 1]) > 0 and f.samples["discharge"] > 5
 
