@@ -4,6 +4,7 @@ and a headless Chromium renders it with its figures."""
 from __future__ import annotations
 
 import hashlib
+import html
 import os
 import re
 import shutil
@@ -100,7 +101,7 @@ def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_af
     scenario (or its --quick variant), in the schema's order; none for the scenario itself
     or for a config of another name. The scenario is the embedded one, whatever file of its
     name the working folder holds."""
-    from silodem.report.html import changes_html
+    from silodem.report.html import description_html
     from silodem.scenario_files import changes_from_scenario, load_config, quick_variant
 
     sets = ['discharge.gate_speed=0.3', 'silo.kind="flat"', "seed=5"]
@@ -115,13 +116,28 @@ def test_a_report_names_what_its_config_changed_from_the_scenario_it_is_named_af
     assert changes_from_scenario(unset)[1] == ["material.restitution = unset",
                                                "material.damping_ratio = 0.2"]
     assert changes_from_scenario(cfg.model_copy(update={"name": "mine"})) is None
-    assert changes_html(quick_variant(cfg)) == (
-        "<p>This run's config is named after the scenario paper-case2 --quick and differs "
-        "from it in: seed = 5; silo.kind = &quot;flat&quot;; discharge.gate_speed = 0.3.</p>")
-    assert changes_html(load_config("paper-case1")) == ""
-    # a description changed too is named (the line had called it the scenario's)
-    mine = load_config("paper-case2", ['description="my flat test"'])
-    assert changes_from_scenario(mine)[1] == ['description = "my flat test"']
+    # the description is then said to be the scenario's (a stiffened case 1 opened with its
+    # "grains overlap by about their radius" as fact)
+    case2 = html.escape(load_config("paper-case2").description)
+    assert description_html(quick_variant(cfg)) == (
+        f"<p>The scenario paper-case2 --quick, after which this run's config is named: {case2}"
+        "</p><p>This run differs from it in: seed = 5; silo.kind = &quot;flat&quot;; "
+        "discharge.gate_speed = 0.3; where the description speaks of these, it is the "
+        "scenario's, not this run's.</p>")
+    case1 = load_config("paper-case1")
+    assert description_html(case1) == f"<p>{html.escape(case1.description)}</p>"
+    # a description changed too is named (the line had called it the scenario's), and is
+    # the config's own
+    mine = load_config("paper-case2", ['description="my flat test"', "seed=5"])
+    assert changes_from_scenario(mine)[1] == ['description = "my flat test"', "seed = 5"]
+    assert description_html(mine) == (
+        "<p>my flat test</p><p>This run's config is named after the scenario paper-case2 and "
+        "differs from it in: description = &quot;my flat test&quot;; seed = 5.</p>")
+    # a list on one line (tomli_w's several lines read 'material.radii = [ 0.09, 0.11, ]')
+    radii = load_config("paper-case2", ['material.radius_distribution="discrete"',
+                                        "material.radii=[0.09, 0.11]"])
+    assert changes_from_scenario(radii)[1] == ['material.radius_distribution = "discrete"',
+                                               "material.radii = [0.09, 0.11]"]
     monkeypatch.chdir(tmp_path)  # a file named as the scenario here is not the scenario
     (tmp_path / "paper-case2").write_text("not TOML at all", encoding="utf-8")
     assert changes_from_scenario(cfg) == ("paper-case2", expected)

@@ -103,6 +103,21 @@ def test_a_fitted_k_above_1_is_flagged_in_the_legends(synth):
             "a fill at rest)") in _legend(fig_horizontal(c, "fill"))
 
 
+@pytest.mark.parametrize(("K", "err"), [(31.4, float("nan")), (36.0, 3.6e8), (2.0, 2.5)])
+def test_a_free_fit_with_no_determined_k_is_said_and_not_drawn(synth, K, err):
+    """A steep hopper's short cell and a smooth wall gave a wall stress nearly the same at
+    every depth: the free fit (K and mu_w) came back as K = 31.4 with no error, or 36 +-
+    3.6e8, and was printed and drawn as a result. An error not finite, or larger than K, now
+    reads 'not determined' and the curve is left out; one under K is drawn as before."""
+    b = _with_fits(synth, (0.55, 0.02), free=(K, err))
+    assert _row(b, "Janssen free fit after filling").startswith("not determined (K = ")
+    for fig in (fig_horizontal(b, "fill"), fig_vertical(b, "fill")):
+        assert not [t for t in _legend(fig) if t.startswith("Janssen free fit")]
+    c = _with_fits(synth, (0.55, 0.02), free=(K, 0.9 * K))  # poorly determined, still drawn
+    assert "poorly determined" in _row(c, "Janssen free fit after filling")
+    assert [t for t in _legend(fig_horizontal(c, "fill")) if t.startswith("Janssen free fit")]
+
+
 @pytest.mark.parametrize(("K", "err", "flagged"), [
     (1.3, 0.05, True),    # 1.25 > 1
     (1.06, 0.05, True),   # 1.01 > 1

@@ -139,7 +139,12 @@ def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[
     # then bounds it, when it is more than a sampling interval inside
     f0, d1 = t_open - cfg.window, d0 + cfg.window
     step = float(m.get("@attrs", {}).get("interval", cfg.interval))  # as the samples were taken
-    if fill.any() and t[fill].min() > f0 + step:
+    settled_for = res.events.get("settle_time")  # [s]: a settling shorter than the window
+    # by less than a sample interval loses no sample (its first sample can still lie a
+    # fraction of a step more than an interval inside: 0.99976 s of settling read "cut short")
+    short = (float(settled_for) < cfg.window - step if settled_for is not None
+             else fill.any() and t[fill].min() > f0 + step)
+    if fill.any() and short:
         f0 = float(t[fill].min())
     if dwin.any() and t[dwin].max() < d1 - step:
         d1 = float(t[dwin].max())

@@ -27,6 +27,7 @@ from silodem.report.flags import (
     ABOVE_HYDROSTATIC_SHORT,
     WALLS_HELD_UP_SHORT,
     above_hydrostatic,
+    free_fit_undetermined,
     walls_held_up,
 )
 from silodem.report.numbers import UNLOADED, resolved
@@ -153,7 +154,8 @@ def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
                 label=label)
     ax.plot(f(depth, a.rho_b, g["g"], g["B"], PAPER_K, g["mu_wall"]), z, color="#1f77b4",
             lw=1.2, ls="--", label="Janssen 2D, K = 0.4 (paper)")
-    if key == "fill" and a.janssen_free is not None:
+    if key == "fill" and a.janssen_free is not None \
+            and not free_fit_undetermined(a.janssen_free):  # (K = 31 +- nothing was drawn)
         jf = a.janssen_free
         label = _flagged(f"Janssen free fit K = {jf.K:.2f}, mu_w = {jf.mu_w:.2g}",
                          "> tan phi_P: not Janssen" if above_coulomb(jf, g["mu_wall"]) else "",

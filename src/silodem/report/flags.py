@@ -75,3 +75,15 @@ WALLS_HELD_UP = (  # the mobilised wall friction below 0 (walls_held_up): the ke
     "walls up): the reverse of the wall support Janssen assumes")
 
 WALLS_HELD_UP_SHORT = "net negative on the fitted bins: the walls carry none of the weight"
+
+
+def free_fit_undetermined(fit: JanssenFit) -> bool:
+    """A Janssen fit of both K and mu_w whose K has no finite error, or one larger than K: a
+    wall stress nearly the same at every depth (a steep hopper's short cell, a smooth wall),
+    which any large K fits (sigma_h = rho_b g B / (2 mu_w) (1 - exp(-2 K mu_w z / B)) is then
+    its asymptote throughout, and mu_w only sets its level).  K = 31.4 with no error and
+    36 +- 3.6e8 were reported and drawn as results.  Not for a mu_w at its lower bound, where
+    K is sigma_h / (rho_b g depth), determined."""
+    if not fit.mu_w_fitted or fit.mu_w_at_bound:
+        return False
+    return not (math.isfinite(fit.K_err) and fit.K_err <= fit.K)

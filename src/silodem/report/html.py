@@ -184,19 +184,27 @@ def unphysical_html(a: Analysis) -> str:
     return f"<p class='unfinished' id='unphysical'>{html.escape(text)}</p>"
 
 
-def changes_html(cfg) -> str:
-    """The paragraph naming what a run's config changed from the embedded scenario it is
-    named after (``scenario_files.changes_from_scenario``): a flat silo of mixed grains, made
-    from paper-case2 with --set, showed case 2's description alone.  '' when nothing did."""
+def description_html(cfg) -> str:
+    """The config's description and, for a config named after an embedded scenario whose
+    values it changed (``scenario_files.changes_from_scenario``), what it changed: a flat silo
+    of mixed grains made from paper-case2 with --set showed case 2's description alone, and a
+    stiffened case 1 opened with its "grains overlap by about their radius" as fact.  The
+    description is then said to be the scenario's, unless the config gave its own."""
     from silodem.scenario_files import changes_from_scenario
 
+    text = html.escape(cfg.description)
     changed = changes_from_scenario(cfg)
     if changed is None or not changed[1]:
-        return ""
+        return f"<p>{text}</p>"
     name, keys = changed
-    quick = " --quick" if cfg.name != name else ""
-    return (f"<p>This run's config is named after the scenario {html.escape(name)}{quick} "
-            f"and differs from it in: {html.escape('; '.join(keys))}.</p>")
+    scenario = html.escape(name) + (" --quick" if cfg.name != name else "")
+    listed = html.escape("; ".join(keys))
+    if any(key.startswith("description = ") for key in keys):  # the config's own words
+        return (f"<p>{text}</p><p>This run's config is named after the scenario {scenario} "
+                f"and differs from it in: {listed}.</p>")
+    return (f"<p>The scenario {scenario}, after which this run's config is named: {text}</p>"
+            f"<p>This run differs from it in: {listed}; where the description speaks of "
+            "these, it is the scenario's, not this run's.</p>")
 
 
 def quick_caveat(hopper: bool) -> str:
@@ -344,7 +352,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              "results.h5 in this page's folder, status "
              f"{html.escape(str(res.attrs.get('status', '?')))}.</p>")
     parts = [head, f"<h1>{html.escape(title)}</h1>", banner_html(a), unphysical_html(a),
-             f"<p>{html.escape(cfg.description)}</p>", changes_html(cfg), intro]
+             description_html(cfg), intro]
     if cfg.name.endswith(QUICK_SUFFIX):  # (scenario_files.quick_variant names it so)
         parts.append(f"<p class='warn'>{html.escape(quick_caveat(cfg.silo.kind == 'hopper'))}"
                      "</p>")

@@ -27,6 +27,7 @@ from silodem.report.flags import (
     ABOVE_HYDROSTATIC,
     WALLS_HELD_UP,
     above_hydrostatic,
+    free_fit_undetermined,
     overpacked,
     walls_held_up,
 )
@@ -235,7 +236,12 @@ def add_numbers(a: Analysis) -> None:
             n.append((what, value, "-"))
         elif key in a.janssen_missing:  # said, not left out without a word
             n.append((what, f"n/a ({a.janssen_missing[key]})", "-"))
-    if a.janssen_free is not None:
+    if a.janssen_free is not None and free_fit_undetermined(a.janssen_free):
+        j = a.janssen_free
+        why = (f"not determined (K = {_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}): the wall stress "
+               "is nearly the same at every depth, which any large K fits; not drawn")
+        n.append(("Janssen free fit after filling: K, mu_w", why, "-"))
+    elif a.janssen_free is not None:
         j = a.janssen_free
         mu = ("~0 (at the fit's lower bound: the profile shows no wall support)"
               if j.mu_w_at_bound else _fitted(j.mu_w, j.mu_w_err))
