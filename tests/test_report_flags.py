@@ -196,12 +196,12 @@ def test_a_negative_mobilised_friction_is_flagged_in_the_wall_shear_legend(synth
     add_numbers(b)
     assert _row(b, "mobilised wall friction sum(tau)/sum(sigma_n) on the cell-wall bins of "
                 "the Janssen fit, after filling").startswith("-0.0312 (negative: ")
-    labels = [t.get_text() for t in fig_wall_shear(b).axes[0].get_legend().get_texts()]
+    labels = _legend(fig_wall_shear(b))  # (under the plot: inside, it hid the switch zone)
     assert ("downward shear on the wall, after filling (net negative on the fitted bins: the "
             "walls carry none of the weight)") in labels
     assert "downward shear on the wall, during discharge" in labels
     assert "tan(phi_P) sigma_n (fully mobilised), after filling" in labels
-    labels = [t.get_text() for t in fig_wall_shear(synth).axes[0].get_legend().get_texts()]
+    labels = _legend(fig_wall_shear(synth))
     assert not any("net negative" in t for t in labels)  # 0.684 of tan phi_P: positive
 
 
@@ -212,10 +212,11 @@ def test_captions_name_the_fill_window_as_the_titles_do():
     from silodem.report.html import FIGURES
 
     specs = {spec.name: spec for spec in FIGURES}
+    run = types.SimpleNamespace(events={"discharge_start_time": 3.0})  # (one with discharge)
     settled = types.SimpleNamespace(labels={"fill": "after filling",
-                                            "discharge": "during discharge"})
+                                            "discharge": "during discharge"}, res=run)
     unsettled = types.SimpleNamespace(labels={"fill": UNSETTLED,
-                                              "discharge": "during discharge"})
+                                              "discharge": "during discharge"}, res=run)
     assert UNSETTLED == "late in the unfinished settling"
     fig3a = specs["fig3a_horizontal_filling"]
     assert fig3a.caption_for(settled).startswith(

@@ -682,18 +682,27 @@ def test_key_numbers_of_the_report(synth):
     slid.res = dataclasses.replace(a.res, events={**a.res.events, "gate_opening_time": 100.0})
     slid.numbers = []
     add_numbers(slid)
-    t0 = a.flow["rate"].t0
+    t0, t1 = a.flow["rate"].t0, a.flow["rate"].t1
     assert _number(slid, "steady discharge rate W").endswith(
-        f"(fitted from {significant(t0, 3)} s after the opening, while the gate still slid "
-        "open, to 100 s: of a partly open outlet)")
+        f"(fitted from {significant(t0, 3)} to {significant(t1, 3)} s after the opening; the "
+        "gate slid open until 100 s: all of it of a partly open outlet)")
+    # one that cleared the outlet within the fit: its end is the fit's, not the clearing
+    half = copy.copy(a)
+    middle = 0.5 * (t0 + t1)
+    half.res = dataclasses.replace(a.res, events={**a.res.events, "gate_opening_time": middle})
+    half.numbers = []
+    add_numbers(half)
+    assert _number(half, "steady discharge rate W").endswith(
+        f"(fitted from {significant(t0, 3)} to {significant(t1, 3)} s after the opening; the "
+        f"gate slid open until {significant(middle, 3)} s: its start of a partly open outlet)")
     # the discharge window, 0.25-0.75 s after the gate opened: m = W (t - 0.25) of the
     # initial M_TOTAL / 0.75, so 0 and 64 x 0.5 / 106.7 = 30 % discharged
     assert _number(a, "share of the fill's mass discharged at the discharge window") == "0 / 30"
     assert _number(a, "flow pattern") == "funnel flow"
     # grains of one size cannot segregate: every tenth of the discharge is the fill
     assert _number(a, "size segregation in the discharge") == (
-        "1 / 1 (1 - 1); chance alone (random departure orders of these grains) gives 1 - 1: "
-        "every tenth within it")
+        "1 / 1 (1 - 1); chance alone (random departure orders of these grains) gives each "
+        "tenth a band, together 1 - 1: every tenth within its own")
     assert float(_number(a, "dead-zone fraction")) == pytest.approx(0.15, rel=5e-3)
     assert float(_number(a, "mass flow index")) == pytest.approx(1 / 3, rel=5e-3)
     # (the centre's sigma_v is constant in each window: its change has no spread, +- 0)
@@ -984,6 +993,15 @@ def test_a_run_without_discharge_gives_nan_discharge_columns(tmp_path):
                "circle_switch_left_ratio_cv_discharge": NAN,
                "circle_switch_left_sigma_h_change_pct": NAN})
     assert s["flow_pattern"] == ""
+    # the captions that speak of discharge panels say there are none (Figs. 4, 5 and 7 read
+    # "after filling and during discharge"); the others are as they were
+    from silodem.report.html import FIGURES, NO_DISCHARGE
+
+    captions = {spec.name: spec.caption_for(a) for spec in FIGURES}
+    assert captions["fig5_force_network"].endswith("drawn to the wall." + NO_DISCHARGE)
+    assert not captions["fig3b_vertical_filling"].endswith(NO_DISCHARGE)
+    full = analyse(load_results(write_synthetic(tmp_path / "full")))
+    assert not any(spec.caption_for(full).endswith(NO_DISCHARGE) for spec in FIGURES)
 
 
 def test_an_empty_fill_window_gives_nan_fill_columns(tmp_path):
@@ -1503,3 +1521,54 @@ def test_grains_lost_through_a_wall_are_counted_in_the_key_numbers(synth):
     assert _number(b, LOST) == "65 of the 166 poured (39 %)"
     rows = [label for label, _, _ in b.numbers]
     assert rows.index(LOST) < rows.index("switch zone")  # before the numbers it qualifies
+
+
+def test_the_tenths_outside_their_chance_band_are_named_with_their_own_band():
+    """The segregation row quoted the range of all ten chance bands and then said one tenth
+    lay outside, though every value quoted lay inside that range: each tenth has its own
+    band. A 50/50 mixture by number of r = 0.08 and 0.12 m, 400 grains, the small ones
+    leaving first: the tenths outside their own band (found here by comparing each tenth's
+    ratio with its band) are counted, and the first three named with theirs."""
+    from silodem.measure.discharge import discharge_composition
+    from silodem.report.key_numbers import _chance_words
+
+    r = np.sort(np.repeat([0.08, 0.12], 200))
+    c = discharge_composition(np.arange(400.0), r)
+    out = [k for k in range(10)
+           if not c.chance_lo[k] <= c.diameter_ratio[k] <= c.chance_hi[k]]
+    assert len(out) >= 4  # (the case this test is about: more than three to name)
+    words = _chance_words(c)
+    assert f"{len(out)} of 10 tenths outside their own: tenth {out[0] + 1} (" in words
+    k = out[0]
+    assert (f"tenth {k + 1} ({significant(c.diameter_ratio[k], 3)}, its band "
+            f"{significant(c.chance_lo[k], 3)} - {significant(c.chance_hi[k], 3)})") in words
+    assert words.endswith(f" and {len(out) - 3} more")
+    assert words.count("its band") == 3
+
+
+def test_a_flat_silo_gets_no_junction_and_a_hopper_lined_otherwise_its_friction(synth):
+    """The key numbers gave a flat silo 'junction z_j = 0' and an unqualified switch zone,
+    read as a hopper's at the floor; and the hopper walls' own friction, which the hopper
+    theory used, was never shown. The synthetic hopper run (walls tan 24 deg = 0.445) with a
+    hopper lined at tan 10 deg = 0.176, and the same run called flat."""
+    a, _ = synth
+    lined = copy.copy(a)
+    lined.geom = {**a.geom, "mu_hopper": math.tan(math.radians(10.0))}
+    lined.numbers = []
+    add_numbers(lined)
+    assert _number(lined, "wall friction tan phi_P of the cell / of the hopper walls") == (
+        "0.445 / 0.176")
+    assert not [q for q, _, _ in a.numbers if q.startswith("wall friction tan phi_P of")]
+    flat = copy.copy(a)
+    silo = a.res.cfg.silo.model_copy(update={"kind": "flat"})
+    flat.res = dataclasses.replace(a.res, cfg=a.res.cfg.model_copy(update={"silo": silo}))
+    flat.numbers = []
+    add_numbers(flat)
+    g = a.geom
+    assert _number(flat, "cell width B / outlet D (a flat bottom: no cell-hopper junction)") \
+        == f"{g['B']:.3g} / {g['D']:.3g}"
+    rows = [q for q, _, _ in flat.numbers]
+    assert "switch zone (a flat silo has no junction: a band over the floor, set for " \
+           "comparison with a hopper's)" in rows
+    assert not [q for q in rows if q.startswith(("cell width B / outlet D / junction",
+                                                 "hopper half-angle"))]

@@ -306,8 +306,7 @@ def fig_wall_shear(a: Analysis) -> Figure | None:
     ax.set_xlabel("wall shear stress [Pa]")
     _z_axis(ax, a)
     ax.set_title("Wall friction along the silo wall", fontsize=10)
-    ax.legend(fontsize=7)
-    tight_layout(fig)
+    legend_below(fig, ax)  # (inside, it hid the switch zone's points or the top's curves)
     return fig
 
 

@@ -38,8 +38,13 @@ class FigureSpec:
         unsettled = a.labels["fill"] == UNSETTLED
         window = ("the last window of the settling reached: the run stopped before settling "
                   "ended" if unsettled else "the last window of settling")
-        return self.caption.format(**a.labels, fill_window=window)
+        text = self.caption.format(**a.labels, fill_window=window)
+        if "discharge" in text and "discharge_start_time" not in a.res.events:
+            text += NO_DISCHARGE  # (the captions spoke of discharge panels not drawn)
+        return text
 
+
+NO_DISCHARGE = " This run has no discharge: only what comes before it is drawn."
 
 FIGURES = [
     FigureSpec("fig2_coordination", "Fig. 2",

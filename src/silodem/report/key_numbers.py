@@ -68,6 +68,23 @@ def _fitted(value: float, error: float, *notes: str) -> str:
     return text + (f" ({'; '.join(said)})" if said else "")
 
 
+def _chance_words(c) -> str:
+    """What chance says of a composition's tenths (``measure.discharge.random_order_band``):
+    each tenth has its own band, so the tenths outside theirs are named with it (the range
+    of all the bands, quoted alone, held the one tenth called outside)."""
+    ratio, lo, hi = c.diameter_ratio, c.chance_lo, c.chance_hi
+    outside = np.flatnonzero((ratio < lo) | (ratio > hi))
+    head = (f"chance alone (random departure orders of these grains) gives each tenth a band, "
+            f"together {_fmt(np.nanmin(lo), 3)} - {_fmt(np.nanmax(hi), 3)}: ")
+    if outside.size == 0:
+        return head + "every tenth within its own"
+    named = [f"tenth {k + 1} ({_fmt(ratio[k], 3)}, its band {_fmt(lo[k], 3)} - "
+             f"{_fmt(hi[k], 3)})" for k in outside[:3]]
+    more = f" and {outside.size - 3} more" if outside.size > 3 else ""
+    return (head + f"{outside.size} of {ratio.size} tenths outside their own: "
+            + ", ".join(named) + more)
+
+
 def _janssen_K(fit: th.JanssenFit, key: str, mobilised: float = float("nan")) -> str:
     """K +- its error, with what the fit's error and a K above 1 (:func:`above_hydrostatic`)
     say; after filling, a fit with mu_w given above the ``mobilised`` friction the walls
@@ -160,13 +177,27 @@ def _pour_row(a: Analysis) -> None:
     a.numbers.append((label, value, "-"))
 
 
+def _fill_mass(a: Analysis) -> float:
+    """The mass in the silo at the end of settling [kg]: the event ``initial_mass`` (the gate
+    opened), else, in a run without discharge, the /settled grains' rho pi r^2 t (the share of
+    the weight on the gate was left out there); NaN without either."""
+    if "initial_mass" in a.res.events:
+        return float(a.res.events["initial_mass"])
+    settled = a.res.snapshot("settled")
+    if not isinstance(settled, dict) or "particles" not in settled:
+        return float("nan")
+    m = a.res.cfg.material
+    r = np.asarray(settled["particles"]["radius"], dtype=float)
+    return float(m.density * np.pi * np.sum(r * r) * m.thickness)
+
+
 def _bottom_rows(a: Analysis) -> None:
     """The load of the fill on the silo's bottom after filling (the floor and the closed
     gate; a hopper silo's gate), with its share of the fill's weight (the walls carry the
     rest); in a flat silo its mean pressure against Janssen's sigma_v at the floor (K fitted,
     mu_w = tan phi_P) and the hydrostatic rho_b g h."""
     force, pressure = a.bottom
-    weight = float(a.res.events.get("initial_mass", np.nan)) * a.geom["g"]
+    weight = _fill_mass(a) * a.geom["g"]
     if not np.isfinite(force):
         return
     flat = a.res.cfg.silo.kind == "flat"
@@ -194,11 +225,19 @@ def add_numbers(a: Analysis) -> None:
     """Into ``a.numbers``: the key numbers, (quantity, value, unit) rows."""
     n = a.numbers
     g = a.geom
-    n.append(("cell width B / outlet D / junction z_j",
-              f"{g['B']:.3g} / {g['D']:.3g} / {g['z_j']:.3g}", "m"))
-    if a.res.cfg.silo.kind == "hopper":
+    hopper = a.res.cfg.silo.kind == "hopper"
+    if hopper:
+        n.append(("cell width B / outlet D / junction z_j",
+                  f"{g['B']:.3g} / {g['D']:.3g} / {g['z_j']:.3g}", "m"))
         n.append(("hopper half-angle from the vertical alpha (= 90 - theta)",
                   f"{g['alpha']:.3g}", "deg"))
+    else:  # (a junction of 0 read as a hopper's, at the floor)
+        n.append(("cell width B / outlet D (a flat bottom: no cell-hopper junction)",
+                  f"{g['B']:.3g} / {g['D']:.3g}", "m"))
+    if hopper and g["mu_hopper"] != g["mu_wall"]:  # (its theory used it, unsaid)
+        n.append((("wall friction tan phi_P of the cell / of the hopper walls "
+                  "(walls.hopper_friction_deg)"),
+                  f"{_fmt(g['mu_wall'], 3)} / {_fmt(g['mu_hopper'], 3)}", "-"))
     n.append(("grain radii (shares by number) / mean diameter d",
               f"{sizes.describe(a.res.cfg.material)} / {g['d']:.3g}", "m"))
     _pour_row(a)
@@ -214,7 +253,9 @@ def add_numbers(a: Analysis) -> None:
     n.append((f"bulk density rho_b ({where})",
               _bulk_density_text(a.rho_b, a.res.cfg.material.density)
               if np.isfinite(a.rho_b) or not why else f"n/a ({why})", "kg/m^3"))
-    n.append(("switch zone", f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))
+    zone = ("switch zone" if hopper else "switch zone (a flat silo has no junction: a band "
+            "over the floor, set for comparison with a hopper's)")
+    n.append((zone, f"{a.switch[0]:.3g} - {a.switch[1]:.3g}", "m"))
     for key, label in a.labels.items():
         if key in a.peaks:
             v, z = a.peaks[key]
@@ -261,8 +302,8 @@ def add_numbers(a: Analysis) -> None:
         # sigma_h where the cell ends, at the junction
         jan = th.janssen_sigma_h(a.surface["fill"] - max(z, g["z_j"]), a.rho_b, g["g"],
                                  g["B"], a.janssen["fill"].K, g["mu_wall"])
-        label = ("switch-zone peak / Janssen sigma_h at its height (at the junction for a "
-                 "peak below it), after filling")
+        label = ("switch-zone peak / Janssen sigma_h at its height" + (
+            " (at the junction for a peak below it)" if hopper else "") + ", after filling")
         value = _fmt(v / jan, 3) if jan > 0 else "n/a"
         K = a.janssen["fill"]
         if jan > 0 and poorly_determined(K.K, K.K_err):
@@ -331,8 +372,11 @@ def add_numbers(a: Analysis) -> None:
         r = f["rate"]
         label = f"steady discharge rate W (of a slot of thickness t = {_fmt(a.geom['t'], 3)} m)"
         opening = float(a.res.events.get("gate_opening_time", 0.0))
-        sliding = (f" (fitted from {_fmt(r.t0, 3)} s after the opening, while the gate still "
-                   f"slid open, to {_fmt(opening, 3)} s: of a partly open outlet)"
+        whole = r.t1 <= opening  # (the fit's end read as the outlet's clearing before)
+        sliding = (f" (fitted from {_fmt(r.t0, 3)} to {_fmt(r.t1, 3)} s after the opening; "
+                   f"the gate slid open until {_fmt(opening, 3)} s: "
+                   + ("all of it of a partly open outlet)" if whole else
+                      "its start of a partly open outlet)")
                    if np.isfinite(r.rate) and r.t0 < opening else "")
         n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}{sliding}", "kg/s"))
     if "pattern" in f:
@@ -352,12 +396,7 @@ def add_numbers(a: Analysis) -> None:
         value = (f"{_fmt(c.diameter_ratio[0], 3)} / {_fmt(c.diameter_ratio[-1], 3)} "
                  f"({_fmt(np.nanmin(c.diameter_ratio), 3)} - "
                  f"{_fmt(np.nanmax(c.diameter_ratio), 3)})")
-        outside = int(np.sum((c.diameter_ratio < c.chance_lo) | (c.diameter_ratio > c.chance_hi)))
-        value += (f"; chance alone (random departure orders of these grains) gives "
-                  f"{_fmt(np.nanmin(c.chance_lo), 3)} - {_fmt(np.nanmax(c.chance_hi), 3)}: "
-                  + ("every tenth within it" if outside == 0 else
-                     f"{outside} of {c.diameter_ratio.size} tenths outside it"))
-        n.append((label, value, "-"))
+        n.append((label, value + "; " + _chance_words(c), "-"))
     if "beverloo_C" in f:
         hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
                   "its slope)" if a.res.cfg.silo.kind == "hopper" else "")
