@@ -163,6 +163,12 @@ def test_quick_validation_expects_nominal_e_and_series_stiffnesses(quick_run):
         assert r["expected"] == float(r["case"].split("e=")[1].split(",")[0]), r
     series = [r for r in records if "paper-case2's contact constants" in r["case"]]
     assert {r["case"].split(", ")[1] for r in series} == {"grain-grain", "grain-wall"}
+    # walls four times as stiff as the grains (5e6 N/m): 4e6 N/m in series, by hand
+    from silodem.validate.impacts import R1, disk_mass
+
+    wall = next(r for r in series if ", grain-wall, " in r["case"])
+    assert wall["expected"] == pytest.approx(math.pi * math.sqrt(disk_mass(R1) / 4e6),
+                                             rel=1e-12)
     # undamped: second order in dt / t_c = 1 / 1000
     assert all(r["tolerance"] == pytest.approx(1e-6) and r["pass"] is True
                for r in series), series
@@ -209,6 +215,20 @@ def test_lammps_hertz_comparison_sees_a_one_percent_stiffer_law(monkeypatch):
     monkeypatch.setattr(lm, "HERTZ_KN", 1.01 * lm.HERTZ_KN)
     theirs = lm.run_lammps(state, 1000, 1000, hertz=True)
     assert np.abs(ours[-1] - theirs[-1]).max() > 10 * lm.TOLERANCE
+
+
+@pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")
+def test_lammps_comparison_sees_a_shear_spring_of_the_normal_stiffness(monkeypatch):
+    """With k_s = k_n in every check, a law that took k_n for the shear spring passed the
+    whole suite. The comparison runs k_s = k_n / 2 in both codes: silodem given k_n for it
+    parts the walls-only cloud from LAMMPS by far more than the tolerance (2.6e-2 m)."""
+    import silodem.validate.lammps as lm
+
+    state = lm.cloud(20, 0.42)
+    theirs = lm.run_lammps(state, 1500, 1500)
+    monkeypatch.setattr(lm, "KS", lm.K)
+    ours = lm.run_silodem(state, 1500, 1500)
+    assert np.abs(ours[-1] - theirs[-1]).max() > 1000 * lm.TOLERANCE
 
 
 def test_validate_refuses_an_out_that_is_a_file(tmp_path):

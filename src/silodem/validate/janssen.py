@@ -59,6 +59,10 @@ from silodem.validate.records import Record, info, rel
 CASE = "Janssen slot silo"
 K_TOL = 0.10
 SATURATION_TOL = 0.05
+# Janssen's assumption, a column sliding down its walls mobilising their friction fully, and
+# Coulomb's law, which bounds it by tan(phi_w): measured 0.91-0.96 of it (wall disks partly
+# roll); a law applying 0.7 of the configured friction falls 30 % short
+MOBILISED_TOL = 0.15
 D = 0.01  # mean grain diameter [m]
 WIDTH = 12  # slot width / d
 N_GRAINS = 1700
@@ -189,8 +193,9 @@ def run(quick: bool = False) -> tuple[list[Record], dict]:
     label = (f"{CASE}, B = {WIDTH} d, {len(SEEDS)} fills of {N_GRAINS} grains, "
              f"phi_w = {WALL_FRICTION_DEG:g} deg")
     records = [
-        info(label, "mobilised wall friction sum(tau)/sum(sigma_n)", mu_mob, expected=mu_w,
-             note="expected: tan(phi_w) if fully mobilised"),
+        rel(label, "mobilised wall friction sum(tau)/sum(sigma_n)", mu_w, mu_mob, MOBILISED_TOL,
+            note="expected: tan(phi_w), fully mobilised as the column slid down its walls "
+            "(the floor lowered); Coulomb's law bounds it"),
         info(label, "bulk density rho_b", rho_b, "kg/m^3"),
         info(label, "column depth / Janssen length B/(2 K mu)",
              float(np.mean([c.level - c.floor for c in cols])) / length),

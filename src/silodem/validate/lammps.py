@@ -7,7 +7,9 @@ LAMMPS (Thompson et al. 2022, Comp. Phys. Comm. 271, 108171; Debian package ``la
 command ``lmp``) run it from the same state for the same steps of dt = 2e-4 s.  LAMMPS runs
 gran/hooke/history between grains and wall/gran hooke/history on the side planes and on the
 floor blocks (a block pushes from its nearest point, corners included), with silodem's law:
-k_n = k_s = 5e6 N/m, friction tan 25 deg (grains) and tan 24 deg (walls), no shear dashpot,
+k_n = 5e6 N/m and k_s = 2.5e6 N/m (not the bench's k_s = k_n: a law that used k_n for the
+shear spring would pass there), friction tan 25 deg (grains) and tan 24 deg (walls), no shear
+dashpot,
 disk masses (``set density/disc``) and inertia (``nve/sphere disc``), the normal damping of
 e = 0.5 (gamma_n = 2 zeta sqrt(k / m_eff), exact for grains of one size) and the damped normal
 force clipped at 0 (``limit_damping``, which also makes the Coulomb cap 0 there).
@@ -58,6 +60,9 @@ NX = 20
 RADIUS = 0.1  # [m]
 DENSITY = 835.0  # [kg/m^3]
 K = bench.K_CONTACT  # [N/m]
+# the shear stiffness, half of k_n: with k_s = k_n everywhere (as in every other check) a
+# law that used k_n for the shear spring passed the whole suite
+KS = 0.5 * K  # [N/m]
 MU_GRAIN, MU_WALL = bench.MU_GRAIN, bench.MU_WALL  # the bench's law
 ZETA = damping_ratio_from_restitution(bench.RESTITUTION)
 TOLERANCE = 1e-6  # [m]
@@ -88,7 +93,8 @@ def run_silodem(state: dict[str, np.ndarray], steps: int, every: int,
     """Positions (n, 2) [m] in the order of ``state``, every ``every`` steps from step 0;
     ``hertz``: the frictionless, undamped Hertz law of ``HERTZ_KN`` instead of the bench's."""
     silo, _, _ = bench.build(NX, 4)  # the bench's walls and law (zeta = ZETA); not its grains
-    law = dataclasses.replace(silo.law, allow_tension=tension)
+    law = dataclasses.replace(silo.law, ks=KS, allow_tension=tension)
+    silo.walls.ks[:] = KS
     if hertz:
         kn = 1.5 * HERTZ_KN  # 2 E*
         law = dataclasses.replace(law, kn=kn, ks=kn, mu=0.0, zeta=0.0, hertz=True)
@@ -131,8 +137,8 @@ def lammps_input(state: dict[str, np.ndarray], steps: int, every: int,
     gamma_wall = 2 * ZETA * math.sqrt(K / mass)
     xl, xr = width / 2 - bench.SLOT / 2, width / 2 + bench.SLOT / 2
     limit = "" if tension else " limit_damping"
-    wall = f"hooke/history {K} {K} {_f(gamma_wall)} 0.0 {_f(MU_WALL)} 0{limit}"
-    pair = f"gran/hooke/history {K} {K} {_f(gamma_grain)} 0.0 {_f(MU_GRAIN)} 0{limit}"
+    wall = f"hooke/history {K} {_f(KS)} {_f(gamma_wall)} 0.0 {_f(MU_WALL)} 0{limit}"
+    pair = f"gran/hooke/history {K} {_f(KS)} {_f(gamma_grain)} 0.0 {_f(MU_GRAIN)} 0{limit}"
     if hertz:  # frictionless and undamped: the elastic normal law alone
         wall = f"hertz/history {_f(HERTZ_KN)} {_f(HERTZ_KN)} 0.0 0.0 0.0 0"
         pair = f"gran/{wall}"
