@@ -536,20 +536,31 @@ def test_a_window_cut_short_by_the_phase_is_reported_as_cut(synth):
     assert not [row for row in a.numbers if row[0].startswith("averaging window during")]
 
 
-def test_a_settling_short_of_the_window_by_less_than_a_sample_interval_cuts_nothing(synth):
+@pytest.mark.parametrize("settled_for, first, cut", [
+    (0.99976, 4.0202, False),  # one time step short: no sample lost, the window whole
+    (0.5, 4.51, True),         # half the window: cut to its samples
+    (0.99976, 4.3, True)])     # whole settling, samples missing (a resume): cut to them
+def test_a_settling_short_of_the_window_by_less_than_a_sample_interval_cuts_nothing(
+        settled_for, first, cut):
     """Settling that lasted 0.99976 s against a 1 s window (one time step short) lost no
-    sample, yet its first sample lay a fraction of a step more than an interval inside the
-    window, and the report called the window cut short. With the events' settle_time the
-    rule is the settling's length: short by more than a sample interval (1/16 s here) cuts
-    the window to its samples, by less keeps it whole."""
-    from silodem.report.analysis import _window_masks
+    sample, yet its first sample lay a fraction of a step more than the 0.02 s interval
+    inside the window, and the report called the window cut short. The gate opens at 5 s;
+    samples every 84 steps of 2.38e-4 s (0.019995 s) from ``first``. The window is cut to its
+    samples where settling was shorter than the window by more than an interval, or where
+    its samples begin more than an interval after the settling did."""
+    import types
 
-    a, _ = synth
-    for settled_for, start in ((WINDOW - 0.5 / 16, T_OPEN - WINDOW),
-                               (WINDOW - 1.5 / 16, T_MEAS[FILL_K[0]])):
-        res = copy.copy(a.res)
-        res.events = {**a.res.events, "settle_time": settled_for}
-        assert _window_masks(res)[1]["fill"] == (start, T_OPEN)
+    from silodem.report.analysis import DISCHARGE, SETTLE, _window_masks
+
+    t = np.concatenate([np.arange(first, 5.0 + 1e-9, 0.019995), [5.3, 5.5, 6.0]])
+    phase = np.where(t <= 5.0, SETTLE, DISCHARGE)
+    measure = {"time": t, "phase": phase, "@attrs": {"interval": 0.02}}
+    res = types.SimpleNamespace(
+        cfg=types.SimpleNamespace(measure=types.SimpleNamespace(window=1.0, interval=0.02,
+                                                                discharge_delay=0.5)),
+        events={"discharge_start_time": 5.0, "settle_time": settled_for},
+        group=lambda name: measure if name == "measure" else None)
+    assert _window_masks(res)[1]["fill"] == ((first if cut else 4.0), 5.0)
 
 
 def test_discharge_rate_is_the_slope_of_a_linear_mass_record(synth):
@@ -994,14 +1005,18 @@ def test_a_run_without_discharge_gives_nan_discharge_columns(tmp_path):
                "circle_switch_left_sigma_h_change_pct": NAN})
     assert s["flow_pattern"] == ""
     # the captions that speak of discharge panels say there are none (Figs. 4, 5 and 7 read
-    # "after filling and during discharge"); the others are as they were
-    from silodem.report.html import FIGURES, NO_DISCHARGE
+    # "after filling and during discharge"): of a run without discharge, or of one stopped
+    # before it (discharge enabled, no opening); the others are as they were
+    from silodem.report.html import FIGURES, NO_DISCHARGE, NOT_REACHED
 
-    captions = {spec.name: spec.caption_for(a) for spec in FIGURES}
-    assert captions["fig5_force_network"].endswith("drawn to the wall." + NO_DISCHARGE)
-    assert not captions["fig3b_vertical_filling"].endswith(NO_DISCHARGE)
+    disabled = analyse(res)
+    for b, note in ((disabled, NO_DISCHARGE), (a, NOT_REACHED)):
+        captions = {spec.name: spec.caption_for(b) for spec in FIGURES}
+        assert captions["fig5_force_network"].endswith("drawn to the wall." + note)
+        assert not captions["fig3b_vertical_filling"].endswith(note)
     full = analyse(load_results(write_synthetic(tmp_path / "full")))
-    assert not any(spec.caption_for(full).endswith(NO_DISCHARGE) for spec in FIGURES)
+    assert not any(spec.caption_for(full).endswith((NO_DISCHARGE, NOT_REACHED))
+                   for spec in FIGURES)
 
 
 def test_an_empty_fill_window_gives_nan_fill_columns(tmp_path):
@@ -1534,6 +1549,10 @@ def test_the_tenths_outside_their_chance_band_are_named_with_their_own_band():
 
     r = np.sort(np.repeat([0.08, 0.12], 200))
     c = discharge_composition(np.arange(400.0), r)
+    # by hand: the fill's d_m = 2 (0.08^3 + 0.12^3) / (0.08^2 + 0.12^2) = 0.21538 m; the
+    # small grains, 30.8 % of the mass, make the first three tenths: 0.16 / 0.21538 = 0.743
+    assert c.diameter_ratio[0] == pytest.approx(0.16 / (2 * 0.00224 / 0.0208), rel=1e-12)
+    assert "tenth 1 (0.743, its band " in _chance_words(c)
     out = [k for k in range(10)
            if not c.chance_lo[k] <= c.diameter_ratio[k] <= c.chance_hi[k]]
     assert len(out) >= 4  # (the case this test is about: more than three to name)

@@ -542,7 +542,8 @@ def test_a_grain_pushed_under_the_floor_after_the_gate_opens_is_lost_not_dischar
     assert flow.lost_later.sum() == 1
 
 
-def test_a_grain_outside_the_silo_when_the_gate_opens_is_lost_wherever_it_falls(monkeypatch):
+def test_a_grain_outside_the_silo_when_the_gate_opens_is_lost_wherever_it_falls(monkeypatch,
+                                                                                tmp_path):
     """A grain pushed under the floor while filling (here: put under the left hopper wall,
     beside the outlet's span and its room, as the gate opens) may slide under the floor into
     the outlet's span and fall out there (here: put below the removal height under the
@@ -555,11 +556,13 @@ def test_a_grain_outside_the_silo_when_the_gate_opens_is_lost_wherever_it_falls(
     cfg = small()
     run = SiloRun(cfg, recorders=recorders_for(cfg))
     shape, p, room = run.shape, run.sim.particles, outlet_room(cfg)
-    begin = run._begin
+    from silodem.silo import procedure
+
+    snapshot = procedure.take_snapshot
     moved = {}
 
-    def push_one_out_then_begin(phase):
-        if phase == "discharge":
+    def push_one_out_then_snapshot(silo_run):  # (the settled snapshot is taken at the opening)
+        if not moved:
             k = 0
             moved["uid"], moved["mass"] = int(p.view("uid")[k]), float(p.view("mass")[k])
             p.view("x")[k] = shape.outlet_left - room - cfg.material.radius_max
@@ -567,13 +570,30 @@ def test_a_grain_outside_the_silo_when_the_gate_opens_is_lost_wherever_it_falls(
             for name in ("vx", "vy", "omega"):
                 p.view(name)[k] = 0.0
             run.sim.invalidate()
-        begin(phase)
+        return snapshot(silo_run)
 
-    monkeypatch.setattr(run, "_begin", push_one_out_then_begin)
+    monkeypatch.setattr(procedure, "take_snapshot", push_one_out_then_snapshot)
     while run.phase != "discharge":
         run.advance_chunk()
     assert run.state.pushed_out == [moved["uid"]]
     assert run.events.get("lost_count", 0) == 0 and run.discharged_count == 0
+    # a checkpoint keeps the list; one written before it was kept gets it back from the
+    # settled snapshot, taken at the opening (an empty list counted the grain discharged)
+    import h5py
+
+    from silodem.checkpoint import read_checkpoint, save_checkpoint
+    from silodem.scenario_files import config_to_toml
+
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(run, path, config_toml=config_to_toml(cfg), reason="test")
+    resumed = SiloRun(cfg, recorders=recorders_for(cfg))
+    read_checkpoint(path).restore(resumed)
+    assert resumed.state.pushed_out == [moved["uid"]]
+    with h5py.File(path, "r+") as h5:
+        del h5["run/state/pushed_out"]
+    older = SiloRun(cfg, recorders=recorders_for(cfg))
+    read_checkpoint(path).restore(older)
+    assert older.state.pushed_out == [moved["uid"]]
     k = int(np.flatnonzero(p.view("uid") == moved["uid"])[0])
     p.view("x")[k] = 0.5 * (shape.outlet_left + shape.outlet_right)  # slid under the outlet
     p.view("y")[k] = run.z_remove - 0.1  # and fell below the removal height

@@ -518,10 +518,16 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     # a [set] value that no run can have is put on [set], not on the first grid point; a
     # list there is one the grid should have had
     (TINY.replace('[set]\n', '[set]\n"silo.wall_height" = 1.0\n'),
-     ["bad.toml, [set] (every run): silo.wall_height (1.0) must exceed the hopper height"]),
+     [("bad.toml, [set] (it fails with the base alone): silo.wall_height (1.0) must exceed "
+       "the hopper height")]),
     (TINY.replace('[set]\n', '[set]\n"walls.friction_deg" = [20.0, 30.0]\n'),
-     [("[set] (every run): walls.friction_deg: Input should be a valid number (got [20.0, "
-      "30.0]); a list of values to run goes in [grid], not [set] (walls.friction_deg)")]),
+     [("[set] (it fails with the base alone): walls.friction_deg: Input should be a valid "
+       "number (got [20.0, 30.0]); a list of values to run goes in [grid], not [set] "
+       "(walls.friction_deg)")]),
+    # a list field's bad list gets no such hint
+    (TINY.replace('[set]\n', '[set]\n"material.radius_distribution" = "discrete"\n'
+                  '"material.radii" = [0.08, -0.12]\n'),
+     ["[set] (it fails with the base alone): material.radii"]),
     # a list inside a grid's list is quoted (its label, 'phiG=30 deg', looked valid)
     (TINY.replace("[20.0, 30.0]", "[20.0, [30.0]]"),
      [("run phiG=30 deg, seed 3: material.friction_deg: Input should be a valid number (got "

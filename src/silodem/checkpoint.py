@@ -318,6 +318,13 @@ class LoadedCheckpoint:
         run.events = json.loads(r["events"])
         run.warnings = list(r["warnings"])
         run.snapshots = {name: Snapshot(**snap) for name, snap in r["snapshots"].items()}
+        settled = run.snapshots.get("settled")
+        if "pushed_out" not in r["state"] and run.state.phase == "discharge" \
+                and settled is not None:  # a checkpoint from before the list was kept: the
+            # grains outside at the opening, from the snapshot taken then (an empty list
+            # counted them as discharged once more)
+            g = settled.particles
+            run.state.pushed_out = run.pushed_out_uids(g["x"], g["y"], g["uid"])
         saved = d.get("recorders", {})
         for key, rec in zip(_recorder_keys(run), run.recorders):
             if key in saved:

@@ -142,8 +142,9 @@ def _window_masks(res: Results) -> tuple[dict[str, np.ndarray], dict[str, tuple[
     settled_for = res.events.get("settle_time")  # [s]: a settling shorter than the window
     # by less than a sample interval loses no sample (its first sample can still lie a
     # fraction of a step more than an interval inside: 0.99976 s of settling read "cut short")
-    short = (float(settled_for) < cfg.window - step if settled_for is not None
-             else fill.any() and t[fill].min() > f0 + step)
+    start = f0 if settled_for is None else max(f0, t_open - float(settled_for))
+    short = fill.any() and ((settled_for is not None and float(settled_for) < cfg.window - step)
+                            or t[fill].min() > start + step)  # (or samples missing)
     if fill.any() and short:
         f0 = float(t[fill].min())
     if dwin.any() and t[dwin].max() < d1 - step:

@@ -40,11 +40,13 @@ class FigureSpec:
                   "ended" if unsettled else "the last window of settling")
         text = self.caption.format(**a.labels, fill_window=window)
         if "discharge" in text and "discharge_start_time" not in a.res.events:
-            text += NO_DISCHARGE  # (the captions spoke of discharge panels not drawn)
+            # (the captions spoke of discharge panels not drawn)
+            text += NO_DISCHARGE if not a.res.cfg.discharge.enabled else NOT_REACHED
         return text
 
 
 NO_DISCHARGE = " This run has no discharge: only what comes before it is drawn."
+NOT_REACHED = " The run stopped before its discharge: only what comes before it is drawn."
 
 FIGURES = [
     FigureSpec("fig2_coordination", "Fig. 2",

@@ -398,7 +398,7 @@ def add_numbers(a: Analysis) -> None:
                  f"{_fmt(np.nanmax(c.diameter_ratio), 3)})")
         n.append((label, value + "; " + _chance_words(c), "-"))
     if "beverloo_C" in f:
-        hopper = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
-                  "its slope)" if a.res.cfg.silo.kind == "hopper" else "")
-        n.append((f"Beverloo 2D constant C implied by W (k = 1.5){hopper}",
+        slope = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
+                 "its slope)" if hopper else "")
+        n.append((f"Beverloo 2D constant C implied by W (k = 1.5){slope}",
                   _fmt(f["beverloo_C"], 3), "-"))

@@ -243,8 +243,7 @@ class SiloRun:
             self._begin("discharge")
             self._open_gate()
             p = self.sim.particles
-            out = self.shape.pushed_out(p.view("x"), p.view("y"), outlet_room(self.cfg))
-            st.pushed_out = p.view("uid")[out].tolist()
+            st.pushed_out = self.pushed_out_uids(p.view("x"), p.view("y"), p.view("uid"))
             st.mass0 = self.sim.particles.total_mass()
             st.last_exit = self.sim.time
             self.events["discharge_start_time"] = self.sim.time
@@ -502,6 +501,12 @@ class SiloRun:
         st = self.state
         stayed = st.mass0 - st.lost_mass_discharge
         return st.discharged_mass / stayed if stayed > 0 else 1.0
+
+    def pushed_out_uids(self, x: np.ndarray, y: np.ndarray, uid: np.ndarray) -> list[int]:
+        """The uids of the grains at (x, y) [m] outside the silo (``SiloShape.pushed_out``):
+        at the gate's opening, those lost wherever they fall (``ProcedureState.pushed_out``)."""
+        out = self.shape.pushed_out(x, y, outlet_room(self.cfg))
+        return [int(u) for u in np.asarray(uid)[out]]
 
     def fill_level(self) -> float:
         """Height of the top of the grains in the silo [m] (mean of the 5 highest tops)."""

@@ -221,8 +221,9 @@ def _run_config(bases: dict[str, dict], spec, point: dict[str, Any], seed: int, 
 def _run_error(study: LoadedStudy, bases: dict[str, dict], point: dict[str, Any], seed: int,
                quick: bool, check: bool, message: str) -> str:
     """The line for the run at ``point`` whose config failed with ``message``: put on [set]
-    where the base with [set] alone fails the same way (every run has it: naming the first
-    grid point sent the user through the grid), else on the grid point."""
+    where the base with [set] alone fails the same way (naming the first grid point sent the
+    user through the grid), with a hint where a scalar key got a list there, else on the
+    grid point."""
     alone = {GRID_BASE: point[GRID_BASE]} if GRID_BASE in point else {}
     if study.spec.set and alone != point:
         try:
@@ -230,10 +231,11 @@ def _run_error(study: LoadedStudy, bases: dict[str, dict], point: dict[str, Any]
         except InputError as exc:
             if str(exc) == message:
                 listed = [k for k, v in study.spec.set.items() if isinstance(v, list)
-                          and k in message]
+                          and f"{k}: Input should be a valid" in message]  # (not radii)
                 hint = (f"; a list of values to run goes in [grid], not [set] ({listed[0]})"
                         if listed else "")
-                return f"study {study.source}, [set] (every run): {message}{hint}"
+                return (f"study {study.source}, [set] (it fails with the base alone): "
+                        f"{message}{hint}")
     return f"study {study.source}, run {label_of(point, seed)}: {message}"
 
 
