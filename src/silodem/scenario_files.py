@@ -312,14 +312,6 @@ def _toml_value(value: Any) -> str:
     return tomli_w.dumps({"v": value}).strip()[len("v = ") :]
 
 
-def _inline_value(value: Any) -> str:
-    """``value`` as TOML on one line (tomli_w writes a list over several, with a trailing
-    comma, which in a sentence read 'material.radii = [ 0.08, 0.12, ]')."""
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_inline_value(v) for v in value) + "]"
-    return _toml_value(value)
-
-
 def _field_lines(model: BaseModel, width: int) -> list[str]:
     lines = []
     for name, field in type(model).model_fields.items():
@@ -441,5 +433,7 @@ def changes_from_scenario(cfg: Config) -> tuple[str, list[str]] | None:
         base = quick_variant(base)
     ours = flat_table(cfg.model_dump(), "config")
     theirs = flat_table(base.model_dump(), "config")
-    return base_name, [f"{key} = {'unset' if value is None else _inline_value(value)}"
+    # errors.format_value: TOML on one line (tomli_w spreads a list over several lines, with
+    # a trailing comma, which in a sentence read 'material.radii = [ 0.08, 0.12, ]')
+    return base_name, [f"{key} = {'unset' if value is None else format_value(value, 10**6)}"
                        for key, value in ours.items() if theirs.get(key) != value]

@@ -215,7 +215,8 @@ def random_order_band(r: npt.ArrayLike, parts: int, fill_d: float,
         s = rng.permutation(r)
         part = _share_index(s, parts)
         ratios.append(_share_ratios(s, part, parts, fill_d))
-        shares.append(_size_shares(s, part, parts, sizes))
+        if sizes.size:  # (a mixture of a few sizes)
+            shares.append(_size_shares(s, part, parts, sizes))
     lo, hi = np.nanpercentile(np.array(ratios), [5.0, 95.0], axis=0)
     if not sizes.size:
         return lo, hi, np.zeros((parts, 0)), np.zeros((parts, 0))
