@@ -179,6 +179,29 @@ def test_grain_over_the_joint_of_two_floor_pieces_rests_on_them(offset):
     assert np.count_nonzero(sim.neighbors.wc_fn) == 1
 
 
+def test_a_floor_end_left_by_a_sliding_gate_is_a_contact_point_again():
+    """A gate joined to the end of a floor slides away: the floor's end, a joint while they
+    met (no cap), is a free end afterwards, and a grain over it is pushed by it as by any
+    end point, k (r - d) along the line from it (d: the centre's distance to the end)."""
+    r, k = 0.1, 1e6
+    w = Walls()
+    w.add("floor", (-1.0, 0.0), (0.0, 0.0), k, k, 0.3, one_sided=True)
+    w.add("gate", (0.0, 0.0), (1.0, 0.0), k, k, 0.3, velocity=(1.0, 0.0), one_sided=True)
+    p = Particles(1)
+    p.add(5.0, 5.0, r, 1000.0)  # far from the walls while the gate moves
+    sim = Simulation(p, w, law(k, zeta=0.3), dt=1e-4, gravity=0.0, skin=0.02)
+    sim.run(5_000)  # the gate is 0.5 m away
+    w.vx[1] = 0.0
+    cx, cy = 0.05, 0.06  # over the floor's end, off the floor's face (x > 0)
+    p.x[0], p.y[0] = cx, cy
+    sim.invalidate()
+    sim.run(1)
+    d = math.hypot(cx, cy)
+    assert np.count_nonzero(sim.neighbors.wc_fn) == 1
+    assert np.hypot(sim.neighbors.wc_fx, sim.neighbors.wc_fy).sum() == pytest.approx(
+        k * (r - d), rel=1e-9)
+
+
 def _corner_offset(a: float, dist: float) -> tuple[float, float]:
     """A point at distance ``dist`` outside the block, parametrised by ``a``: the corner wedge
     for 0 <= a <= 90 deg, the floor face (x < 0) above 90, the outlet face (y < 0) below 0."""

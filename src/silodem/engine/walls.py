@@ -18,7 +18,7 @@ over (a LAMMPS region keeps one contact per region).
 
 Walls are never deleted, only deactivated (the gate under the outlet is withdrawn that way),
 so a wall's index is permanent and contact history can be keyed on it.  A wall may translate
-with a constant velocity ``(vx, vy)`` [m/s].
+with a constant velocity ``(vx, vy)`` [m/s]; the joints, and so the caps, follow it.
 
 A one-sided wall has an inside: the left of the direction A -> B.  Its face pushes grains
 towards the inside even when a grain's centre has been pressed past the line (soft contacts,
@@ -58,6 +58,9 @@ class Walls:
         # per wall: the guards of ends a (columns 0, 1) and b (2, 3); zero for a free end
         self.guard = np.zeros((0, 4))
         self.one_sided = np.zeros(0, dtype=np.bool_)
+        # which end points of active walls coincide, as the caps were last set from
+        # (``joint_map``): a moving wall that meets or leaves a joint sets them again
+        self.joints = np.zeros((0, 0), dtype=np.bool_)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -120,6 +123,15 @@ class Walls:
                 cap, guard = self._cap(w, which, ends)
                 (self.cap_a if which == 0 else self.cap_b)[w] = cap
                 self.guard[w, 2 * which:2 * which + 2] = guard
+        self.joints = self.joint_map(ends)
+
+    def joint_map(self, ends: np.ndarray | None = None) -> np.ndarray:
+        """Which end points of active walls coincide (within ``_JOIN_TOL``), shape
+        (2 W, 2 W) over the ends (a of wall 0, b of wall 0, a of wall 1, ...)."""
+        ends = (self._ends() if ends is None else ends).reshape(-1, 2)
+        on = np.repeat(self.active, 2)
+        near = np.abs(ends[:, None, :] - ends[None, :, :]).max(axis=2) < _JOIN_TOL
+        return near & on[:, None] & on[None, :]
 
     def _ends(self) -> np.ndarray:
         """The end points, shape (wall, end a / b, x / y) [m]."""
@@ -175,7 +187,9 @@ class Walls:
         return bool(np.any(self.vx) or np.any(self.vy))
 
     def advance(self, dt: float) -> float:
-        """Move the walls by velocity*dt; return the largest displacement [m]."""
+        """Move the walls by velocity*dt; return the largest displacement [m].  A wall that
+        leaves a joint frees its neighbour's end (capped again), one that meets another's end
+        joins it: the caps are set again whenever the joints change."""
         if not self.moving():
             return 0.0
         dx, dy = self.vx * dt, self.vy * dt
@@ -183,6 +197,8 @@ class Walls:
         self.bx += dx
         self.ay += dy
         self.by += dy
+        if not np.array_equal(self.joint_map(), self.joints):
+            self.update_caps()
         return float(np.max(np.hypot(dx, dy)))
 
     @property
