@@ -109,6 +109,11 @@ def test_scenario_takes_dotted_keys_and_quick():
                       r"fill.n_particles 300 -> 108 \(it shrinks the silo after set\)$"):
         small = api.scenario("paper-case2", quick=True, set={"fill.n_particles": 300})
     assert small.fill.n_particles == round(300 * 0.36)  # docs/scenarios.md: 0.36 x the grains
+    # a quick run's config name is not a scenario's: the error says which one it shrank
+    with pytest.raises(InputError, match=r"quick variant of 'paper-case2'; give 'paper-case2' "
+                       r"with --quick \(quick=True"):
+        api.scenario(small.name)
+    assert api.scenario("paper-case2", quick=np.True_) == quick  # numpy's True is True
 
 
 @pytest.mark.parametrize("call", [
@@ -167,6 +172,33 @@ def test_tables_are_the_datasets_of_results_h5(res):
             assert np.array_equal(m[f"band_sigma_{comp}"].to_numpy(), band[:, k],
                                   equal_nan=True), comp
     assert isinstance(ts, pd.DataFrame) and len(ts) > 10
+
+
+def test_tables_start_with_the_documented_columns_and_carry_the_files_units(res):
+    """docs/api.md's column lists lead each table (results.h5 keeps datasets alphabetically:
+    a table began with discharged_mass, or with fn, fs before i, j), and ``attrs["units"]`` is
+    each dataset's ``unit`` attribute as h5py reads it (docs/output.md's units)."""
+    expected_first = {"timeseries": ["time", "phase", "phase_name"],
+                      "particles": ["x", "y", "vx", "vy", "omega", "radius", "uid", "fx", "fy"],
+                      "contacts": ["i", "j", "fn", "fs", "fx", "fy"],
+                      "wall_contacts": ["grain", "wall", "fn", "fs", "fx", "fy"]}
+    tables = {"timeseries": (res.timeseries(), "timeseries"),
+              "particles": (res.particles("settled"), "settled/particles"),
+              "contacts": (res.contacts("settled"), "settled/contacts"),
+              "wall_contacts": (res.wall_contacts("settled"), "settled/wall_contacts")}
+    with h5py.File(res.folder / "results.h5", "r") as h5:
+        for name, (df, path) in tables.items():
+            first = expected_first[name]
+            assert list(df.columns[:len(first)]) == first, name
+            for key, dset in h5[path].items():
+                assert df.attrs["units"][key] == dset.attrs["unit"], (name, key)
+    assert res.timeseries().attrs["units"]["time"] == "s"
+    assert res.particles("settled").attrs["units"]["mass"] == "kg"
+    m = res.measurements()
+    assert list(m.columns[:5]) == ["time", "step", "phase", "phase_name", "band_coordination"]
+    assert m.attrs["units"]["band_sigma_zz"] == "Pa" and m.attrs["units"]["time"] == "s"
+    assert res.wall_profile("fill").attrs["units"] == {"z": "m", "sigma_n": "Pa",
+                                                       "tau_down": "Pa", "on_vertical": "-"}
 
 
 def test_the_grains_left_in_the_silo_hold_the_mass_not_discharged(res):
@@ -298,6 +330,12 @@ def _unfinished(parent):
      r"unknown key 'sed' \(did you mean 'seed'\?\)"),
     (lambda r: api.run(r.config.model_copy(update={"material": r.config.material.model_copy(
         update={"friction": 5.0})}), r.folder / "n"), r"unknown key 'material.friction' "),
+    # a set key given to model_copy: the hint was a TOML file's ('write it without quotes')
+    (lambda r: api.run(r.config.model_copy(update={"material.friction_deg": 30.0}),
+                       r.folder / "n"),
+     (r"^unknown key 'material.friction_deg': model_copy\(update=...\) takes the names of one "
+      r"section's fields, not dotted keys; give it as set={'material.friction_deg': ...} to "
+      r"api.scenario, or update={'material': cfg.material.model_copy\(update={...}\)}$")),
     # flags: the string 'no' is truthy, it switched the option on
     (lambda r: api.run(r.config, r.folder / "n", progress="no"), "progress must be True or"),
     (lambda r: study.expand(study.load_study("paper-study"), quick="no"), "quick must be True"),

@@ -64,8 +64,10 @@ def scenario(source: str = "paper-case2", *, quick: bool = False,
     A ``Config`` as ``source`` is refused (InputError), not returned as it is: it is already
     what this returns, ready for :func:`run`, and ``quick`` and ``set`` would be silently left
     out (or, applied, shrink an already quick config twice).  To change a built config, call
-    this again with its scenario name and ``set``, or ``cfg.model_copy(update=...)``, which
-    :func:`run` checks again."""
+    this again with the scenario it came from and ``set`` (a quick config's name ends in
+    ``-quick``: give the scenario's own name with ``quick=True``), or with a run's
+    ``config.toml``, or use ``cfg.model_copy(update=...)``, which :func:`run` checks again
+    (its keys are one section's field names, not dotted keys)."""
     from silodem.scenario_files import (
         _toml_value,
         load_config,
@@ -151,12 +153,36 @@ def open_results(folder: Path | str) -> RunResults:
     return RunResults(load_results(folder))
 
 
+# the columns a table starts with, in this order (results.h5 keeps a group's datasets in
+# alphabetical order); the others follow in the file's order
+_FIRST = ("time", "step", "phase", "phase_name", "grain", "wall", "i", "j", "x", "y", "vx", "vy",
+          "omega", "radius", "uid", "mass", "fn", "fs", "fx", "fy")
+
+
 def _frame(group: dict[str, Any] | None, what: str) -> pd.DataFrame:
+    """The group's 1-D datasets as a DataFrame, ``attrs["units"]`` their units (docs/output.md;
+    datasets' ``unit`` attributes)."""
     if group is None:
         raise InputError(f"this results file has no {what}")
     columns = {k: v for k, v in group.items()
                if not k.startswith("@") and isinstance(v, np.ndarray) and v.ndim == 1}
-    return pd.DataFrame(columns)
+    return _table(columns, dict(group.get("@units", {})))
+
+
+def _table(columns: Mapping[str, Any], units: dict[str, str]) -> pd.DataFrame:
+    """A DataFrame of ``columns``, those named in ``_FIRST`` first, with ``units`` of its
+    columns in ``attrs["units"]``."""
+    first = [k for k in _FIRST if k in columns]
+    df = pd.DataFrame({k: columns[k] for k in [*first, *(k for k in columns if k not in first)]})
+    df.attrs["units"] = {k: u for k, u in units.items() if k in df.columns}
+    return df
+
+
+def _add(df: pd.DataFrame, name: str, values: Any, unit: str, after: str | None = None) -> None:
+    """Put column ``name`` of ``unit`` into ``df`` (after column ``after``, else last)."""
+    at = df.columns.get_loc(after) + 1 if after is not None else len(df.columns)
+    df.insert(at, name, values)
+    df.attrs["units"][name] = unit
 
 
 class RunResults:
@@ -186,7 +212,7 @@ class RunResults:
         """/timeseries: one row per sample (every output.sample_interval), with the phase's
         name in ``phase_name``."""
         df = _frame(self._raw.group("timeseries"), "/timeseries")
-        df["phase_name"] = df["phase"].map(PHASE_NAMES)
+        _add(df, "phase_name", df["phase"].map(PHASE_NAMES), "-", after="phase")
         return df
 
     def _snapshot(self, name: str) -> dict[str, Any]:
@@ -202,7 +228,7 @@ class RunResults:
         fx, fy [N] (resultant contact force), and mass [kg] from the config."""
         df = _frame(self._snapshot(snapshot).get("particles"), f"{snapshot}/particles")
         m = self.config.material
-        df["mass"] = m.density * np.pi * df["radius"] ** 2 * m.thickness
+        _add(df, "mass", m.density * np.pi * df["radius"] ** 2 * m.thickness, "kg")
         return df
 
     def contacts(self, snapshot: str = "final") -> pd.DataFrame:
@@ -224,19 +250,22 @@ class RunResults:
         if m is None:
             raise InputError("this run recorded no measurements (measure recorder absent, or "
                              "no sample)")
-        df = pd.DataFrame({"time": m["time"], "step": m["step"], "phase": m["phase"]})
-        df["phase_name"] = df["phase"].map(PHASE_NAMES)
-        df["band_coordination"] = m["band"]["coordination"]
-        for k, comp in enumerate(("xx", "zz", "xz")):
-            df[f"band_sigma_{comp}"] = m["band"]["stress"][:, k]
+        cols = {"time": m["time"], "step": m["step"], "phase": m["phase"],
+                "phase_name": pd.Series(m["phase"]).map(PHASE_NAMES).to_numpy()}
+        units = {"time": "s", "step": "-", "phase": "-", "phase_name": "-"}
         c = m["circles"]
-        for n, name in enumerate(str(x) for x in c["name"]):
-            df[f"{name}_coordination"] = c["coordination"][:, n]
-            if "porosity" in c:
-                df[f"{name}_porosity"] = c["porosity"][:, n]
+        for region, table, n in (("band", m["band"], None),
+                                 *((str(x), c, n) for n, x in enumerate(c["name"]))):
+            at = (slice(None),) if n is None else (slice(None), n)
+            cols[f"{region}_coordination"] = table["coordination"][at]
+            units[f"{region}_coordination"] = "-"
+            if n is not None and "porosity" in c:
+                cols[f"{region}_porosity"] = c["porosity"][at]
+                units[f"{region}_porosity"] = "-"
             for k, comp in enumerate(("xx", "zz", "xz")):
-                df[f"{name}_sigma_{comp}"] = c["stress"][:, n, k]
-        return df
+                cols[f"{region}_sigma_{comp}"] = table["stress"][(*at, k)]
+                units[f"{region}_sigma_{comp}"] = "Pa"
+        return _table(cols, units)
 
     def analysis(self) -> Analysis:
         """The report's analysis (``silodem.report.analysis.Analysis``), made once."""
@@ -257,11 +286,15 @@ class RunResults:
         if edge is None:
             raise InputError(f"no wall profile for the {window} window (not reached, or no "
                              "measurement sample in it)")
-        return pd.DataFrame({"z": edge.z, "sigma_n": edge.sigma_n, "tau_down": edge.tau_down,
-                             "on_vertical": edge.on_vertical})
+        return _table({"z": edge.z, "sigma_n": edge.sigma_n, "tau_down": edge.tau_down,
+                       "on_vertical": edge.on_vertical},
+                      {"z": "m", "sigma_n": "Pa", "tau_down": "Pa", "on_vertical": "-"})
 
     def numbers(self) -> pd.DataFrame:
-        """The report's key numbers: quantity, value (as the report prints it), unit."""
+        """The report's key numbers: quantity, value (text, as the report prints it: '26,045
+        at z = 0.751 m (hopper wall)'), unit.  To compute with them, take the numbers behind
+        them: :meth:`summary` (``wall_peak_fill``, ``discharge_rate``, ...: docs/sweeps.md)
+        or :meth:`analysis` (``peaks``, ``janssen``, ...: docs/measurements.md)."""
         return pd.DataFrame(self.analysis().numbers, columns=["quantity", "value", "unit"])
 
     def summary(self) -> dict[str, Any]:

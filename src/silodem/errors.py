@@ -60,9 +60,11 @@ def shorten(text: str, limit: int = 60) -> str:
 
 
 def check_flag(value: Any, name: str) -> None:
-    """InputError unless ``value`` is True or False (a string such as 'no' is truthy: it
-    would switch the option on)."""
-    if not isinstance(value, bool):
+    """InputError unless ``value`` is True or False, Python's or numpy's (a string such as 'no'
+    is truthy: it would switch the option on)."""
+    import numpy as np
+
+    if not isinstance(value, bool | np.bool_):
         raise InputError(f"{name} must be True or False; got {short_repr(value)}")
 
 

@@ -113,6 +113,10 @@ def _read_source(source: str) -> dict[str, Any]:
     if source.strip() in files:  # ' paper-case2': the message showed the name without them
         raise InputError(f"unknown scenario {source!r}: it has spaces around the name; did you "
                          f"mean '{source.strip()}'?")
+    base = source.removesuffix(QUICK_SUFFIX)
+    if base != source and base in files:  # a quick run's config name, as in its folder
+        raise InputError(f"unknown scenario {source!r}: it is the quick variant of '{base}'; "
+                         f"give '{base}' with --quick (quick=True in the Python API)")
     hint = did_you_mean(source, files)
     hint_text = f" (did you mean '{hint}'?)" if hint else ""
     raise InputError(
@@ -265,15 +269,24 @@ def revalidated(cfg: Config) -> Config:
     return _validate(data)
 
 
-def _put_strays(model: BaseModel, data: dict[str, Any]) -> None:
+def _put_strays(model: BaseModel, data: dict[str, Any], where: str = "") -> None:
     """Copy into ``data`` (``model``'s dump) the attributes of ``model`` and of its sections
-    that are no fields of theirs, so that validation names them."""
+    that are no fields of theirs, so that validation names them; a dotted one (``update=
+    {"material.kn": ...}``, a ``set`` key given to ``model_copy``) is refused saying how a
+    section's value is changed."""
     fields = type(model).model_fields
     for key, value in vars(model).items():
+        if key not in fields and isinstance(key, str) and "." in key:
+            head = key.split(".", 1)[0]
+            raise InputError(
+                f"unknown key '{where}{shorten(key)}': model_copy(update=...) takes the names "
+                f"of one section's fields, not dotted keys; give it as set={{'{where}"
+                f"{shorten(key)}': ...}} to api.scenario, or update={{'{head}': "
+                f"cfg.{where}{head}.model_copy(update={{...}})}}")
         if key not in fields:
             data[key] = value
         elif isinstance(value, BaseModel) and isinstance(data.get(key), dict):
-            _put_strays(value, data[key])
+            _put_strays(value, data[key], f"{where}{key}.")
 
 
 def load_config(source: str, sets: Iterable[str] = (), flag: str = "--set") -> Config:

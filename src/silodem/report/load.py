@@ -16,22 +16,28 @@ from silodem.scenario_files import config_from_text
 
 def _tree(group, only: tuple[str, ...] | None = None,
           skip: tuple[str, ...] = ()) -> dict[str, Any]:
-    """A nested dict of an HDF5 group: datasets as NumPy arrays, attributes under '@attrs'
-    (of the members named ``only``, if given; never of those named ``skip``)."""
+    """A nested dict of an HDF5 group: datasets as NumPy arrays, attributes under '@attrs',
+    the datasets' ``unit`` attributes under '@units' (of the members named ``only``, if
+    given; never of those named ``skip``)."""
     import h5py
 
     out: dict[str, Any] = {"@attrs": {k: _plain(v) for k, v in group.attrs.items()}}
+    units: dict[str, str] = {}
     for key, item in group.items():
         if key in skip or (only is not None and key not in only):
             continue
         if isinstance(item, h5py.Group):
             out[key] = _tree(item)
         else:
+            if "unit" in item.attrs:
+                units[key] = str(_plain(item.attrs["unit"]))
             data = item[()]
             if item.dtype.kind in "OS":
                 data = np.array([d.decode() if isinstance(d, bytes) else str(d)
                                  for d in np.atleast_1d(data)])
             out[key] = data
+    if units:
+        out["@units"] = units
     return out
 
 
