@@ -771,6 +771,10 @@ def test_a_checkpoint_with_wrong_contents_is_refused_in_one_line(uninterrupted, 
                     reason="test")
     with h5py.File(path, "r+") as h5:
         damage(h5)
+    with pytest.raises(CheckpointError, match="has changed on disk since it was written"):
+        read_checkpoint(path)  # the digest of its numbers and texts sees every such edit
+    with h5py.File(path, "r+") as h5:  # without it (an older file), the contents' checks do
+        del h5.attrs["plain_sha256"]
     with pytest.raises(CheckpointError) as exc:
         read_checkpoint(path).restore(SiloRun(quick_config()))
     assert "\n" not in str(exc.value) and needle in str(exc.value), exc.value
@@ -800,6 +804,37 @@ def test_bytes_changed_on_disk_in_a_checkpoints_arrays_are_refused(uninterrupted
                                    "to start the run again)")
 
 
+@pytest.mark.parametrize("name", ["simulation/dt", "simulation/time", "config_toml",
+                                  "run/rng", "run/state/phase"])
+def test_bytes_changed_on_disk_in_a_checkpoints_numbers_and_texts_are_refused(
+        uninterrupted, tmp_path, name):
+    """One bit of the time step, the clock, the config, the random generator's state or the
+    phase flipped on disk was resumed from without a word (scalars and texts cannot carry
+    Fletcher-32; a flipped dt ran on with another time step, an audit): the SHA-256 over
+    them refuses the file in one line."""
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(quick_config()),
+                    reason="test")
+    with h5py.File(path, "r") as h5:
+        ds = h5[name]
+        assert not ds.fletcher32
+        if ds.dtype.kind == "O":  # a variable-length string: its bytes lie in the global heap
+            text = ds[()]
+            at = path.read_bytes().index(text[: min(len(text), 40)]) + min(len(text), 40) // 2
+        else:
+            at = ds.id.get_offset() + ds.dtype.itemsize - 2  # within the value's bytes
+    with open(path, "r+b") as f:
+        f.seek(at)
+        byte = f.read(1)
+        f.seek(at)
+        f.write(bytes([byte[0] ^ 0x01]))
+    with pytest.raises(CheckpointError) as exc:
+        read_checkpoint(path)
+    assert "\n" not in str(exc.value)
+    assert str(exc.value).endswith("the file is damaged; no run can go on from it (remove it "
+                                   "to start the run again)")
+
+
 def test_a_refused_resume_prints_one_line_and_no_progress_bar(uninterrupted, tmp_path):
     """A checkpoint refused while it is restored (inside the progress bar) printed the bar's
     last state ('start ... compiling kernels...') above the error: stderr is now the error's
@@ -813,6 +848,7 @@ def test_a_refused_resume_prints_one_line_and_no_progress_bar(uninterrupted, tmp
         ax = h5["walls/ax"][()]
         del h5["walls/ax"]
         h5["walls/ax"] = ax[:1]
+        del h5.attrs["plain_sha256"]  # (else refused for the digest, before the restore)
     result = cli("run", "--resume", str(out))
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and "Walls.ax" in result.stderr, result.stderr

@@ -21,12 +21,17 @@ Values are stored as HDF5 datasets: arrays as they are, numbers and booleans as 
 datasets, dicts as groups, other values (strings, lists, None) as JSON text in a string dataset
 (Python's JSON writes floats with the shortest repr that reads back to the same double).  The
 attribute ``silodem_kind`` tells how to read a node back; every value comes back exact.
+HDF5's Fletcher-32 checksum guards each numeric array; the datasets it cannot guard (scalars
+and texts: the time step, the clock, the config, the random generator's state) are guarded by
+a SHA-256 over their names and bytes, the root attribute ``plain_sha256``, so that bytes
+changed on disk anywhere are refused when the checkpoint is read, not resumed from.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import hashlib
 import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -49,6 +54,7 @@ FORMAT = "silodem-checkpoint"
 FORMAT_VERSION = 1
 
 _KIND = "silodem_kind"  # attribute naming how a dataset or group is decoded
+_DIGEST = "plain_sha256"  # root attribute: _plain_digest of the file (absent in older files: not checked)
 _SCALARS = {"bool": bool, "int": int, "float": float}  # scalar datasets -> Python values
 # attributes of the engine objects that are other objects (saved on their own) or derived from
 # the config (rebuilt identically by SiloRun(cfg))
@@ -115,6 +121,26 @@ def put(group: h5py.Group, name: str, value: Any) -> None:
         text = json.dumps(value, default=_json_default)
         ds = group.create_dataset(name, data=text, dtype=h5py.string_dtype())
         ds.attrs[_KIND] = "json"
+
+
+def _plain_digest(h5: h5py.File) -> str:
+    """SHA-256 of the names and bytes of the datasets of ``h5`` that Fletcher-32 does not
+    guard (scalars, texts, empty arrays), in the order of their names."""
+    names: list[str] = []
+    h5.visititems(lambda name, node: names.append(name)
+                  if isinstance(node, h5py.Dataset) and not node.fletcher32 else None)
+    digest = hashlib.sha256()
+    for name in sorted(names):
+        value = h5[name][()]
+        if isinstance(value, np.ndarray) and value.dtype.kind == "O":  # a str_array
+            value = b"\0".join(v if isinstance(v, bytes) else str(v).encode() for v in value)
+        elif isinstance(value, str):
+            value = value.encode()
+        elif not isinstance(value, bytes):
+            value = np.asarray(value).tobytes()
+        digest.update(f"{name}\0{len(value)}\0".encode())
+        digest.update(value)
+    return digest.hexdigest()
 
 
 def get(node: h5py.Group | h5py.Dataset) -> Any:
@@ -252,6 +278,7 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
         recorders = h5.create_group("recorders", track_order=True)
         for key, rec in zip(_recorder_keys(run), run.recorders):
             put(recorders, key, rec.state())
+        h5.attrs[_DIGEST] = _plain_digest(h5)
         h5.flush()
 
 
@@ -388,6 +415,11 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
                     f"silodem {attrs.get('silodem_version')}); this silodem {__version__} reads "
                     f"format {FORMAT_VERSION}")
             data = {key: get(node) for key, node in h5.items()}
+            if _DIGEST in attrs and attrs[_DIGEST] != _plain_digest(h5):
+                raise CheckpointError(
+                    f"{path} has changed on disk since it was written (the checksum of its "
+                    "numbers and texts does not match): the file is damaged; no run can go on "
+                    "from it (remove it to start the run again)")
     except CheckpointError:
         raise
     except Exception as exc:  # noqa: BLE001 - a damaged file fails in h5py in many ways
