@@ -202,6 +202,41 @@ def test_a_signal_saves_a_checkpoint_and_the_run_resumes_bit_identical(sig, refe
         assert (out / "notes.txt").read_text() == "mine"
 
 
+def test_a_refused_resume_changes_nothing_and_an_edited_config_is_named(reference, tmp_path):
+    """A resume refused as its checkpoint was restored (a missing frames segment, in an
+    audit) had removed the run's pictures and rewritten config.toml, and an edit of
+    config.toml before a resume was dropped without a word: the folder is left as it was
+    until the checkpoint is restored, and the resumed run says that it went on with its
+    checkpoint's config, to the same grains."""
+    ref, _ = reference
+    out = tmp_path / "run"
+    proc = start(*run_args(out))
+    signal_when(proc, signal.SIGINT, lambda: (wait_for_file(out / "checkpoint.h5", proc),
+                                              time.sleep(0.2)))
+    assert proc.returncode == 130
+    (out / "report.html").write_text("the run so far")
+    config = out / "config.toml"
+    edited = config.read_text().replace("seed = ", "seed = 1", 1)
+    config.write_text(edited)
+    kept = shutil.copy(out / "checkpoint.h5", tmp_path / "kept.h5")
+    with h5py.File(out / "checkpoint.h5", "r+") as h5:  # refused when it is restored
+        ax = h5["walls/ax"][()]
+        del h5["walls/ax"]
+        h5["walls/ax"] = ax[:1]
+        del h5.attrs["plain_sha256"]
+    refused = cli("run", "--resume", str(out))
+    assert refused.returncode == 2 and "Walls.ax" in refused.stderr, refused.stderr[-2000:]
+    assert (out / "report.html").read_text() == "the run so far"
+    assert config.read_text() == edited
+    shutil.move(kept, out / "checkpoint.h5")
+    result = cli("run", "--resume", str(out))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert (f"config.toml in {out} was changed after the run stopped: a resume goes on with "
+            "the config its checkpoint holds") in result.stderr + result.stdout
+    assert config.read_text() != edited and not (out / "report.html").exists()
+    assert_bit_identical(out / "results.h5", ref, "final/particles")
+
+
 def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_save(reference,
                                                                                  tmp_path):
     """Saves that fail for lack of room (a file-size limit, RLIMIT_FSIZE, fails the writes

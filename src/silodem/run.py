@@ -154,13 +154,13 @@ def _run_in(cfg: Config, out: Path, progress: bool,
     """run_simulation's body, in the folder ``out`` it holds the lock of."""
     from silodem.scenario_files import config_to_toml
 
+    toml_text = config_to_toml(cfg)
+    guard = RunGuard(out, toml_text, cfg, resume_from)
     if resume_from is None:
         clear_previous_run(out)
-    else:  # pictures of the run so far would stay beside the finished run's results
-        remove_pictures(out)
-    toml_text = config_to_toml(cfg)
-    write_text(out / "config.toml", toml_text)
-    guard = RunGuard(out, toml_text, cfg, resume_from)
+        write_text(out / "config.toml", toml_text)
+    else:  # once the checkpoint is restored: a resume it refuses leaves the folder as it was
+        guard.after_restore.append(lambda run: _resumed_in(out, cfg, toml_text, run))
     recorders = [FramesRecorder.from_config(cfg, out), *recorders_for(cfg)]
     t0 = time.perf_counter()
     live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "", "logged": 0.0}
@@ -191,6 +191,27 @@ def _run_in(cfg: Config, out: Path, progress: bool,
         guard.stop_signal = exc.signum
     resumed_at = resume_from.step if resume_from is not None else 0
     return _finish(cfg, guard, run, toml_text, t0, frozenset(live["printed"]), resumed_at)
+
+
+def _resumed_in(out: Path, cfg: Config, toml_text: str, run: SiloRun) -> None:
+    """Ready the folder of a resumed run, its checkpoint restored: remove the pictures of the
+    run so far (they would stay beside the finished run's results), and write config.toml as
+    the checkpoint's config, with a warning when it was edited since (the edit was dropped
+    without a word, an audit): the run goes on with the config of its checkpoint."""
+    from silodem.scenario_files import config_from_text
+
+    remove_pictures(out)
+    path = out / "config.toml"
+    try:
+        edited = config_from_text(path.read_text(encoding="utf-8"), str(path)) != cfg
+    except (OSError, UnicodeDecodeError, InputError):  # removed, or no config any more
+        edited = path.exists()
+    if edited:
+        run.warnings.append(
+            f"config.toml in {out} was changed after the run stopped: a resume goes on with "
+            "the config its checkpoint holds, written to config.toml again (to run the "
+            "edited config, start a new run with a copy of it)")
+    write_text(path, toml_text)
 
 
 def _write_final(guard: RunGuard, run: SiloRun, toml_text: str) -> None:

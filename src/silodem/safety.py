@@ -15,7 +15,7 @@ import signal
 import sys
 import threading
 import time as wallclock
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -81,6 +81,9 @@ class RunGuard:
         self.config_toml = config_toml
         self.settings = cfg.checkpoint
         self.resume_from = resume_from
+        # called with the run once its checkpoint is restored (``drive``): what a resume
+        # changes in the folder waits until the checkpoint is known to be usable
+        self.after_restore: list[Callable[[SiloRun], None]] = []
         self.stop_signal: int | None = None
         self.hard_stop: int | None = None  # a second signal: stop without saving
         self.stopping = False  # the hard stop is on its way out: further signals wait
@@ -108,6 +111,8 @@ class RunGuard:
         """Restore (when resuming), then run to the end; save on the way (module docstring)."""
         if self.resume_from is not None:
             self.resume_from.restore(run)
+            for hook in self.after_restore:
+                hook(run)
         run.chunk_hooks.append(self)
         self.last_step = run.sim.steps
         self.last_wall = wallclock.perf_counter()
