@@ -252,7 +252,8 @@ def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_sav
 
     result = subprocess.run(command(*run_args(out)), preexec_fn=small_files, check=False,
                             capture_output=True, text=True, env=env(), timeout=180)
-    assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
+    # exit code 1: a file-size limit is the machine's, as a full disk is, not bad input (2)
+    assert result.returncode == 1, (result.returncode, result.stderr[-2000:])
     assert "Traceback" not in result.stderr and "Fatal Python error" not in result.stderr
     lines = result.stderr.strip().splitlines()
     last = lines[-1]

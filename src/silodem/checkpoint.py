@@ -54,7 +54,7 @@ FORMAT = "silodem-checkpoint"
 FORMAT_VERSION = 1
 
 _KIND = "silodem_kind"  # attribute naming how a dataset or group is decoded
-_DIGEST = "plain_sha256"  # root attribute: _plain_digest of the file (absent in older files: not checked)
+_DIGEST = "plain_sha256"  # root attribute: _plain_digest of the file (older files: none)
 _SCALARS = {"bool": bool, "int": int, "float": float}  # scalar datasets -> Python values
 # attributes of the engine objects that are other objects (saved on their own) or derived from
 # the config (rebuilt identically by SiloRun(cfg))

@@ -57,7 +57,7 @@ def _interrupted() -> None:
     fail("interrupted", 130)
 
 
-NOT_INPUT = (errno.ENOSPC, errno.EDQUOT, errno.EIO)  # OSErrors of the machine, not the input
+NOT_INPUT = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG)  # the machine's, not the input's
 PATH_FLAGS = ("--out", "-o", "--resume")  # options that take a path
 FOLDER_COMMANDS = ("plot", "animate")  # commands whose argument is a results folder
 

@@ -436,7 +436,7 @@ class NeighborList:
         many = ncx * ncy > CELL_TEST_MAX_CELLS_PER_GRAIN * max(n, 1)
         self.cell_start = np.zeros(0, dtype=INDEX) if many else cell_start.astype(INDEX)
         if self.fast.shape[0] < p.capacity:
-            self.fast = np.empty(p.capacity, dtype=INDEX)
+            self.fast = np.zeros(p.capacity, dtype=INDEX)  # (saved: no stray bytes in a file)
         self.forget_derived()  # expanded on demand (measurements only)
 
         slot = np.full(p.next_uid, -1, dtype=np.int64)
