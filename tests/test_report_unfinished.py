@@ -352,8 +352,8 @@ def test_the_advice_for_an_unstable_a_checkpointless_and_a_study_folder_is_what_
     err = capsys.readouterr().err.strip().splitlines()
     assert exc.value.code == 2 and len(err) == 1
     assert err[0].endswith(f"the run in {bare} stopped (interrupted) with no checkpoint.h5 to "
-                           "go on from (checkpoint.enabled false, or none written yet): it "
-                           "cannot be resumed; start it again")
+                           "go on from (checkpoint.enabled false, none written yet, or the "
+                           "file removed): it cannot be resumed; start it again")
 
     with h5py.File(bare / "results.h5", "r+") as h5:  # a run still going, or killed
         h5.attrs["status"] = "running"

@@ -394,8 +394,8 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
             if status is not None:  # a run's results.h5, stopped, with no checkpoint kept
                 raise CheckpointError(f"the run in {where} stopped ({status}) with no "
                                       f"{CHECKPOINT_NAME} to go on from (checkpoint.enabled "
-                                      "false, or none written yet): it cannot be resumed; "
-                                      "start it again")
+                                      "false, none written yet, or the file removed): it "
+                                      "cannot be resumed; start it again")
             raise CheckpointError(f"no {CHECKPOINT_NAME} in {where}: nothing to resume (give the "
                                   "results folder of an interrupted run)")
     elif where.exists():
