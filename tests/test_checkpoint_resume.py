@@ -600,6 +600,42 @@ def test_a_run_given_its_folders_own_config_rewrites_it_only_as_it_was(tmp_path,
     check_config_kept(str(out / "config.toml"), tmp_path / "elsewhere", cfg)  # another file
 
 
+def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, capsys):
+    """silodem run paper-case2 --out DIR wrote over DIR/config.toml, a file of the user's own
+    with no run's results beside it, without a word (an audit); a study's folder was taken as
+    a run's. Both refused in one line, the files kept; the config a run stopped before its
+    first save wrote, with this run's values, is replaced as before; so is an earlier
+    run's, whatever its values (its results go with it)."""
+    from silodem import api
+    from silodem.cli import main
+    from silodem.errors import InputError
+    from silodem.run_folder import check_config_kept
+    from silodem.scenario_files import config_to_toml, load_config
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    mine = "# my own notes\nimportant = true\n"
+    (out / "config.toml").write_text(mine, encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "paper-case2", "--quick", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert "holds a config.toml with no run's results beside it" in err
+    assert (out / "config.toml").read_text(encoding="utf-8") == mine
+    cfg = load_config("paper-case2")
+    with pytest.raises(InputError, match="holds a config.toml with no run's results"):
+        api.run(cfg, out)
+    (out / "config.toml").write_text(config_to_toml(cfg), encoding="utf-8")
+    check_config_kept("paper-case2", out, cfg)  # the same values: a run's, stopped early
+    with pytest.raises(InputError, match="holds a config.toml with no run's results"):
+        check_config_kept("paper-case2", out, load_config("paper-case2", ["seed=3"]))
+    study = tmp_path / "study"
+    (study / "runs").mkdir(parents=True)
+    (study / "study.toml").write_text("# a study\n")
+    with pytest.raises(InputError, match=r"is a study's folder \(study.toml\)"):
+        check_config_kept("paper-case2", study, cfg)
+
+
 def test_a_run_over_an_earlier_run_says_it_replaces_it(tmp_path):
     out = tmp_path / "run"
     first = cli(*run_args(out))

@@ -120,7 +120,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     not issued again (the final count of grains lost is).  A finished run's results already
     in ``out`` are replaced, which a SilodemWarning says before the run starts."""
     from silodem.run import check_out, check_threads, run_simulation
-    from silodem.run_folder import replacing_note
+    from silodem.run_folder import check_config_kept, replacing_note
     from silodem.scenario_files import revalidated
     from silodem.silo.checks import check_numbers
 
@@ -136,6 +136,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
+    check_config_kept(None, folder, cfg)  # nor over a config.toml of the user's
     replacing = replacing_note(folder)  # nor over files no silodem run wrote
     if replacing is not None:  # (the command line prints it on stderr: cli/commands_run.py)
         _warnings.warn(replacing, SilodemWarning, stacklevel=2)

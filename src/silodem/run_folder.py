@@ -113,31 +113,46 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
     return True
 
 
-def check_config_kept(source: str, out: Path, cfg: Any, flag: str = "--out") -> None:
-    """InputError when the config file given (``source``, as the command line took it) is
-    ``out``'s own config.toml and the run would replace it with something else: a file not
+def check_config_kept(source: str | None, out: Path, cfg: Any, flag: str = "--out") -> None:
+    """InputError when the run would replace ``out``'s config.toml with something else, where
+    that file is not an earlier run's (beside its results, :func:`_a_runs_record`): a file not
     written by silodem (no ``config_to_toml`` header: its comments and layout would go), or one
-    whose values differ from the run's config ``cfg`` (``--set``, ``--quick``).  A run rewrote
-    the very file it was given without a word.  A config a run wrote there, run again as it
-    is, passes, also one written by another version (its comments' words may differ)."""
+    whose values differ from the run's config ``cfg`` (``--set``, ``--quick``, another
+    scenario).  A run rewrote the very file it was given (``source``, as the command line took
+    it; None from the API) without a word, and a user's own config.toml in the folder given
+    as ``--out``.  A config a run wrote there, run again as it is, passes, also one written by
+    another version (its comments' words may differ).  A study's folder is refused: its runs
+    have folders of their own, under runs/."""
     from silodem.scenario_files import CONFIG_HEADER, load_config
 
-    given, target = Path(source), out / "config.toml"
+    target = out / "config.toml"
+    if (out / "study.toml").is_file():  # ('silodem sweep --out' made it)
+        raise InputError(f"{flag} {out} is a study's folder (study.toml): a run there would mix "
+                         "its files with the study's; give another folder")
     try:
-        if not (given.is_file() and target.is_file() and given.samefile(target)):
+        if not target.is_file():
             return
-        kept = given.read_text(encoding="utf-8").startswith(CONFIG_HEADER)
+        given = source is not None and Path(source).is_file() and Path(source).samefile(target)
+        if not given and _a_runs_record(out):  # an earlier run's: replaced with its results
+            return
+        kept = target.read_text(encoding="utf-8").startswith(CONFIG_HEADER)
     except (OSError, UnicodeDecodeError, ValueError):
         return
     if kept:
         try:
-            kept = load_config(str(given)).model_dump() == cfg.model_dump()
+            kept = load_config(str(target)).model_dump() == cfg.model_dump()
         except InputError:
             kept = False
-    if not kept:
+    if kept:
+        return
+    if given:
         raise InputError(f"{flag} {out}: the config given, {source}, is that folder's "
                          "config.toml, which the run replaces with its resolved config; copy "
                          "it and run the copy, or give another --out")
+    raise InputError(f"{flag} {out} holds a config.toml with no run's results beside it (a "
+                     "file of your own, or a run's stopped before its first save) and other "
+                     "values than this run's, which the run would write over; give a new or "
+                     "empty folder, or move that file")
 
 
 def replacing_note(out: Path, flag: str = "out") -> str | None:
