@@ -380,16 +380,20 @@ def test_out_pointing_at_a_file_is_refused(capsys, tmp_path):
                  "is a file, not a folder")
 
 
-@pytest.mark.parametrize("command", [["run", "--quick"], ["validate", "--quick"]])
+@pytest.mark.parametrize("command", [["run", "--quick"], ["validate", "--quick"],
+                                     ["sweep", "paper-study", "--quick"]])
 @pytest.mark.parametrize("where", ["/proc/silodem-out", "/sys/silodem-out", "name-too-long"])
 def test_out_the_system_will_not_create_is_refused(capsys, tmp_path, command, where):
     """Folders the system refuses even to root (/proc, /sys; os.access says yes there) and a
-    name longer than a file name may be: one line naming --out, before any work."""
+    name longer than a file name may be: one line naming --out, before any work (a sweep
+    announced its plan on stdout first)."""
     out = tmp_path / ("x" * 300) if where == "name-too-long" else Path(where)
-    assert_names(refused(capsys, *command, "--out", str(out)), "--out", "cannot write")
+    assert_names(refused(capsys, *command, "--out", str(out), silent=True), "--out",
+                 "cannot write")
     # the folders above it that the refusal made are gone again (an empty runs/ was left)
     deep = tmp_path / "runs" / "of" / ("x" * 300)
-    assert_names(refused(capsys, *command, "--out", str(deep)), "--out", "cannot write")
+    assert_names(refused(capsys, *command, "--out", str(deep), silent=True), "--out",
+                 "cannot write")
     assert not (tmp_path / "runs").exists()
 
 
@@ -1007,3 +1011,72 @@ def test_waiting_for_workers_says_so_before_the_wait(monkeypatch):
     assert said == [(f"waiting up to 1 s for 2 worker(s) at {cluster.scheduler_address} "
                      "(0 joined so far)")]
     assert "has 0 worker(s), fewer than 2 after 1 s" in str(info.value)
+
+
+@pytest.mark.parametrize("sets, needles", [
+    # 13 of 155 grains poured, then a warning at the end of the run (an audit)
+    (["fill.max_time=1e-300"], ("fill.rate = 250 grains/s pours at most about 25 of the 155",
+                                "fill.max_time = 1e-300 s")),
+    (["fill.rate=1e-9"], ("fill.rate = 1e-09 grains/s pours at most", "fill.n_particles")),
+    # measure/time empty, the circles' and profiles' tables of shape (0, ...)
+    (["measure.interval=1000"], ("measure.interval = 1e+03 s is longer than the whole run",
+                                 "fill.max_time + settle.max_time + discharge.max_time")),
+    # the discharge window never reached; only the report said so
+    (["measure.discharge_delay=100"], ("measure.discharge_delay = 100 s is not shorter",
+                                       "than discharge.max_time = 10 s")),
+    # report.html not written: 90 - 1e-300 rounded to 90 deg in the hopper theory; the
+    # height (B - D)/2 tan(theta) = (2.04 - 1.0)/2 x 1.745e-302 m
+    (["silo.hopper_angle_from_horizontal_deg=1e-300"],
+     ("silo.hopper_angle_from_horizontal_deg = 1e-300 gives a hopper 9.08e-303 m high",
+      "give silo.kind = 'flat'")),
+    # every density and stress field value exactly 0
+    (['measure.field_kernel="gaussian"', "measure.field_width=1e-6"],
+     ("measure.field_width = 1e-06 m is less than half the field cell",)),
+])
+def test_values_whose_run_would_leave_its_work_undone_are_refused(capsys, tmp_path, sets,
+                                                                   needles):
+    """Each ran to exit 0 before (an audit) with an empty table, zero fields, a report not
+    written or a pour stopped short; refused in one line before the folder is made."""
+    out = tmp_path / "r"
+    line = refused(capsys, "run", "paper-case2", "--quick", "--out", str(out),
+                   *[arg for s in sets for arg in ("--set", s)])
+    assert_names(line, *needles)
+    assert not out.exists()
+
+
+def test_the_field_width_bound_keeps_the_grids_gaussian_within_3_percent():
+    """The sampled Gaussian's sum over a grid of cells h (times h^2), brute force at the
+    worst offsets: within 3 % of 1 at w = h/2 (the default width, accepted) and 18 % off at
+    0.4 h (refused), as the refusal says; the default passes the check."""
+    import numpy as np
+
+    def worst(w: float) -> float:
+        errors = []
+        for ox in np.linspace(0.0, 0.5, 6):
+            for oz in np.linspace(0.0, 0.5, 6):
+                x, z = np.meshgrid(np.arange(-20, 21) + ox, np.arange(-20, 21) + oz)
+                total = np.exp(-(x * x + z * z) / (2 * w * w)).sum() / (2 * np.pi * w * w)
+                errors.append(abs(total - 1.0))
+        return max(errors)
+
+    assert worst(0.5) < 0.03 and 0.17 < worst(0.4) < 0.19
+    check_numbers(load_config("paper-case2", ['measure.field_kernel="gaussian"']))
+
+
+def test_gravity_too_weak_to_empty_the_silo_is_blamed_on_gravity(capsys):
+    """gravity = 1e-300 m/s^2 blamed discharge.clog_time and asked for 9.4e149 s of it."""
+    line = refused(capsys, "run", "paper-case2", "--quick", "--set", "gravity=1e-300")
+    assert_names(line, "gravity = 1e-300 m/s^2 lets a grain", "discharge.max_time = 10 s",
+                 "give a larger gravity or a longer discharge.max_time")
+
+
+def test_a_study_as_a_studys_base_and_a_long_missing_path_are_named(capsys, tmp_path):
+    """base = "paper-study" said 'unknown scenario (did you mean paper-case2?)' of a name
+    that exists, as a study; a 5,000-character missing path made a 5,100-character line."""
+    study = tmp_path / "s.toml"
+    study.write_text('name = "s"\nbase = "paper-study"\nseeds = [1]\n\n[grid]\n'
+                     '"material.friction_deg" = [20.0, 30.0]\n')
+    assert_names(refused(capsys, "sweep", str(study), "--quick"),
+                 "'paper-study' is a study (a grid of runs), not a scenario")
+    line = refused(capsys, "run", "x" * 5000 + ".toml", "--quick")
+    assert len(line) < 400 and line.startswith("error: file not found: xxx")

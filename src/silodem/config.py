@@ -253,7 +253,7 @@ class Silo(_Strict):
         if self.kind == "hopper" and self.hopper_height >= self.wall_height:
             raise ValueError(
                 f"silo.wall_height ({self.wall_height}) must exceed the hopper height "
-                f"{self.hopper_height:.3f} m given by cell_width, outlet_width and the angle"
+                f"{self.hopper_height:.4g} m given by cell_width, outlet_width and the angle"
             )
         return self
 

@@ -72,20 +72,21 @@ class RunSummary:
         return out
 
 
-def check_out(out: Path, flag: str = "out") -> None:
+def check_out(out: Path, flag: str = "out", *, make: bool = True) -> None:
     """Refuse (InputError) an output folder that is a file, lies under a file, cannot be
     created or written, or holds an unfinished run (a checkpoint.h5, unless the run was stopped
-    as unstable: a new run replaces that one, ``run_folder.ended_unstable``); create it.  ``flag``
-    names it in the message (``--out`` on the command line)."""
+    as unstable: a new run replaces that one, ``run_folder.ended_unstable``); create it (with
+    ``make`` False, only try: the folders made are removed again).  ``flag`` names it in the
+    message (``--out`` on the command line)."""
     try:
-        _check_out_folder(Path(out), flag)
+        _check_out_folder(Path(out), flag, make)
     except OSError as exc:  # a name too long, a system folder (/proc, /sys), ...
         raise InputError(f"{flag} {out}: cannot write a folder there ({exc.strerror})") from None
     except ValueError as exc:  # a NUL character in the path
         raise InputError(f"{flag} {out!r}: not a usable path ({exc})") from None
 
 
-def _check_out_folder(out: Path, flag: str) -> None:
+def _check_out_folder(out: Path, flag: str, make: bool) -> None:
     if out.exists() and not out.is_dir():
         raise InputError(f"{flag} {out} is a file, not a folder; give a folder for the results "
                          "(created if missing)")
@@ -107,10 +108,17 @@ def _check_out_folder(out: Path, flag: str) -> None:
             folder.mkdir()
             made.append(folder)
     except OSError:  # (a name too long: an empty runs/ was left behind)
-        for folder in reversed(made):
-            with contextlib.suppress(OSError):
-                folder.rmdir()
+        _remove(made)
         raise
+    if not make:
+        _remove(made)
+
+
+def _remove(made: list[Path]) -> None:
+    """Remove the empty folders ``made`` (parents first in the list), deepest first."""
+    for folder in reversed(made):
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 def check_threads(threads: int | None, what: str = "threads") -> None:

@@ -107,12 +107,18 @@ def _read_source(source: str) -> dict[str, Any]:
         return parse_toml(files[source].read_text(encoding="utf-8"), f"scenario {source}")
     if source.endswith(".toml") or "/" in source or "\\" in source:
         raise InputError(
-            f"file not found: {source} (give an existing .toml file, or an embedded scenario: "
-            f"{names})"
+            f"file not found: {shorten(source, 200)} (give an existing .toml file, or an "
+            f"embedded scenario: {names})"
         )
     if source.strip() in files:  # ' paper-case2': the message showed the name without them
         raise InputError(f"unknown scenario {source!r}: it has spaces around the name; did you "
                          f"mean '{source.strip()}'?")
+    from silodem.study.spec import study_names
+
+    if source in study_names():  # (a study's base, or 'silodem run paper-study')
+        raise InputError(f"'{source}' is a study (a grid of runs), not a scenario: run it with "
+                         f"'silodem sweep {source}'; a study's base is a scenario or a config "
+                         f"file ({names})")
     base = source.removesuffix(QUICK_SUFFIX)
     if base != source and base in files:  # a quick run's config name, as in its folder
         raise InputError(f"unknown scenario {source!r}: it is the quick variant of '{base}'; "

@@ -212,7 +212,9 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
     the speed of a fall from the top of the walls, that carries a grain more than its radius
     in one step; grains poured at rest without gravity; a clog time shorter than the first
     grain needs to leave (:func:`shortest_clog_time`); a sliding gate that cannot open
-    (:func:`check_gate`); a loose fill with more grains than fit in the silo."""
+    (:func:`check_gate`); a hopper lower than a grain (:func:`check_hopper`); time limits
+    that leave a pour, the measurements or the discharge window undone
+    (:func:`check_schedule`); a loose fill with more grains than fit in the silo."""
     from silodem.silo.geometry import build_walls
 
     law_keys = law_key_names(cfg)
@@ -241,6 +243,7 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
         raise InputError(f"the grain and wall values give a time step of {dt:.3g} s (stability "
                          f"limit {dt_crit:.3g} s), which cannot be used; check {keys}")
     check_sizes(cfg)
+    check_hopper(cfg)
     step = cfg.fill.initial_speed * dt  # a poured grain's travel in one step [m]
     if cfg.fill.method == "pour" and not step <= cfg.material.radius_min:
         raise InputError(
@@ -264,6 +267,12 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
     if cfg.discharge.enabled and not math.isfinite(shortest):
         raise InputError(f"gravity = {cfg.gravity:g} m/s^2 is too weak for a grain to fall out "
                          "of the outlet within any discharge.clog_time; give a larger gravity")
+    if cfg.discharge.enabled and not shortest < cfg.discharge.max_time:  # (1e-300 m/s^2: the
+        # clog_time's message blamed clog_time, asking for 9.4e149 s)
+        raise InputError(f"gravity = {cfg.gravity:.3g} m/s^2 lets a grain at rest in the outlet "
+                         f"fall out only after {shortest:.3g} s, not within discharge.max_time ="
+                         f" {cfg.discharge.max_time:g} s: no grain could leave; give a larger "
+                         "gravity or a longer discharge.max_time")
     if cfg.discharge.enabled and cfg.discharge.clog_time < shortest:
         raise InputError(
             f"discharge.clog_time = {cfg.discharge.clog_time:g} s is shorter than the first "
@@ -272,6 +281,7 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
             f"discharge would be called a clog before any grain left; give at least "
             f"{math.ceil(shortest * 1000.0) / 1000.0:g} s")
     check_gate(cfg, dt)
+    check_schedule(cfg)
     if cfg.fill.method == "loose":  # a fill that cannot fit, refused before anything is written
         from silodem.silo.procedure import loose_sites
 
@@ -321,6 +331,47 @@ def check_gate(cfg: Config, dt: float) -> None:
             "stay clear of the grains resting there, more than "
             f"{GATE_DEEPEST:g} material.radius_min; stiffen the contacts (the overlap "
             "warning's advice) or leave discharge.gate_speed unset")
+
+
+def check_hopper(cfg: Config) -> None:
+    """InputError for a hopper lower than a grain's diameter, 2 material.radius_max: a flat
+    floor in all but name, whose hopper theory (90 - theta from the vertical rounding to 90
+    deg) the report could not draw."""
+    silo, d = cfg.silo, 2.0 * cfg.material.radius_max
+    if silo.kind == "hopper" and not silo.hopper_height >= d:
+        raise InputError(
+            f"silo.hopper_angle_from_horizontal_deg = {silo.hopper_angle_from_horizontal_deg:.3g}"
+            f" gives a hopper {silo.hopper_height:.3g} m high, less than a grain's diameter "
+            f"(2 material.radius_max = {d:.3g} m): that is a flat floor; give silo.kind = "
+            "'flat', or a steeper hopper")
+
+
+def check_schedule(cfg: Config) -> None:
+    """InputError when the time limits leave a phase's work undone whatever happens: a pour
+    whose fill.rate cannot place fill.n_particles before fill.max_time (a batch every
+    ``BATCH_INTERVAL``), a measurement interval longer than the whole run (no sample at all),
+    a discharge measurement window that begins after discharge.max_time.  Each ran to the end
+    and left a warning, an empty table or a report without the discharge."""
+    from silodem.silo.procedure import BATCH_INTERVAL
+
+    f, m, d = cfg.fill, cfg.measure, cfg.discharge
+    placed = f.rate * (f.max_time + 2.0 * BATCH_INTERVAL)  # the most the batches let in
+    if f.method == "pour" and not placed >= f.n_particles:
+        raise InputError(
+            f"fill.rate = {f.rate:.3g} grains/s pours at most about {placed:.3g} of the "
+            f"{f.n_particles} grains (fill.n_particles) in fill.max_time = {f.max_time:.3g} s; "
+            f"give a fill.rate of at least {f.n_particles / f.max_time:.3g} grains/s, a longer "
+            "fill.max_time or fewer grains")
+    total, words = phase_time_limits(cfg)
+    if not m.interval < total:
+        raise InputError(f"measure.interval = {m.interval:.3g} s is longer than the whole run "
+                         f"({total:.3g} s = {words}): not one measurement would be taken; "
+                         f"give a shorter measure.interval")
+    if d.enabled and not m.discharge_delay < d.max_time:
+        raise InputError(f"measure.discharge_delay = {m.discharge_delay:.3g} s is not shorter "
+                         f"than discharge.max_time = {d.max_time:.3g} s: the discharge would "
+                         "end before its measurement window begins; give a shorter "
+                         "measure.discharge_delay or a longer discharge.max_time")
 
 
 def shortest_clog_time(cfg: Config) -> float:
@@ -429,6 +480,13 @@ def check_sizes(cfg: Config) -> None:
                          f"{bins:.3g} bins, more than {MAX_WALL_BINS:.0e}; give a larger "
                          "measure.wall_bin")
     if cfg.measure.field_kernel == "gaussian":
+        if not field_width(cfg) >= 0.5 * field_cell(cfg):
+            raise InputError(
+                f"measure.field_width = {field_width(cfg):.3g} m is less than half the field "
+                f"cell ({field_cell(cfg):.3g} m): the grid's samples of the Gaussian no longer "
+                "add up to a grain's mass (within 3 % at half a cell, 18 % at 0.4 of one; all "
+                "zero for a width far below the cell); give at least "
+                f"{0.5 * field_cell(cfg):.3g} m or a smaller measure.field_cell")
         reach = 2.0 * CUTOFF * field_width(cfg) / field_cell(cfg)  # cells across one kernel
         kernel_cells = reach * reach  # a float product: inf, not an OverflowError, for 1e300
         if not kernel_cells <= MAX_KERNEL_CELLS:
