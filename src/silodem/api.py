@@ -136,8 +136,8 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     check_numbers(cfg)  # values that make no run together: refused before any folder is made
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
-    check_config_kept(None, folder, cfg)  # nor over a config.toml of the user's
     replacing = replacing_note(folder)  # nor over files no silodem run wrote
+    check_config_kept(None, folder, cfg)  # nor over a config.toml of the user's
     if replacing is not None:  # (the command line prints it on stderr: cli/commands_run.py)
         _warnings.warn(replacing, SilodemWarning, stacklevel=2)
     summary = run_simulation(cfg, folder, threads=threads, progress=progress)

@@ -105,11 +105,12 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
     found = _replaced_files(out)
     if not found:
         return False
-    foreign = not ((out / "config.toml").is_file() and _a_runs_record(out))
-    if foreign:
-        raise foreign_files(out, [str(f.relative_to(out)) for f in found], "run",
-                            "no silodem run wrote it (no config.toml and silodem results.h5 "
-                            "there)", flag)
+    has_config = (out / "config.toml").is_file()
+    if not (has_config and _a_runs_record(out)):
+        why = ("no silodem run wrote it (no config.toml and silodem results.h5 there)"
+               if not has_config else "no silodem run wrote it (a config.toml, but no "
+               "results.h5 that silodem wrote, or one too damaged to read)")
+        raise foreign_files(out, [str(f.relative_to(out)) for f in found], "run", why, flag)
     return True
 
 

@@ -156,9 +156,8 @@ def run(
 
     check_not_in_use(out_dir)  # (a run writing there: not 'an unfinished run' to resume)
     check_out(out_dir)
-    check_config_kept(source, out_dir, cfg)
-
     replacing = replacing_note(out_dir, "--out")  # (a finished run was replaced unsaid)
+    check_config_kept(source, out_dir, cfg)
 
     console = Console(soft_wrap=True)
     console.print(f"silodem: running '{cfg.name}' -> {out_dir}", markup=False, highlight=False)
