@@ -447,7 +447,8 @@ class Measure(_Strict):
     )
     field_width: float | None = Field(
         None, gt=0, description="width w (standard deviation) of the Gaussian of "
-        "field_kernel = 'gaussian' [m]; unset: half the field cell"
+        "field_kernel = 'gaussian' [m], at least half the grid's largest cell side (the "
+        "field cell rounded to a whole number across the silo); unset: that half"
     )
     mass_flow_index_threshold: float = Field(
         0.3, gt=0, le=1, description="flow is mass flow when v_wall / v_centre above the "

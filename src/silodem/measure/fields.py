@@ -205,7 +205,7 @@ class FieldsPart:
         self.area_inside = cell_area_inside(shape, self.x_edges, self.z_edges)
         self.thickness = cfg.material.thickness
         self.kernel = cfg.measure.field_kernel
-        self.width = regions.field_width(cfg)
+        self.width = regions.field_width(cfg, shape)
         # what each cell's sums are divided by: its area inside the silo [m^2] (box), or,
         # the Gaussian's being point values, 1 where the cell's centre is inside, else 0
         if self.kernel == "gaussian":

@@ -446,7 +446,13 @@ def check_sizes(cfg: Config) -> None:
     junction band or switch zone taller than the walls: their stresses would be divided by
     areas the silo does not have, and a zone of 1e20 m made the figures fail)."""
     from silodem.measure.gaussian import CUTOFF
-    from silodem.measure.regions import bin_length, field_cell, field_width, grid_cell
+    from silodem.measure.regions import (
+        bin_length,
+        field_cell,
+        field_spacing,
+        field_width,
+        grid_cell,
+    )
     from silodem.silo.procedure import neighbour_skin
 
     shape = silo_shape(cfg)
@@ -480,18 +486,20 @@ def check_sizes(cfg: Config) -> None:
                          f"{bins:.3g} bins, more than {MAX_WALL_BINS:.0e}; give a larger "
                          "measure.wall_bin")
     if cfg.measure.field_kernel == "gaussian":
-        if not field_width(cfg) >= 0.5 * field_cell(cfg):
+        kernel, spacing = field_width(cfg, shape), field_spacing(cfg, shape)
+        if not kernel >= 0.5 * spacing:
             raise InputError(
-                f"measure.field_width = {field_width(cfg):.3g} m is less than half the field "
-                f"cell ({field_cell(cfg):.3g} m): the grid's samples of the Gaussian no longer "
-                "add up to a grain's mass (within 3 % at half a cell, 18 % at 0.4 of one; all "
-                "zero for a width far below the cell); give at least "
-                f"{0.5 * field_cell(cfg):.3g} m or a smaller measure.field_cell")
-        reach = 2.0 * CUTOFF * field_width(cfg) / field_cell(cfg)  # cells across one kernel
+                f"measure.field_width = {kernel:.3g} m is less than half the field grid's "
+                f"largest cell side ({spacing:.3g} m, measure.field_cell rounded to a whole "
+                "number of cells across the silo): the grid's samples of the Gaussian no "
+                "longer add up to a grain's mass (within 3 % at half a cell, 18 % at 0.4 of "
+                f"one; all zero far below); give at least {0.5 * spacing:.3g} m or a smaller "
+                "measure.field_cell")
+        reach = 2.0 * CUTOFF * kernel / field_cell(cfg)  # cells across one kernel
         kernel_cells = reach * reach  # a float product: inf, not an OverflowError, for 1e300
         if not kernel_cells <= MAX_KERNEL_CELLS:
             raise InputError(
-                f"measure.field_width = {field_width(cfg):.3g} m spreads each grain and contact "
+                f"measure.field_width = {kernel:.3g} m spreads each grain and contact "
                 f"over {kernel_cells:.3g} field cells of {field_cell(cfg):.3g} m, more than "
                 f"{MAX_KERNEL_CELLS:.0e} (a slow measurement); give a smaller "
                 "measure.field_width or a larger measure.field_cell")
