@@ -603,9 +603,9 @@ def test_a_run_given_its_folders_own_config_rewrites_it_only_as_it_was(tmp_path,
 def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, capsys):
     """silodem run paper-case2 --out DIR wrote over DIR/config.toml, a file of the user's own
     with no run's results beside it, without a word (an audit); a study's folder was taken as
-    a run's. Both refused in one line, the files kept; the config a run stopped before its
-    first save wrote, with this run's values, is replaced as before; so is an earlier
-    run's, whatever its values (its results go with it)."""
+    a run's (or refused as holding files no run wrote). Both refused in one line, the files
+    kept; a config.toml silodem wrote (a run's stopped before its first save: interrupted
+    while its kernels compiled) is replaced as before, whatever its values."""
     from silodem import api
     from silodem.cli import main
     from silodem.errors import InputError
@@ -620,20 +620,24 @@ def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, cap
         main(["run", "paper-case2", "--quick", "--out", str(out)])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.count("\n") == 1, err
-    assert "holds a config.toml with no run's results beside it" in err
+    assert "holds a config.toml that silodem did not write" in err
     assert (out / "config.toml").read_text(encoding="utf-8") == mine
     cfg = load_config("paper-case2")
-    with pytest.raises(InputError, match="holds a config.toml with no run's results"):
+    with pytest.raises(InputError, match="^out .* holds a config.toml that silodem did not"):
         api.run(cfg, out)
     (out / "config.toml").write_text(config_to_toml(cfg), encoding="utf-8")
-    check_config_kept("paper-case2", out, cfg)  # the same values: a run's, stopped early
-    with pytest.raises(InputError, match="holds a config.toml with no run's results"):
-        check_config_kept("paper-case2", out, load_config("paper-case2", ["seed=3"]))
+    check_config_kept("paper-case2", out, load_config("paper-case2", ["seed=3"]))
     study = tmp_path / "study"
     (study / "runs").mkdir(parents=True)
-    (study / "study.toml").write_text("# a study\n")
-    with pytest.raises(InputError, match=r"is a study's folder \(study.toml\)"):
-        check_config_kept("paper-case2", study, cfg)
+    (study / "figures").mkdir()
+    for name in ("study.toml", "report.html", "results.csv", "figures/ratio.png"):
+        (study / name).write_text("the study's")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "paper-case2", "--quick", "--out", str(study)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert f"--out {study} is a study's folder (study.toml)" in err
+    assert (study / "report.html").read_text() == "the study's"
 
 
 def test_a_run_over_an_earlier_run_says_it_replaces_it(tmp_path):

@@ -334,4 +334,4 @@ def test_elastic_grains_thrown_over_the_walls_are_blamed_on_their_speed(capsys, 
     assert diag["kinetic_energy"] <= diag["energy_bound"]
     assert diag["hints"][0].startswith("the grain flew up out of the silo's open top")
     assert "fill.initial_speed (now 15 m/s)" in diag["hints"][0]
-    assert "material.restitution (now 1)" in diag["hints"][0]
+    assert "make the contacts less elastic (now material.restitution = 1)" in diag["hints"][0]

@@ -137,7 +137,7 @@ def run(cfg: Config, out: Path | str | None = None, *, threads: int | None = Non
     folder = Path(out) if out is not None else Path("runs") / cfg.name
     check_out(folder)  # as the command line: never a file, never over an unfinished run
     replacing = replacing_note(folder)  # nor over files no silodem run wrote
-    check_config_kept(None, folder, cfg)  # nor over a config.toml of the user's
+    check_config_kept(None, folder, cfg, "out")  # nor over a config.toml of the user's
     if replacing is not None:  # (the command line prints it on stderr: cli/commands_run.py)
         _warnings.warn(replacing, SilodemWarning, stacklevel=2)
     summary = run_simulation(cfg, folder, threads=threads, progress=progress)
@@ -157,7 +157,7 @@ def open_results(folder: Path | str) -> RunResults:
 # the columns a table starts with, in this order (results.h5 keeps a group's datasets in
 # alphabetical order); the others follow in the file's order
 _FIRST = ("time", "step", "phase", "phase_name", "grain", "wall", "i", "j", "x", "y", "vx", "vy",
-          "omega", "radius", "uid", "mass", "fn", "fs", "fx", "fy")
+          "omega", "radius", "uid", "fn", "fs", "fx", "fy")
 
 
 def _frame(group: dict[str, Any] | None, what: str) -> pd.DataFrame:
@@ -254,18 +254,20 @@ class RunResults:
         cols = {"time": m["time"], "step": m["step"], "phase": m["phase"],
                 "phase_name": pd.Series(m["phase"]).map(PHASE_NAMES).to_numpy()}
         units = {"time": "s", "step": "-", "phase": "-", "phase_name": "-"}
+
+        def put(name: str, values: np.ndarray, unit: str) -> None:
+            cols[name], units[name] = values, unit
+
+        put("band_coordination", m["band"]["coordination"], "-")
+        for k, comp in enumerate(("xx", "zz", "xz")):
+            put(f"band_sigma_{comp}", m["band"]["stress"][:, k], "Pa")
         c = m["circles"]
-        for region, table, n in (("band", m["band"], None),
-                                 *((str(x), c, n) for n, x in enumerate(c["name"]))):
-            at = (slice(None),) if n is None else (slice(None), n)
-            cols[f"{region}_coordination"] = table["coordination"][at]
-            units[f"{region}_coordination"] = "-"
-            if n is not None and "porosity" in c:
-                cols[f"{region}_porosity"] = c["porosity"][at]
-                units[f"{region}_porosity"] = "-"
+        for n, name in enumerate(str(x) for x in c["name"]):
+            put(f"{name}_coordination", c["coordination"][:, n], "-")
+            if "porosity" in c:
+                put(f"{name}_porosity", c["porosity"][:, n], "-")
             for k, comp in enumerate(("xx", "zz", "xz")):
-                cols[f"{region}_sigma_{comp}"] = table["stress"][(*at, k)]
-                units[f"{region}_sigma_{comp}"] = "Pa"
+                put(f"{name}_sigma_{comp}", c["stress"][:, n, k], "Pa")
         return _table(cols, units)
 
     def analysis(self) -> Analysis:

@@ -24,7 +24,8 @@ attribute ``silodem_kind`` tells how to read a node back; every value comes back
 HDF5's Fletcher-32 checksum guards each numeric array; the datasets it cannot guard (scalars
 and texts: the time step, the clock, the config, the random generator's state) are guarded by
 a SHA-256 over their names and bytes, the root attribute ``plain_sha256``, so that bytes
-changed on disk anywhere are refused when the checkpoint is read, not resumed from.
+changed on disk in any dataset are refused when the checkpoint is read, not resumed from (the
+attributes, which say how far the run went and how a node is read, are not in it).
 """
 
 from __future__ import annotations
@@ -127,8 +128,12 @@ def _plain_digest(h5: h5py.File) -> str:
     """SHA-256 of the names and bytes of the datasets of ``h5`` that Fletcher-32 does not
     guard (scalars, texts, empty arrays), in the order of their names."""
     names: list[str] = []
-    h5.visititems(lambda name, node: names.append(name)
-                  if isinstance(node, h5py.Dataset) and not node.fletcher32 else None)
+
+    def unguarded(name: str, node: h5py.Group | h5py.Dataset) -> None:
+        if isinstance(node, h5py.Dataset) and not node.fletcher32:
+            names.append(name)
+
+    h5.visititems(unguarded)
     digest = hashlib.sha256()
     for name in sorted(names):
         value = h5[name][()]

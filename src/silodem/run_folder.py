@@ -101,7 +101,12 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
     if it holds files of those names that no silodem run wrote (no config.toml and a run's
     own record, :func:`_a_runs_record`, beside them): a user's own results.h5 or figures/*.png
     in a folder given as ``--out`` were deleted without a word, and so were a report.html and
-    figures beside a config.toml of the user's own, with no results.h5."""
+    figures beside a config.toml of the user's own, with no results.h5.  A study's folder
+    (study.toml: 'silodem sweep --out' made it) is refused whatever it holds: its runs have
+    folders of their own, under runs/."""
+    if (out / "study.toml").is_file():
+        raise InputError(f"{flag} {out} is a study's folder (study.toml): a run there would mix "
+                         "its files with the study's; give another folder")
     found = _replaced_files(out)
     if not found:
         return False
@@ -115,45 +120,46 @@ def check_replaceable(out: Path, flag: str = "out") -> bool:
 
 
 def check_config_kept(source: str | None, out: Path, cfg: Any, flag: str = "--out") -> None:
-    """InputError when the run would replace ``out``'s config.toml with something else, where
-    that file is not an earlier run's (beside its results, :func:`_a_runs_record`): a file not
-    written by silodem (no ``config_to_toml`` header: its comments and layout would go), or one
-    whose values differ from the run's config ``cfg`` (``--set``, ``--quick``, another
-    scenario).  A run rewrote the very file it was given (``source``, as the command line took
-    it; None from the API) without a word, and a user's own config.toml in the folder given
-    as ``--out``.  A config a run wrote there, run again as it is, passes, also one written by
-    another version (its comments' words may differ).  A study's folder is refused: its runs
-    have folders of their own, under runs/."""
+    """InputError when the run would replace ``out``'s config.toml, not an earlier run's
+    (beside its results, :func:`_a_runs_record`), with something else:
+
+    * the very file given (``source``, as the command line took it; None from the API), when
+      it is not written by silodem (no ``config_to_toml`` header: its comments and layout
+      would go) or its values differ from the run's config ``cfg`` (``--set``, ``--quick``):
+      a run rewrote the file it was given without a word;
+    * another config.toml that silodem did not write (no header): a user's own file in the
+      folder given as ``--out`` was written over without a word.
+
+    A config a run wrote there, run again as it is, passes, also one written by another
+    version (its comments' words may differ); so does one a run stopped before its first save
+    wrote (a run interrupted while its kernels compiled, run again with other values)."""
     from silodem.scenario_files import CONFIG_HEADER, load_config
 
     target = out / "config.toml"
-    if (out / "study.toml").is_file():  # ('silodem sweep --out' made it)
-        raise InputError(f"{flag} {out} is a study's folder (study.toml): a run there would mix "
-                         "its files with the study's; give another folder")
     try:
         if not target.is_file():
             return
         given = source is not None and Path(source).is_file() and Path(source).samefile(target)
         if not given and _a_runs_record(out):  # an earlier run's: replaced with its results
             return
-        kept = target.read_text(encoding="utf-8").startswith(CONFIG_HEADER)
+        ours = target.read_text(encoding="utf-8").startswith(CONFIG_HEADER)
     except (OSError, UnicodeDecodeError, ValueError):
         return
-    if kept:
-        try:
-            kept = load_config(str(target)).model_dump() == cfg.model_dump()
-        except InputError:
-            kept = False
-    if kept:
+    if not given:
+        if not ours:
+            raise InputError(f"{flag} {out} holds a config.toml that silodem did not write (no "
+                             f"'{CONFIG_HEADER.strip()}' line at its top) and no run's results, "
+                             "which the run would write over; give a new or empty folder, or "
+                             "move that file")
         return
-    if given:
+    try:
+        kept = ours and load_config(str(target)).model_dump() == cfg.model_dump()
+    except InputError:
+        kept = False
+    if not kept:
         raise InputError(f"{flag} {out}: the config given, {source}, is that folder's "
                          "config.toml, which the run replaces with its resolved config; copy "
                          "it and run the copy, or give another --out")
-    raise InputError(f"{flag} {out} holds a config.toml with no run's results beside it (a "
-                     "file of your own, or a run's stopped before its first save) and other "
-                     "values than this run's, which the run would write over; give a new or "
-                     "empty folder, or move that file")
 
 
 def replacing_note(out: Path, flag: str = "out") -> str | None:

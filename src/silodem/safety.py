@@ -84,13 +84,13 @@ def hints(run: SiloRun, problem: Problem, grain: dict[str, Any] | None) -> list[
     if (problem.kind == "outside_domain" and grain is not None and grain["vy"] > 0.0
             and grain["y"] > run.shape.wall_top and p.kinetic_energy() <= energy_bound(run)):
         m = cfg.material
-        damping = (f"material.restitution (now {m.restitution:g})" if m.restitution is not None
-                   else f"material.damping_ratio (now {m.damping_ratio:g})")
+        damping = (f"material.restitution = {m.restitution:g}" if m.restitution is not None
+                   else f"material.damping_ratio = {m.damping_ratio:g}")
+        speed = (f"lower fill.initial_speed (now {cfg.fill.initial_speed:g} m/s) or "
+                 if cfg.fill.method == "pour" else "")
         out.insert(0, "the grain flew up out of the silo's open top, the grains' energy within "
-                      "bounds, as fast and elastic grains do in a stable run: lower "
-                      f"fill.initial_speed (now "
-                      f"{cfg.fill.initial_speed:g} m/s) or make the contacts less elastic "
-                      f"({damping})")
+                      "bounds, as fast and elastic grains do in a stable run: "
+                      f"{speed}make the contacts less elastic (now {damping})")
     return out
 
 

@@ -77,6 +77,7 @@ def sweep(
 
     from silodem.api import SilodemWarning
     from silodem.errors import RunInterrupted, Terminated
+    from silodem.run import check_out as check_out_folder
     from silodem.study import expand, load_study, run_study
     from silodem.study.api import REPLACING
     from silodem.study.cluster import (
@@ -98,8 +99,6 @@ def sweep(
     if scheduler is not None and not scheduler.strip():
         raise InputError("--scheduler needs an address, e.g. tcp://127.0.0.1:8786")
 
-    from silodem.run import check_out as try_out
-
     loaded = load_study(study)
     planned = len(loaded.spec.seeds) * math.prod(len(v) for v in loaded.spec.grid.values())
     if planned >= PLAN_NOTICE_RUNS:  # each run's config is built and checked: ~3 ms a run
@@ -109,11 +108,10 @@ def sweep(
     plan = expand(loaded, quick=quick)
     out_dir = out if out is not None else Path("studies") / (plan.name + ("-quick" if quick
                                                                            else ""))
-    # a folder the system will not make was refused after the plan was said; the study's
-    # folder itself is made when its runs start (not for a scheduler that never answers)
-    try_out(out_dir, "--out", make=False)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"--out {out_dir} is a file, not a folder")
+    # a file, or a folder the system will not make, refused before the plan is said; the
+    # study's folder itself is made when its runs start (not for a scheduler that never
+    # answers)
+    check_out_folder(out_dir, "--out", make=False)
     check_study_folder(out_dir)  # (before anything is said or written)
     where = (f"the Dask scheduler at {scheduler}" if scheduler is not None else
              f"a local cluster of {workers_phrase(workers or default_workers())}")

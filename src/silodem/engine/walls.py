@@ -188,8 +188,9 @@ class Walls:
 
     def advance(self, dt: float) -> float:
         """Move the walls by velocity*dt; return the largest displacement [m].  A wall that
-        leaves a joint frees its neighbour's end (capped again), one that meets another's end
-        joins it: the caps are set again whenever the joints change."""
+        leaves a joint frees its neighbour's end (capped again), and an end that comes within
+        ``_JOIN_TOL`` of another's joins it: the caps are set again whenever the joints
+        change (a gate sliding in its slot under the floor never changes them)."""
         if not self.moving():
             return 0.0
         dx, dy = self.vx * dt, self.vy * dt

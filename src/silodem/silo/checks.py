@@ -212,8 +212,8 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
     the speed of a fall from the top of the walls, that carries a grain more than its radius
     in one step; grains poured at rest without gravity; a clog time shorter than the first
     grain needs to leave (:func:`shortest_clog_time`); a sliding gate that cannot open
-    (:func:`check_gate`); a hopper lower than a grain (:func:`check_hopper`); time limits
-    that leave a pour, the measurements or the discharge window undone
+    (:func:`check_gate`); a hopper too shallow to tell from a floor (:func:`check_hopper`);
+    time limits that leave a pour, the measurements or the discharge window undone
     (:func:`check_schedule`); a loose fill with more grains than fit in the silo."""
     from silodem.silo.geometry import build_walls
 
@@ -334,16 +334,15 @@ def check_gate(cfg: Config, dt: float) -> None:
 
 
 def check_hopper(cfg: Config) -> None:
-    """InputError for a hopper lower than a grain's diameter, 2 material.radius_max: a flat
-    floor in all but name, whose hopper theory (90 - theta from the vertical rounding to 90
-    deg) the report could not draw."""
-    silo, d = cfg.silo, 2.0 * cfg.material.radius_max
-    if silo.kind == "hopper" and not silo.hopper_height >= d:
+    """InputError for a hopper so shallow that its angle from the vertical, 90 - theta,
+    rounds to 90 deg (theta below about 1e-14 deg): a flat floor in all but name, where the
+    hopper theory the report draws does not apply (report.html was not written)."""
+    theta = cfg.silo.hopper_angle_from_horizontal_deg
+    if cfg.silo.kind == "hopper" and not 90.0 - theta < 90.0:
         raise InputError(
-            f"silo.hopper_angle_from_horizontal_deg = {silo.hopper_angle_from_horizontal_deg:.3g}"
-            f" gives a hopper {silo.hopper_height:.3g} m high, less than a grain's diameter "
-            f"(2 material.radius_max = {d:.3g} m): that is a flat floor; give silo.kind = "
-            "'flat', or a steeper hopper")
+            f"silo.hopper_angle_from_horizontal_deg = {theta:.3g} deg cannot be told from a "
+            "flat floor (90 deg - theta, the angle from the vertical, is 90 deg in floating "
+            "point); give silo.kind = 'flat', or a steeper hopper")
 
 
 def check_schedule(cfg: Config) -> None:
@@ -355,7 +354,8 @@ def check_schedule(cfg: Config) -> None:
     from silodem.silo.procedure import BATCH_INTERVAL
 
     f, m, d = cfg.fill, cfg.measure, cfg.discharge
-    placed = f.rate * (f.max_time + 2.0 * BATCH_INTERVAL)  # the most the batches let in
+    allowed = f.rate * (f.max_time + 2.0 * BATCH_INTERVAL)  # what the batches let in at most
+    placed = math.ceil(allowed) if math.isfinite(allowed) else allowed
     if f.method == "pour" and not placed >= f.n_particles:
         raise InputError(
             f"fill.rate = {f.rate:.3g} grains/s pours at most about {placed:.3g} of the "
