@@ -250,6 +250,13 @@ class Silo(_Strict):
                 f"silo.outlet_width ({self.outlet_width}) must be smaller than silo.cell_width "
                 f"({self.cell_width})"
             )
+        theta = self.hopper_angle_from_horizontal_deg
+        if self.kind == "hopper" and not 90.0 - theta < 90.0:  # (the hopper theory's angle
+            # from the vertical would be 90 deg: report.html was not written)
+            raise ValueError(
+                f"silo.hopper_angle_from_horizontal_deg = {theta:.3g} deg cannot be told from a "
+                "flat floor (90 deg - theta, the angle from the vertical, is 90 deg in floating "
+                "point); give silo.kind = 'flat', or a steeper hopper")
         if self.kind == "hopper" and self.hopper_height >= self.wall_height:
             raise ValueError(
                 f"silo.wall_height ({self.wall_height}) must exceed the hopper height "

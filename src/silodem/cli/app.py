@@ -137,12 +137,12 @@ def given(ctx: typer.Context, name: str) -> bool:
     return source is not None and source.name != "DEFAULT"
 
 
-def check_out(out: Path) -> None:
+def check_out(out: Path, *, make: bool = True) -> None:
     """Refuse (InputError) an ``--out`` folder that is a file, cannot be written or holds an
-    unfinished run; create it."""
+    unfinished run; create it (with ``make`` False, only try)."""
     from silodem.run import check_out as check
 
-    check(out, "--out")
+    check(out, "--out", make=make)
 
 
 def fail(message: str, code: int = 2) -> None:

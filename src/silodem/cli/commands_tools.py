@@ -77,7 +77,6 @@ def sweep(
 
     from silodem.api import SilodemWarning
     from silodem.errors import RunInterrupted, Terminated
-    from silodem.run import check_out as check_out_folder
     from silodem.study import expand, load_study, run_study
     from silodem.study.api import REPLACING
     from silodem.study.cluster import (
@@ -111,7 +110,7 @@ def sweep(
     # a file, or a folder the system will not make, refused before the plan is said; the
     # study's folder itself is made when its runs start (not for a scheduler that never
     # answers)
-    check_out_folder(out_dir, "--out", make=False)
+    check_out(out_dir, make=False)
     check_study_folder(out_dir)  # (before anything is said or written)
     where = (f"the Dask scheduler at {scheduler}" if scheduler is not None else
              f"a local cluster of {workers_phrase(workers or default_workers())}")

@@ -58,9 +58,6 @@ class Walls:
         # per wall: the guards of ends a (columns 0, 1) and b (2, 3); zero for a free end
         self.guard = np.zeros((0, 4))
         self.one_sided = np.zeros(0, dtype=np.bool_)
-        # which end points of active walls coincide, as the caps were last set from
-        # (``joint_map``): a moving wall that meets or leaves a joint sets them again
-        self.joints = np.zeros((0, 0), dtype=np.bool_)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -123,12 +120,11 @@ class Walls:
                 cap, guard = self._cap(w, which, ends)
                 (self.cap_a if which == 0 else self.cap_b)[w] = cap
                 self.guard[w, 2 * which:2 * which + 2] = guard
-        self.joints = self.joint_map(ends)
 
-    def joint_map(self, ends: np.ndarray | None = None) -> np.ndarray:
+    def joint_map(self) -> np.ndarray:
         """Which end points of active walls coincide (within ``_JOIN_TOL``), shape
         (2 W, 2 W) over the ends (a of wall 0, b of wall 0, a of wall 1, ...)."""
-        ends = (self._ends() if ends is None else ends).reshape(-1, 2)
+        ends = self._ends().reshape(-1, 2)
         on = np.repeat(self.active, 2)
         near = np.abs(ends[:, None, :] - ends[None, :, :]).max(axis=2) < _JOIN_TOL
         return near & on[:, None] & on[None, :]
@@ -193,12 +189,13 @@ class Walls:
         change (a gate sliding in its slot under the floor never changes them)."""
         if not self.moving():
             return 0.0
+        joints = self.joint_map()
         dx, dy = self.vx * dt, self.vy * dt
         self.ax += dx
         self.bx += dx
         self.ay += dy
         self.by += dy
-        if not np.array_equal(self.joint_map(), self.joints):
+        if not np.array_equal(self.joint_map(), joints):
             self.update_caps()
         return float(np.max(np.hypot(dx, dy)))
 

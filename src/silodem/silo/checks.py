@@ -212,9 +212,9 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
     the speed of a fall from the top of the walls, that carries a grain more than its radius
     in one step; grains poured at rest without gravity; a clog time shorter than the first
     grain needs to leave (:func:`shortest_clog_time`); a sliding gate that cannot open
-    (:func:`check_gate`); a hopper too shallow to tell from a floor (:func:`check_hopper`);
-    time limits that leave a pour, the measurements or the discharge window undone
-    (:func:`check_schedule`); a loose fill with more grains than fit in the silo."""
+    (:func:`check_gate`); time limits that leave a pour, the measurements or the discharge
+    window undone (:func:`check_schedule`); a loose fill with more grains than fit in the
+    silo."""
     from silodem.silo.geometry import build_walls
 
     law_keys = law_key_names(cfg)
@@ -243,7 +243,6 @@ def check_numbers(cfg: Config) -> tuple[float, float]:
         raise InputError(f"the grain and wall values give a time step of {dt:.3g} s (stability "
                          f"limit {dt_crit:.3g} s), which cannot be used; check {keys}")
     check_sizes(cfg)
-    check_hopper(cfg)
     step = cfg.fill.initial_speed * dt  # a poured grain's travel in one step [m]
     if cfg.fill.method == "pour" and not step <= cfg.material.radius_min:
         raise InputError(
@@ -331,18 +330,6 @@ def check_gate(cfg: Config, dt: float) -> None:
             "stay clear of the grains resting there, more than "
             f"{GATE_DEEPEST:g} material.radius_min; stiffen the contacts (the overlap "
             "warning's advice) or leave discharge.gate_speed unset")
-
-
-def check_hopper(cfg: Config) -> None:
-    """InputError for a hopper so shallow that its angle from the vertical, 90 - theta,
-    rounds to 90 deg (theta below about 1e-14 deg): a flat floor in all but name, where the
-    hopper theory the report draws does not apply (report.html was not written)."""
-    theta = cfg.silo.hopper_angle_from_horizontal_deg
-    if cfg.silo.kind == "hopper" and not 90.0 - theta < 90.0:
-        raise InputError(
-            f"silo.hopper_angle_from_horizontal_deg = {theta:.3g} deg cannot be told from a "
-            "flat floor (90 deg - theta, the angle from the vertical, is 90 deg in floating "
-            "point); give silo.kind = 'flat', or a steeper hopper")
 
 
 def check_schedule(cfg: Config) -> None:
