@@ -209,6 +209,21 @@ def test_quick_says_which_set_values_it_changed():
     assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
 
 
+def test_show_says_when_run_would_refuse_the_config(tmp_path):
+    """`show` printed without a word a config that `run` then refused as a combination (a
+    time step above the stability limit is a valid number on its own): it still prints it,
+    to be edited, and says on stderr what `run` would say, with exit code 0."""
+    shown = cli("show", "paper-case2", "--set", "time.dt=1")
+    assert shown.returncode == 0 and "dt = 1.0" in shown.stdout, shown.stderr
+    (tmp_path / "c.toml").write_text(shown.stdout)
+    ran = cli("run", str(tmp_path / "c.toml"), "--out", str(tmp_path / "r"))
+    why = assert_one_line_error(ran, "time.dt = 1 s exceeds the stability limit")
+    note = shown.stderr.splitlines()
+    assert len(note) == 1 and note[0].startswith("silodem: note: 'silodem run' refuses")
+    assert why.split("time.dt = 1 s", 1)[1] in note[0]
+    assert cli("show", "paper-case2").stderr == ""  # a config that runs: no note
+
+
 def test_a_refused_quick_run_says_only_why(tmp_path):
     """The note of what --quick changed comes once the command's checks have passed: an
     --out that is a file is still the one line on stderr."""

@@ -195,7 +195,9 @@ def show(
     quick: QuickOpt = False,
 ) -> None:
     """Print the complete config of a scenario or file as TOML, every default included.
-    A study (paper-study, or a study file) is printed as it is written.
+    A study (paper-study, or a study file) is printed as it is written. Values that are each
+    valid but that 'silodem run' refuses together are printed all the same, with a note on
+    stderr saying why (exit code 0: the printed config is there to be edited).
 
     Save it to start your own case:
 
@@ -213,11 +215,18 @@ def show(
                              "shrinks every run)")
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
         return
+    from silodem.silo.checks import check_numbers
+
     notes: list[str] = []
     cfg = read_config(source, sets, quick, notes)
     sys.stdout.write(config_to_toml(cfg))
     for note in notes:
         sys.stderr.write(note + "\n")
+    try:  # values each valid that make no run together: printed (to be edited), and said
+        check_numbers(cfg)
+    except InputError as exc:
+        sys.stderr.write(f"silodem: note: 'silodem run' refuses this config as it stands: "
+                         f"{exc}\n")
 
 
 @app.command()
