@@ -149,6 +149,18 @@ def test_two_disks_pressed_together_carry_f_times_2r_over_the_area():
     np.testing.assert_allclose(s, [F * 2 * r / (4.0 * 2.0), 0.0, 0.0], atol=1e-12)
 
 
+def test_grains_without_contacts_carry_plus_zero_stress():
+    """No contact, no moment: the stress is exactly 0, and prints as 0, not -0 (the sign
+    change of compression-positive turned the zero sum into -0.0 in the tables)."""
+    x, z, rr = np.array([0.0, 3.0]), np.zeros(2), np.full(2, 0.5)
+    none, no_f = np.zeros(0, int), np.zeros(0)
+    m = grain_moments(2, x, z, rr, none, none, no_f, no_f, none, no_f, no_f, no_f, no_f)
+    region = region_stress(m, np.ones(2, bool), 4.0, 1.0)
+    circle = circle_measure(x, z, rr, m, np.zeros(2), 0.0, 0.0, 1.0)["stress"]
+    for s in (region, circle):
+        assert np.array_equal(s, np.zeros(3)) and not np.signbit(s).any(), s
+
+
 def _lens_closed_form(d: float, r: float, R: float) -> float:
     """Area common to circles of radii r and R whose centres are d apart (the two circular
     segments either side of the common chord; Weisstein, "Circle-Circle Intersection")."""

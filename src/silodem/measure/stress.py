@@ -74,8 +74,9 @@ def grain_moments(n: int, x: np.ndarray, y: np.ndarray, r: np.ndarray, i: np.nda
 
 
 def _symmetric(total: np.ndarray, scale: float) -> np.ndarray:
-    """(sigma_xx, sigma_zz, sigma_xz) = -scale * sym(total)."""
-    return -scale * np.array([total[0, 0], total[1, 1], 0.5 * (total[0, 1] + total[1, 0])])
+    """(sigma_xx, sigma_zz, sigma_xz) = -scale * sym(total); a region without contacts gives
+    0.0, not the -0.0 of the sign change (+ 0.0: IEEE 754 rounds -0.0 + 0.0 to +0.0)."""
+    return -scale * np.array([total[0, 0], total[1, 1], 0.5 * (total[0, 1] + total[1, 0])]) + 0.0
 
 
 def region_stress(moments: np.ndarray, mask: np.ndarray, area: float,
