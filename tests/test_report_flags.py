@@ -118,6 +118,34 @@ def test_a_free_fit_with_no_determined_k_is_said_and_not_drawn(synth, K, err):
     assert [t for t in _legend(fig_horizontal(c, "fill")) if t.startswith("Janssen free fit")]
 
 
+@pytest.mark.parametrize(("K", "mu", "depths", "why"), [
+    # a = 2 K mu_w / B; K = 31.4, mu_w = 0.445, B = 3.4 m: a = 8.22 / m, and 1 - exp(-a z)
+    # is 1.000 at 4 m, 0.915 at 0.3 m (flat: over the 0.9 bar), 0.872 at 0.25 m (not flat)
+    (31.4, 0.445, (0.3, 4.0), "nearly the same at every depth"),
+    (31.4, 0.445, (0.25, 4.0), "scatters too much (rms "),
+    # K = 1.3, mu_w = 0.0610 (the audited run): a = 0.0466 / m, 1 - exp(-a z) = 0.0231 and
+    # 0.170 at 0.5 and 4 m: the curve rises 7-fold, so a K not determined is the scatter's doing
+    (1.3, 0.0610, (0.5, 4.0), "scatters too much (rms "),
+])
+def test_an_undetermined_free_fit_says_why_from_its_curve(synth, K, mu, depths, why):
+    """'not determined' was always explained as a wall stress nearly the same at every depth,
+    also for K = 1.30 +- 2.10 on a profile scattered between 1.7 and 19 kPa; the reason now
+    follows the fitted curve's rise over the fitted depths, worked by hand above."""
+    b = copy.copy(synth)
+    b.geom = {**synth.geom, "B": 3.4}
+    b.janssen_free = dataclasses.replace(synth.janssen_free, K=K, K_err=2 * K, mu_w=mu,
+                                         depth_min=depths[0], depth_max=depths[1])
+    a = 2 * K * mu / 3.4
+    rise = (1 - math.exp(-a * depths[0])) / (1 - math.exp(-a * depths[1]))
+    assert b.janssen_free.rise(3.4) == pytest.approx(rise, rel=1e-12)
+    b.numbers = []
+    add_numbers(b)
+    row = _row(b, "Janssen free fit after filling")
+    assert row.startswith("not determined (K = ") and why in row, row
+    other = ("scatters too much" if why.startswith("nearly") else "nearly the same")
+    assert other not in row
+
+
 @pytest.mark.parametrize(("K", "err", "flagged"), [
     (1.3, 0.05, True),    # 1.25 > 1
     (1.06, 0.05, True),   # 1.01 > 1

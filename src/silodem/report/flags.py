@@ -77,6 +77,22 @@ WALLS_HELD_UP = (  # the mobilised wall friction below 0 (walls_held_up): the ke
 WALLS_HELD_UP_SHORT = "net negative on the fitted bins: the walls carry none of the weight"
 
 
+FLAT_RISE = 0.9  # a fitted curve whose sigma_h at its shallowest point is this share of the
+# deepest's, or more, is called flat over the fitted depths (JanssenFit.rise) [-]
+
+
+def undetermined_why(fit: JanssenFit, B: float) -> str:
+    """Why a free fit's K is not determined (:func:`free_fit_undetermined`), from the fit:
+    a curve flat over the fitted depths (``FLAT_RISE``), which any large K fits, or else a
+    profile too scattered for its shape to fix K. ``B``: the silo's width [m]. (K = 1.30 +-
+    2.10 over a profile scattered between 1.7 and 19 kPa was said to be a flat one.)"""
+    rise = fit.rise(B)
+    if not math.isfinite(rise) or rise >= FLAT_RISE:
+        return "the wall stress is nearly the same at every depth, which any large K fits"
+    return (f"the profile scatters too much (rms {fit.rms:,.0f} Pa about the fitted curve) "
+            "for its shape to fix K")
+
+
 def free_fit_undetermined(fit: JanssenFit) -> bool:
     """A Janssen fit of both K and mu_w whose K has no finite error, or one larger than K: a
     wall stress nearly the same at every depth (a steep hopper's short cell, a smooth wall),

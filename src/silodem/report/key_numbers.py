@@ -29,6 +29,7 @@ from silodem.report.flags import (
     above_hydrostatic,
     free_fit_undetermined,
     overpacked,
+    undetermined_why,
     walls_held_up,
 )
 from silodem.report.numbers import pascals, poorly_determined, resolved, significant
@@ -279,8 +280,8 @@ def add_numbers(a: Analysis) -> None:
             n.append((what, f"n/a ({a.janssen_missing[key]})", "-"))
     if a.janssen_free is not None and free_fit_undetermined(a.janssen_free):
         j = a.janssen_free
-        why = (f"not determined (K = {_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}): the wall stress "
-               "is nearly the same at every depth, which any large K fits; not drawn")
+        why = (f"not determined (K = {_fmt(j.K, 3)} +- {_fmt(j.K_err, 2)}): "
+               f"{undetermined_why(j, g['B'])}; not drawn")
         n.append(("Janssen free fit after filling: K, mu_w", why, "-"))
     elif a.janssen_free is not None:
         j = a.janssen_free

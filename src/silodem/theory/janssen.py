@@ -69,7 +69,8 @@ def janssen_wall_shear(depth: npt.ArrayLike, rho_b: float, g: float, B: float, K
 @dataclass(frozen=True)
 class JanssenFit:
     """Result of :func:`fit_janssen`: K [-], mu_w [-], their standard errors (``mu_w_err`` is 0
-    when mu_w was given, not fitted), rms residual [Pa]."""
+    when mu_w was given, not fitted), rms residual [Pa], the number of points fitted and the
+    shallowest and deepest of their depths [m] (NaN where not known)."""
 
     K: float
     mu_w: float
@@ -78,6 +79,16 @@ class JanssenFit:
     rms: float
     n_points: int
     mu_w_fitted: bool
+    depth_min: float = float("nan")
+    depth_max: float = float("nan")
+
+    def rise(self, B: float) -> float:
+        """sigma_h of the fitted curve at the shallowest fitted depth over that at the deepest
+        [-]: (1 - exp(-a z_min)) / (1 - exp(-a z_max)), a = 2 K mu_w / B, B the silo's width
+        [m]. Near 1: the curve is flat over the fitted depths. NaN where the depths are not
+        known."""
+        a = 2.0 * self.K * self.mu_w / B
+        return float(-np.expm1(-a * self.depth_min) / -np.expm1(-a * self.depth_max))
 
     @property
     def mu_w_at_bound(self) -> bool:
@@ -140,4 +151,4 @@ def fit_janssen(depth: npt.ArrayLike, sigma_h: npt.ArrayLike, rho_b: float, g: f
             K_err = mu_err = float("nan")
     resid = s - _sigma_h(z, rho_b, g, B, K, mu)
     return JanssenFit(K, mu, K_err, mu_err, float(np.sqrt(np.mean(resid**2))), int(z.size),
-                      mu_w is None)
+                      mu_w is None, float(z.min()), float(z.max()))
