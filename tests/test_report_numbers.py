@@ -864,6 +864,21 @@ def test_en1991_4_steep_hopper_of_the_report_takes_phi_i_from_K(synth):
     _hopper_numbers(rows, h)
     assert rows[-1][0].startswith("EN 1991-4 hopper discharge exponent n")
     assert rows[-1][1] == f"{n:.3g} / {printed:.3g}"
+    # and the curve's legend says its exponent is not the printed one (it said only "§6")
+    from matplotlib.figure import Figure
+
+    from silodem.report.figures_stress import _en1991_4_curve
+
+    b = copy.copy(a)
+    b.en1991_4 = {**a.en1991_4, "hopper": h}
+    ax = Figure().subplots()
+    _en1991_4_curve(ax, b, "discharge")
+    legend = [t for t in (ln.get_label() for ln in ax.lines) if "§6 hopper discharge" in t]
+    assert len(legend) == 1 and (f"wedge exponent n = {n:.3g} by the slice balance, not "
+                                 f"§6.3.1's printed {printed:.3g}") in legend[0], legend
+    ax = Figure().subplots()
+    _en1991_4_curve(ax, b, "fill")
+    assert not [ln for ln in ax.lines if "wedge exponent" in ln.get_label()]
 
 
 def test_en1991_4_hopper_rules_are_left_out_for_K_at_least_1(synth):
