@@ -790,6 +790,37 @@ def test_a_sweep_says_when_it_replaces_another_study_file(tmp_path, capsys, monk
     assert not replaced_study_file(expand(load_study(str(edited)), quick=True), study_dir)
 
 
+def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, capsys,
+                                                                   monkeypatch):
+    """The note came in a `finally` at the end of the sweep, hours after the file was
+    replaced; it is now on stderr by the time the first run is handed out. The cluster and
+    the runs are stood in for: this checks when the line is said, not the runs."""
+    from silodem.cli import main
+    from silodem.study import api as study_api
+    from silodem.study.execute import StudyOutcome, prepare
+
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    prepare(plan, study_dir)
+    edited = tmp_path / "edited.toml"
+    edited.write_text(TINY.replace("[20.0, 30.0]", "[20.0, 30.0, 40.0]"), encoding="utf-8")
+    seen = {}
+
+    def first_run(plan, out_dir, client, on_done, say):
+        seen["err"] = capsys.readouterr().err
+        return StudyOutcome(plan, out_dir)
+
+    monkeypatch.setattr(study_api, "connect", lambda *args: (object(), None, "here"))
+    monkeypatch.setattr(study_api, "close_cluster", lambda *args, **kwargs: None)
+    monkeypatch.setattr(study_api, "run_on_client", first_run)
+    with pytest.raises(SystemExit) as stop:
+        main(["sweep", str(edited), "--quick", "--out", str(study_dir), "--workers", "1"])
+    assert stop.value.code == 0
+    note = f"silodem: replacing {study_dir / 'study.toml'}, another study file's text"
+    assert [line for line in seen["err"].splitlines() if line.startswith(note)], seen["err"]
+    assert note not in capsys.readouterr().err  # said once
+
+
 def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
     """The Hertz-Mindlin law added keys to the schema (``plan.LATER_KEYS``); a study planned
     before keeps its run ids, so that its finished runs are found and not run again.  The

@@ -124,10 +124,24 @@ def sweep(
         f"-> {out_dir}; " + (f"the {todo} not finished yet run on {where}" if todo else
                              "all finished already: nothing to run"))
     replacing = other_study_note(plan, out_dir)  # (said once the sweep has replaced it)
+    said_replacing: list[str] = []
+    shown = warnings.showwarning
+
+    def say_replacing(message, category, *args, **kwargs) -> None:
+        """The API's warning that it replaced the study file, said the command line's way
+        as it happens, before the first run (it came only at the end: hours later)."""
+        if category is SilodemWarning and str(message).startswith(REPLACING):
+            said_replacing.append(str(message))
+            Console(stderr=True, soft_wrap=True).print(f"silodem: {message}", markup=False,
+                                                       highlight=False)
+        else:
+            shown(message, category, *args, **kwargs)
+
     try:
         _quiet_dask_client()  # (imports distributed: a good part of a second)
-        with warnings.catch_warnings():  # (its note is printed below, the command line's way)
-            warnings.filterwarnings("ignore", message=REPLACING, category=SilodemWarning)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("always", message=REPLACING, category=SilodemWarning)
+            warnings.showwarning = say_replacing
             outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers,
                                 progress=True)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (errors.Terminated); the cluster is
@@ -136,8 +150,9 @@ def sweep(
         with shutdown_shield(stopping=True):
             text = stopped_sweep_text(plan, out_dir, signum)
         raise RunInterrupted(text, signum) from None
-    finally:  # only once it was replaced (a scheduler that cannot be reached leaves it be)
-        if replacing is not None and replaced_study_file(plan, out_dir):
+    finally:  # replaced, but stopped before it could say so (a scheduler that cannot be
+        # reached leaves it be)
+        if replacing is not None and not said_replacing and replaced_study_file(plan, out_dir):
             Console(stderr=True, soft_wrap=True).print(replacing, markup=False,
                                                        highlight=False)
     say(f"{outcome.computed} computed, {outcome.skipped} already finished, "
