@@ -821,6 +821,29 @@ def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, caps
     assert note not in capsys.readouterr().err  # said once
 
 
+def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monkeypatch):
+    """A sweep's log (stderr to a file: no bar drawn) said which run finished, not how many
+    of how many nor how long the rest would take. The time left is the mean time between
+    finished runs times the runs to come: 1 of 5 after 20 s -> 4 x 20 s = 80 s; 2 of 5 after
+    120 s -> 3 x 60 s = 3 min."""
+    from silodem.study import api as study_api
+
+    plan = _plan(tmp_path)
+    clock = iter([0.0, 20.0, 120.0])
+    monkeypatch.setattr(study_api.time, "perf_counter", lambda: next(clock))
+    result = {"status": "computed", "wall_s": 9.5, "host": "h", "pid": 7}
+    with study_api._progress_bar(5, True) as done:
+        for run in plan.runs[:2]:
+            done(run, result)
+    lines = [line for line in capsys.readouterr().err.splitlines() if "computed" in line]
+    assert lines[0].startswith(f"computed {plan.runs[0].id} (9.5 s on h:7; 1/5, about 80 s "
+                               "left)")
+    assert lines[1].startswith(f"computed {plan.runs[1].id} (9.5 s on h:7; 2/5, about 3 min "
+                               "left)")
+    assert study_api._time_left(100000.0, 5, 5) == "all done"
+    assert study_api._time_left(3600.0, 1, 3) == "about 2.0 h left"
+
+
 def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
     """The Hertz-Mindlin law added keys to the schema (``plan.LATER_KEYS``); a study planned
     before keeps its run ids, so that its finished runs are found and not run again.  The

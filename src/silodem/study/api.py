@@ -93,21 +93,33 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
         yield lambda run, result: None
         return
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
     from rich.progress import Progress as Bar
 
     console = Console(stderr=True, soft_wrap=True)
+    start = time.perf_counter()
+    count = [0]
     with Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-             TextColumn("{task.description}"), console=console, transient=False) as bar:
+             TextColumn("left"), TimeRemainingColumn(), TextColumn("{task.description}"),
+             console=console, transient=False) as bar:
         task = bar.add_task("", total=total)
 
         def done(run: PlannedRun, result: dict) -> None:
+            count[0] += 1  # (each line says how far: a log, where the bar is not drawn, too)
             status = result.get("status", "?")
             where = f"{result.get('host', '?')}:{result.get('pid', '?')}"
+            k = f"{count[0]}/{total}, {_time_left(time.perf_counter() - start, count[0], total)}"
             if status == "failed":
-                text = f"[red]failed[/] {run.id}: {result.get('error', '')}"
+                text = f"[red]failed[/] {run.id} ({k}): {result.get('error', '')}"
             else:
-                text = f"{status} {run.id} ({result.get('wall_s', 0.0):.1f} s on {where})"
+                text = (f"{status} {run.id} ({result.get('wall_s', 0.0):.1f} s on {where}; "
+                        f"{k})")
             bar.console.print(text, highlight=False)
             bar.update(task, advance=1, description=run.slug)
 
@@ -117,6 +129,19 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
             if not console.is_terminal:  # 0/16' after a Ctrl-C); a terminal keeps it as drawn
                 console.quiet = True
             raise
+
+
+def _time_left(elapsed: float, done: int, total: int) -> str:
+    """'about 12 min left' after ``done`` of ``total`` runs in ``elapsed`` seconds: the mean
+    time between finished runs so far, times the runs still to come; 'all done' at the end."""
+    if done >= total:
+        return "all done"
+    left = elapsed / done * (total - done)
+    if left < 90.0:
+        return f"about {left:.0f} s left"
+    if left < 5400.0:
+        return f"about {left / 60.0:.0f} min left"
+    return f"about {left / 3600.0:.1f} h left"
 
 
 def _stderr_line(text: str) -> None:
