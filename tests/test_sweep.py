@@ -528,9 +528,9 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
     (TINY.replace('[set]\n', '[set]\n"material.radius_distribution" = "discrete"\n'
                   '"material.radii" = [0.08, -0.12]\n'),
      ["[set] (it fails with the base alone): material.radii"]),
-    # a list inside a grid's list is quoted (its label, 'phiG=30 deg', looked valid)
+    # a list inside a grid's list is quoted, in its label too ('phiG=30 deg' looked valid)
     (TINY.replace("[20.0, 30.0]", "[20.0, [30.0]]"),
-     [("run phiG=30 deg, seed 3: material.friction_deg: Input should be a valid number (got "
+     [("run phiG=[30], seed 3: material.friction_deg: Input should be a valid number (got "
       "[30.0])")]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"seed" = [1, 2]'), ["seeds"]),
     (TINY.replace('seeds = [3]\n', ''), ["missing required key 'seeds'"]),

@@ -140,11 +140,19 @@ def slug_of(point: dict[str, Any], seed: int) -> str:
     return slug if len(slug) <= 120 else slug[:120].rstrip("_")
 
 
-def label_of(point: dict[str, Any], seed: int | None = None) -> str:
+def label_of(point: dict[str, Any], seed: int | None = None, *, brackets: bool = False) -> str:
     """A run's name for people: 'theta=45 deg, phiP=10 deg, seed 1' (each grid value with its
-    unit, as the heat maps' labels; :func:`value_label`)."""
+    unit, as the heat maps' labels; :func:`value_label`).  ``brackets``: a list value shown as
+    one, '[20]', not '20' (an error's label: a list where a number belongs looked like that
+    number)."""
     names = nicknames(list(point))
-    text = ", ".join(value_label(names[k], key_unit(k), v) for k, v in point.items())
+
+    def shown(v: Any) -> Any:
+        if brackets and isinstance(v, list | tuple):
+            return "[" + ", ".join(format_value(x) for x in v) + "]"
+        return v
+
+    text = ", ".join(value_label(names[k], key_unit(k), shown(v)) for k, v in point.items())
     return text + (f", seed {seed}" if seed is not None else "")
 
 
@@ -236,7 +244,7 @@ def _run_error(study: LoadedStudy, bases: dict[str, dict], point: dict[str, Any]
                         if listed else "")
                 return (f"study {study.source}, [set] (it fails with the base alone): "
                         f"{message}{hint}")
-    return f"study {study.source}, run {label_of(point, seed)}: {message}"
+    return f"study {study.source}, run {label_of(point, seed, brackets=True)}: {message}"
 
 
 def expand(study: LoadedStudy, quick: bool = False, check: bool = True) -> StudyPlan:
