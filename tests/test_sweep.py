@@ -533,6 +533,11 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
      [("run phiG=[30], seed 3: material.friction_deg: Input should be a valid number (got "
       "[30.0])")]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"seed" = [1, 2]'), ["seeds"]),
+    # keys that change what a run writes, not what it computes: the same simulation twice
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"output.png" = [true, false]'),
+     ["'output.png' changes what a run writes, not what it computes", "put it in [set]"]),
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"checkpoint.every_steps" = [1, 2]'),
+     ["'checkpoint.every_steps' changes what a run writes"]),
     (TINY.replace('seeds = [3]\n', ''), ["missing required key 'seeds'"]),
     # pydantic's words before: "List should have at least 1 item after validation, not 0"
     (TINY.replace('seeds = [3]', 'seeds = []'), ["seeds is empty: give one or more"]),

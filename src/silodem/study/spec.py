@@ -95,6 +95,22 @@ def _first_repeat(values: list[Any]) -> int | None:
     return None
 
 
+# keys that change what a run writes or when it saves its state, not what it computes: a grid
+# over them runs one simulation once per value (output.sample_interval is not among them: the
+# time series it samples are what the discharge rate is fitted to)
+NOT_SWEPT = ("output.png", "output.frame_interval", "output.vtk_interval")
+NOT_SWEPT_SECTION = "checkpoint."  # every key of it
+
+
+def check_grid_key(dotted: str) -> None:
+    """ValueError unless ``dotted`` is a value key that changes what a run computes
+    (:func:`check_config_key`, and not one of ``NOT_SWEPT`` or ``NOT_SWEPT_SECTION``)."""
+    check_config_key(dotted)
+    if dotted in NOT_SWEPT or dotted.startswith(NOT_SWEPT_SECTION):
+        raise ValueError(f"'{dotted}' changes what a run writes, not what it computes: each "
+                         "of its values would give the same results; put it in [set]")
+
+
 def check_config_key(dotted: str) -> None:
     """ValueError unless ``dotted`` is a value key (not a section) of the run Config schema."""
     parts = [p.strip() for p in dotted.split(".")]
@@ -180,7 +196,7 @@ class StudySpec(BaseModel):
                     raise ValueError("[grid] 'base' lists base scenarios: embedded scenario "
                                      "names or .toml files, as strings")
             else:
-                check_config_key(key)
+                check_grid_key(key)
             if not values:
                 raise ValueError(f"'{key}' has no values; give a list of one or more")
             if len(values) > MAX_RUNS:
