@@ -171,6 +171,9 @@ def test_results_folder_layout(tmp_path):
         c = h5["final/contacts"]
         assert c["i"].shape == c["fn"].shape and np.all(c["i"][:] < n) and np.all(c["j"][:] < n)
         assert load_config(str(tmp_path / "config.toml")) == small(discharge__max_time=1.0)
+        from silodem.provenance import source_digest  # the code that made it (a study's check)
+
+        assert h5.attrs["silodem_source"] == source_digest()
     assert any("results" in line for line in summary.lines())
 
 

@@ -826,6 +826,81 @@ def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, caps
     assert note not in capsys.readouterr().err  # said once
 
 
+def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path, capsys,
+                                                                      monkeypatch):
+    """A study resumed after an update tabled runs of two engines side by side without a
+    word (__version__ stays 0.1.0; they differed in signed zeros): results.h5 records a
+    digest of the code's files, and a sweep names the finished runs whose digest is not its
+    own. A run that recorded none (written before the digest) is not judged."""
+    import h5py
+
+    from silodem.cli import main
+    from silodem.provenance import source_digest
+    from silodem.study import api as study_api
+    from silodem.study.execute import StudyOutcome, prepare
+
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    prepare(plan, study_dir)
+    for run, digest in zip(plan.runs, ("0123456789abcdef", None)):
+        folder = study_dir / "runs" / run.id
+        folder.mkdir(parents=True)
+        with h5py.File(folder / "results.h5", "w") as h5:
+            if digest is not None:
+                h5.attrs["silodem_source"] = digest
+        (folder / "summary.json").write_text("{}", encoding="utf-8")
+    ours = source_digest()
+    assert len(ours) == 16 and ours != "0123456789abcdef"
+    note = (f"1 of the 2 finished runs in {study_dir / 'runs'} were computed by other silodem "
+            f"code (source 0123456789abcdef, this is {ours}; first: {plan.runs[0].id})")
+    assert study_api.other_code_note(plan, study_dir).startswith(note)
+    with h5py.File(study_dir / "runs" / plan.runs[0].id / "results.h5", "a") as h5:
+        h5.attrs["silodem_source"] = ours
+    assert study_api.other_code_note(plan, study_dir) is None  # this code's, and unrecorded
+    with h5py.File(study_dir / "runs" / plan.runs[1].id / "results.h5", "a") as h5:
+        h5.attrs["silodem_source"] = "fedcba9876543210"
+    seen = {}
+
+    def first_run(plan, out_dir, client, on_done, say):
+        seen["err"] = capsys.readouterr().err
+        return StudyOutcome(plan, out_dir)
+
+    (study_dir / "runs" / plan.runs[0].id / "summary.json").unlink()  # one run still to do
+    monkeypatch.setattr(study_api, "connect", lambda *args: (object(), None, "here"))
+    monkeypatch.setattr(study_api, "close_cluster", lambda *args, **kwargs: None)
+    monkeypatch.setattr(study_api, "run_on_client", first_run)
+    with pytest.raises(SystemExit):
+        main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)])
+    assert (f"silodem: warning: 1 of the 1 finished runs in {study_dir / 'runs'} were "
+            f"computed by other silodem code (source fedcba9876543210, this is {ours}; first: "
+            f"{plan.runs[1].id}): they are kept") in seen["err"], seen["err"]
+
+
+def test_the_source_digest_follows_the_files_not_their_times(tmp_path, monkeypatch):
+    """SHA-256 over the package's files (paths and bytes, sorted): a copy of the package
+    (new modification times, no bytecode caches) gives the same digest, one more byte in one
+    file another."""
+    import shutil
+
+    from silodem import provenance
+
+    copy_dir = tmp_path / "silodem"
+    shutil.copytree(provenance.PACKAGE, copy_dir,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    provenance.source_digest.cache_clear()
+    monkeypatch.setattr(provenance, "PACKAGE", copy_dir)
+    try:
+        same = provenance.source_digest()
+        provenance.source_digest.cache_clear()
+        (copy_dir / "engine" / "contact.py").write_text(
+            (copy_dir / "engine" / "contact.py").read_text() + "\n", encoding="utf-8")
+        edited = provenance.source_digest()
+    finally:
+        provenance.source_digest.cache_clear()
+        monkeypatch.undo()
+    assert same == provenance.source_digest() and edited != same
+
+
 def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monkeypatch):
     """A sweep's log (stderr to a file: no bar drawn) said which run finished, not how many
     of how many nor how long the rest would take. The time left is the mean time between

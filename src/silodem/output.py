@@ -18,6 +18,7 @@ import numpy as np
 
 from silodem import __version__
 from silodem.atomic import atomic_file, atomic_hdf5, write_atomic
+from silodem.provenance import source_digest
 from silodem.silo.procedure import SiloRun
 from silodem.silo.recorders import write_snapshot
 
@@ -42,6 +43,7 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
         h5.attrs["time"] = run.sim.time
         h5.attrs["steps"] = run.sim.steps
         h5.attrs["silodem_version"] = __version__
+        h5.attrs["silodem_source"] = source_digest()  # the code itself (provenance.py)
         h5.attrs["scenario"] = run.cfg.name
         h5.attrs["seed"] = run.cfg.seed
         h5.attrs["dt"] = run.dt

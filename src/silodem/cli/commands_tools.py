@@ -127,21 +127,25 @@ def sweep(
     said_replacing: list[str] = []
     shown = warnings.showwarning
 
-    def say_replacing(message, category, *args, **kwargs) -> None:
-        """The API's warning that it replaced the study file, said the command line's way
-        as it happens, before the first run (it came only at the end: hours later)."""
-        if category is SilodemWarning and str(message).startswith(REPLACING):
-            said_replacing.append(str(message))
-            Console(stderr=True, soft_wrap=True).print(f"silodem: {message}", markup=False,
-                                                       highlight=False)
-        else:
+    def say_warning(message, category, *args, **kwargs) -> None:
+        """The API's warnings said the command line's way as they happen, before the first
+        run: that it replaced the study file (said only at the end before: hours later), that
+        finished runs were computed by other code."""
+        if category is not SilodemWarning:
             shown(message, category, *args, **kwargs)
+            return
+        replaced = str(message).startswith(REPLACING)
+        if replaced:
+            said_replacing.append(str(message))
+        Console(stderr=True, soft_wrap=True).print(
+            f"silodem: {'' if replaced else 'warning: '}{message}", markup=False,
+            highlight=False)
 
     try:
         _quiet_dask_client()  # (imports distributed: a good part of a second)
         with warnings.catch_warnings():
-            warnings.filterwarnings("always", message=REPLACING, category=SilodemWarning)
-            warnings.showwarning = say_replacing
+            warnings.simplefilter("always", SilodemWarning)
+            warnings.showwarning = say_warning
             outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers,
                                 progress=True)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (errors.Terminated); the cluster is

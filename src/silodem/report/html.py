@@ -352,7 +352,9 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
              f"{cfg.silo.hopper_angle_from_horizontal_deg:g} deg, is measured from the "
              "horizontal; hopper theory uses alpha = 90 - theta from the vertical." if hopper
              else " The silo has a flat bottom (no hopper).")
-    intro = (f"<p>silodem {html.escape(str(res.attrs.get('silodem_version', '?')))}, seed "
+    source = res.attrs.get("silodem_source")
+    source = f" (source {html.escape(str(source))})" if source is not None else ""
+    intro = (f"<p>silodem {html.escape(str(res.attrs.get('silodem_version', '?')))}{source}, seed "
              f"{cfg.seed}, time step {res.attrs.get('dt', float('nan')):.3g} s. Stresses are "
              "compressive positive [Pa]: a 2D force per unit length divided by the grains' "
              f"out-of-plane thickness t = {cfg.material.thickness:g} m.{angle} Results: "

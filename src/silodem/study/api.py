@@ -144,6 +144,40 @@ def _time_left(elapsed: float, done: int, total: int) -> str:
     return f"about {left / 3600.0:.1f} h left"
 
 
+def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
+    """The warning that finished runs in ``out_dir/runs`` were computed by other silodem
+    code than this (their results.h5's ``silodem_source``, provenance.py, differs): a study
+    resumed after an update mixes two engines' results.  Runs that recorded none (written
+    before the digest existed) are not judged.  None when every recorded one is this code's."""
+    import h5py
+
+    from silodem.provenance import source_digest
+    from silodem.study.execute import RESULTS_NAME
+
+    ours, theirs, finished = source_digest(), {}, 0
+    for run in plan.runs:
+        folder = out_dir / "runs" / run.id
+        if not is_finished(folder):
+            continue
+        finished += 1
+        try:
+            with h5py.File(folder / RESULTS_NAME, "r") as h5:
+                digest = h5.attrs.get("silodem_source")
+        except (OSError, ValueError):  # (an unreadable file is the summary's to report)
+            continue
+        if isinstance(digest, bytes):
+            digest = digest.decode(errors="replace")
+        if digest is not None and str(digest) != ours:
+            theirs[run.id] = str(digest)
+    if not theirs:
+        return None
+    first, digest = next(iter(theirs.items()))
+    return (f"{len(theirs)} of the {finished} finished runs in {out_dir / 'runs'} were computed "
+            f"by other silodem code (source {digest}, this is {ours}; first: {first}): they "
+            "are kept and tabled beside this code's; delete their folders to compute them "
+            "again with this code")
+
+
 def _stderr_line(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
@@ -183,6 +217,9 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
         todo = prepare(plan, out_dir)
         if replacing is not None and replaced_study_file(plan, out_dir):
             _warn(replacing.removeprefix("silodem: "))  # (the command line says it its way)
+        other_code = other_code_note(plan, out_dir)
+        if other_code is not None:
+            _warn(other_code)
         if not todo:
             outcome = StudyOutcome(plan, out_dir, skipped=len(plan.runs),
                                    where=_earlier_hosts(plan, out_dir))
