@@ -43,10 +43,11 @@ def grain_contacts(sim: Simulation) -> ContactTable:
     """The force on j is F_n n + F_s t with n the unit vector from i to j and t = (-n_y, n_x)
     (``contact`` module), n taken from the current positions: the step computed the forces at
     the positions it started from, so the direction differs by one step's motion, a relative
-    |v_rel dt / d|: 1e-6 to 1e-4 in a settled packing, up to about 1e-2 near the outlet of a
-    fast discharge (a grain's resultant rebuilt from its contacts then misses its fx, fy by up
-    to ~1 % of a contact force); the vector stays parallel to the branch vector that stress
-    measurements pair it with."""
+    |v_rel dt / d|: 1e-6 to 1e-4 in a settled packing, about 1e-2 near the outlet of a fast
+    discharge, up to 0.15 at fast impacts of soft grains with a long step (paper-case1
+    --quick); a grain's resultant rebuilt from its contacts misses its fx, fy by as much of a
+    contact force.  The vector stays parallel to the branch vector that stress measurements
+    pair it with."""
     nb, p = sim.neighbors, sim.particles
     m = _touching(nb.pair_fn, nb.pair_fs)
     i, j, fn, fs = nb.pair_i[m], nb.pair_j[m], nb.pair_fn[m], nb.pair_fs[m]
