@@ -536,6 +536,10 @@ def test_animate_mp4_has_one_video_frame_per_saved_frame(run_dir, h5):
     reader.close()
     assert len(images) == h5["frame_time"].size
     _check_frames_differ_and_not_blank(images)
+    # the summary gives the video's length (frames / fps) and calls the render time so
+    n = h5["frame_time"].size
+    assert f"{n} frames (" in res.stdout and f"{n / 10:.3g} s of video at 10 fps" in res.stdout
+    assert "), drawn in " in res.stdout, res.stdout
 
 
 def test_animate_gif_has_one_frame_per_saved_frame_at_the_fps(run_dir, h5):

@@ -315,9 +315,9 @@ def animate(
         task = bar.add_task("frames", total=len(plan.frames))
         result = render_animation(plan, lambda done, _: bar.update(task, completed=done))
     _stop_if(noted)
-    played = f"{result.fps:.3g} fps"
+    played = f"{result.frames / result.fps:.3g} s of video at {result.fps:.3g} fps"
     if result.fps != fps:
         played += f" for --fps {fps}: a GIF's delays are whole hundredths of a second"
-    Console(soft_wrap=True).print(
-        f"animation: {result.frames} frames ({result.width}x{result.height} px, {played}) in "
-        f"{result.seconds:.1f} s -> {result.path}", markup=False, highlight=False)
+    Console(soft_wrap=True).print(  # (the drawing's time said as such: it read as the length)
+        f"animation: {result.frames} frames ({result.width}x{result.height} px, {played}), "
+        f"drawn in {result.seconds:.1f} s -> {result.path}", markup=False, highlight=False)
