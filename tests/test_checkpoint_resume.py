@@ -237,6 +237,32 @@ def test_a_refused_resume_changes_nothing_and_an_edited_config_is_named(referenc
     assert_bit_identical(out / "results.h5", ref, "final/particles")
 
 
+def test_a_resume_with_other_code_says_so_and_results_h5_records_both(reference, tmp_path):
+    """A run resumed by other code than started it (an update between the stop and the
+    resume) mixed two engines' steps without a word: the checkpoint records the source digest
+    of the code that began the run (provenance.py), the resume warns, and results.h5 holds
+    both digests, which a study's resume then names (test_sweep.py)."""
+    from silodem.provenance import source_digest
+
+    out = tmp_path / "run"
+    proc = start(*run_args(out))
+    signal_when(proc, signal.SIGINT, lambda: (wait_for_file(out / "checkpoint.h5", proc),
+                                              time.sleep(0.2)))
+    assert proc.returncode == 130
+    with h5py.File(out / "checkpoint.h5", "r+") as h5:
+        assert h5.attrs["silodem_source"] == source_digest()  # this code began it
+        h5.attrs["silodem_source"] = "0123456789abcdef"  # (not under the data's digest)
+    result = cli("run", "--resume", str(out))
+    assert result.returncode == 0, result.stderr[-2000:]
+    said = (f"the run was started by other silodem code (source 0123456789abcdef) than the "
+            f"code it goes on with (source {source_digest()}): its results mix the two")
+    assert said in " ".join((result.stderr + result.stdout).split()), result.stderr[-2000:]
+    with h5py.File(out / "results.h5", "r") as h5:
+        assert h5.attrs["silodem_source_started"] == "0123456789abcdef"
+        assert h5.attrs["silodem_source"] == source_digest()
+        assert any(said in w for w in h5["warnings"].asstr()[:])
+
+
 def test_a_full_disk_during_saves_neither_crashes_the_run_nor_loses_the_last_save(reference,
                                                                                  tmp_path):
     """Saves that fail for lack of room (a file-size limit, RLIMIT_FSIZE, fails the writes

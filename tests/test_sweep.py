@@ -857,6 +857,11 @@ def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path, 
     with h5py.File(study_dir / "runs" / plan.runs[0].id / "results.h5", "a") as h5:
         h5.attrs["silodem_source"] = ours
     assert study_api.other_code_note(plan, study_dir) is None  # this code's, and unrecorded
+    with h5py.File(study_dir / "runs" / plan.runs[0].id / "results.h5", "a") as h5:
+        h5.attrs["silodem_source_started"] = "aaaaaaaaaaaaaaaa"  # resumed by this code
+    assert "(source aaaaaaaaaaaaaaaa, this is" in study_api.other_code_note(plan, study_dir)
+    with h5py.File(study_dir / "runs" / plan.runs[0].id / "results.h5", "a") as h5:
+        del h5.attrs["silodem_source_started"]
     with h5py.File(study_dir / "runs" / plan.runs[1].id / "results.h5", "a") as h5:
         h5.attrs["silodem_source"] = "fedcba9876543210"
     seen = {}
@@ -876,10 +881,11 @@ def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path, 
             f"{plan.runs[1].id}): they are kept") in seen["err"], seen["err"]
 
 
-def test_the_source_digest_follows_the_files_not_their_times(tmp_path, monkeypatch):
-    """SHA-256 over the package's files (paths and bytes, sorted): a copy of the package
-    (new modification times, no bytecode caches) gives the same digest, one more byte in one
-    file another."""
+def test_the_source_digest_follows_the_computing_files_only(tmp_path, monkeypatch):
+    """SHA-256 over the files that compute a run (paths and bytes, sorted): a copy of the
+    package (new modification times, no bytecode caches), CRLF line ends, an editor's
+    hidden lock file (a broken link, which made the digest raise) and an edit of the report
+    give the same digest; one more byte in the contact law gives another."""
     import shutil
 
     from silodem import provenance
@@ -887,18 +893,31 @@ def test_the_source_digest_follows_the_files_not_their_times(tmp_path, monkeypat
     copy_dir = tmp_path / "silodem"
     shutil.copytree(provenance.PACKAGE, copy_dir,
                     ignore=shutil.ignore_patterns("__pycache__"))
-    provenance.source_digest.cache_clear()
     monkeypatch.setattr(provenance, "PACKAGE", copy_dir)
+    provenance.source_digest.cache_clear()
+
+    def digest_after(edit) -> str:
+        edit()
+        provenance.source_digest.cache_clear()
+        return provenance.source_digest()
+
+    def append(name: str, text: str):
+        path = copy_dir / name
+        return lambda: path.write_bytes(path.read_bytes() + text.encode())
+
     try:
         same = provenance.source_digest()
-        provenance.source_digest.cache_clear()
-        (copy_dir / "engine" / "contact.py").write_text(
-            (copy_dir / "engine" / "contact.py").read_text() + "\n", encoding="utf-8")
-        edited = provenance.source_digest()
+        law = copy_dir / "engine" / "contact.py"
+        crlf = lambda: law.write_bytes(law.read_bytes().replace(b"\n", b"\r\n"))
+        assert digest_after(crlf) == same
+        assert digest_after(lambda: (copy_dir / "engine" / ".#contact.py").symlink_to(
+            copy_dir / "gone")) == same
+        assert digest_after(append("report/html.py", "\n# a comment\n")) == same
+        assert digest_after(append("engine/contact.py", "\n")) != same
     finally:
-        provenance.source_digest.cache_clear()
         monkeypatch.undo()
-    assert same == provenance.source_digest() and edited != same
+        provenance.source_digest.cache_clear()
+    assert same == provenance.source_digest()
 
 
 def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monkeypatch):

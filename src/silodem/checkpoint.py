@@ -44,6 +44,7 @@ from silodem import __version__
 from silodem.atomic import atomic_hdf5
 from silodem.config import Config
 from silodem.errors import InputError, one_line
+from silodem.provenance import source_digest
 from silodem.scenario_files import config_from_text
 
 if TYPE_CHECKING:
@@ -258,6 +259,8 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
         h5.attrs["format"] = FORMAT
         h5.attrs["format_version"] = FORMAT_VERSION
         h5.attrs["silodem_version"] = __version__
+        h5.attrs["silodem_source"] = run.started_by or source_digest()  # (the code it began
+        # with: a second resume still knows, provenance.py)
         h5.attrs["created"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
         h5.attrs["reason"] = reason
         h5.attrs["scenario"] = run.cfg.name

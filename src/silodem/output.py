@@ -44,6 +44,8 @@ def write_results(run: SiloRun, path: Path, config_toml: str, *, status: str = "
         h5.attrs["steps"] = run.sim.steps
         h5.attrs["silodem_version"] = __version__
         h5.attrs["silodem_source"] = source_digest()  # the code itself (provenance.py)
+        if run.started_by is not None:  # resumed with other code than started it
+            h5.attrs["silodem_source_started"] = run.started_by
         h5.attrs["scenario"] = run.cfg.name
         h5.attrs["seed"] = run.cfg.seed
         h5.attrs["dt"] = run.dt

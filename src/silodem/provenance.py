@@ -1,10 +1,12 @@
-"""Which code made a result: a digest of silodem's own source files.
+"""Which code made a result: a digest of the silodem source files that compute a run.
 
 ``__version__`` stays 0.1.0 while the code changes under it, so a study resumed after an
 update would mix runs computed by two engines without a word.  The digest below changes with
-any change to the package's source (its ``.py`` files and the scenario, study and benchmark
-files it ships), and is written into every results.h5 (attribute ``silodem_source``); a sweep
-compares it with its finished runs' (``study.api``).
+any change to the files that compute a run's results.h5 (the engine, the silo procedure, the
+measurements, the theory, the config and the shipped scenarios), not with the command line,
+the report, the figures, the studies' planning or the validation suite.  It is written into
+every results.h5 (attribute ``silodem_source``) and checkpoint; a sweep compares it with its
+finished runs' (``study.api``), a resume with its checkpoint's (``run``).
 """
 
 from __future__ import annotations
@@ -14,22 +16,42 @@ import hashlib
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
-SHIPPED = ("*.py", "*.toml", "*.in")  # the files whose content makes the results
+SHIPPED = ("*.py", "*.toml", "*.in")  # the kinds of file whose content makes the results
+# folders whose files present, plan or check results but do not compute a run's results.h5
+NOT_COMPUTING = ("cli", "report", "viz", "study", "studies", "validate", "benchmarks")
 DIGEST_CHARS = 16  # hex characters kept: 64 bits, plenty to tell versions apart
+UNKNOWN = "unknown"  # the digest where the files cannot be read (compared with nothing)
+
+
+def _computing_files() -> list[Path]:
+    """The shipped files under ``PACKAGE`` that compute a run, sorted: regular files, not in
+    a hidden folder or one of ``NOT_COMPUTING``, not hidden themselves (an editor's lock or
+    backup file), not bytecode caches."""
+    out = set()
+    for pattern in SHIPPED:
+        for path in PACKAGE.rglob(pattern):
+            parts = path.relative_to(PACKAGE).parts
+            if parts[0] in NOT_COMPUTING or "__pycache__" in parts \
+                    or any(p.startswith(".") for p in parts) or not path.is_file():
+                continue
+            out.add(path)
+    return sorted(out)
 
 
 @functools.cache
 def source_digest() -> str:
-    """The first ``DIGEST_CHARS`` hex characters of SHA-256 over the package's shipped files
-    (their paths relative to the package, and their bytes), in sorted order; the same on any
-    machine with the same files, whatever their modification times or the interpreter's
-    bytecode caches."""
+    """The first ``DIGEST_CHARS`` hex characters of SHA-256 over the files that compute a run
+    (``_computing_files``: their paths relative to the package and their bytes, with CRLF
+    line ends read as LF), in sorted order: the same on any machine with the same files,
+    whatever their modification times, line-end convention or bytecode caches.  ``UNKNOWN``
+    where a file cannot be read."""
     h = hashlib.sha256()
-    files = sorted({p for pattern in SHIPPED for p in PACKAGE.rglob(pattern)
-                    if "__pycache__" not in p.parts})
-    for path in files:
-        name = path.relative_to(PACKAGE).as_posix().encode()
-        data = path.read_bytes()
-        h.update(len(name).to_bytes(8, "little") + name + len(data).to_bytes(8, "little"))
-        h.update(data)
+    try:
+        for path in _computing_files():
+            name = path.relative_to(PACKAGE).as_posix().encode()
+            data = path.read_bytes().replace(b"\r\n", b"\n")
+            h.update(len(name).to_bytes(8, "little") + name + len(data).to_bytes(8, "little"))
+            h.update(data)
+    except OSError:
+        return UNKNOWN
     return h.hexdigest()[:DIGEST_CHARS]

@@ -168,7 +168,8 @@ def _run_in(cfg: Config, out: Path, progress: bool,
         clear_previous_run(out)
         write_text(out / "config.toml", toml_text)
     else:  # once the checkpoint is restored: a resume it refuses leaves the folder as it was
-        guard.after_restore.append(lambda run: _resumed_in(out, cfg, toml_text, run))
+        guard.after_restore.append(
+            lambda run: _resumed_in(out, cfg, toml_text, run, resume_from.attrs))
     recorders = [FramesRecorder.from_config(cfg, out), *recorders_for(cfg)]
     t0 = time.perf_counter()
     live: dict = {"run": None, "warned": 0, "printed": set(), "phase": "", "logged": 0.0}
@@ -201,13 +202,27 @@ def _run_in(cfg: Config, out: Path, progress: bool,
     return _finish(cfg, guard, run, toml_text, t0, frozenset(live["printed"]), resumed_at)
 
 
-def _resumed_in(out: Path, cfg: Config, toml_text: str, run: SiloRun) -> None:
+def _resumed_in(out: Path, cfg: Config, toml_text: str, run: SiloRun,
+                checkpoint_attrs: dict) -> None:
     """Ready the folder of a resumed run, its checkpoint restored: remove the pictures of the
     run so far (they would stay beside the finished run's results), and write config.toml as
     the checkpoint's config, with a warning when it was edited since (the edit was dropped
-    without a word, an audit): the run goes on with the config of its checkpoint."""
+    without a word, an audit): the run goes on with the config of its checkpoint.  A
+    checkpoint written by other code (its ``silodem_source``, provenance.py) is warned about
+    and recorded (results.h5 ``silodem_source_started``)."""
+    from silodem.provenance import UNKNOWN, source_digest
     from silodem.scenario_files import config_from_text
 
+    started, ours = checkpoint_attrs.get("silodem_source"), source_digest()
+    if isinstance(started, bytes):
+        started = started.decode(errors="replace")
+    if started is not None and UNKNOWN not in (str(started), ours) and str(started) != ours:
+        run.started_by = str(started)
+        said = (f"the run was started by other silodem code (source {started}) than the code "
+                f"it goes on with (source {ours}): its results mix the two (results.h5 records "
+                "both)")
+        if said not in run.warnings:  # (a second resume restores the first one's warning)
+            run.warnings.append(said)
     remove_pictures(out)
     path = out / "config.toml"
     try:

@@ -134,6 +134,9 @@ class SiloRun:
         self.recorders: list[Recorder] = [self.series, *(recorders or [])]
         self.chunk_hooks: list[Callable[[SiloRun], None]] = []  # called between chunks
         self.warnings: list[str] = []
+        # the source digest of the code that started the run (provenance.py), where a resume
+        # goes on with other code; None: this code's own run
+        self.started_by: str | None = None
         self.events: dict[str, float | str | int] = {}
         self.snapshots: dict[str, Snapshot] = {}
         self.z_remove = -4.0 * m.radius_max  # grains below this have left the silo [m]

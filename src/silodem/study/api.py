@@ -145,16 +145,19 @@ def _time_left(elapsed: float, done: int, total: int) -> str:
 
 
 def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
-    """The warning that finished runs in ``out_dir/runs`` were computed by other silodem
-    code than this (their results.h5's ``silodem_source``, provenance.py, differs): a study
-    resumed after an update mixes two engines' results.  Runs that recorded none (written
-    before the digest existed) are not judged.  None when every recorded one is this code's."""
+    """The warning that finished runs in ``out_dir/runs`` were computed, wholly or in part,
+    by other silodem code than this (their results.h5's ``silodem_source`` or
+    ``silodem_source_started``, provenance.py, differs): a study resumed after an update
+    mixes two engines' results.  Runs that recorded none (written before the digest existed)
+    or ``UNKNOWN`` are not judged.  None when every recorded one is this code's."""
     import h5py
 
-    from silodem.provenance import source_digest
+    from silodem.provenance import UNKNOWN, source_digest
     from silodem.study.execute import RESULTS_NAME
 
     ours, theirs, finished = source_digest(), {}, 0
+    if ours == UNKNOWN:
+        return None
     for run in plan.runs:
         folder = out_dir / "runs" / run.id
         if not is_finished(folder):
@@ -162,13 +165,16 @@ def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
         finished += 1
         try:
             with h5py.File(folder / RESULTS_NAME, "r") as h5:
-                digest = h5.attrs.get("silodem_source")
+                made = [h5.attrs.get(key) for key in ("silodem_source_started",
+                                                      "silodem_source")]
         except (OSError, ValueError):  # (an unreadable file is the summary's to report)
             continue
-        if isinstance(digest, bytes):
-            digest = digest.decode(errors="replace")
-        if digest is not None and str(digest) != ours:
-            theirs[run.id] = str(digest)
+        for digest in made:
+            if isinstance(digest, bytes):
+                digest = digest.decode(errors="replace")
+            if digest is not None and str(digest) not in (ours, UNKNOWN):
+                theirs[run.id] = str(digest)
+                break
     if not theirs:
         return None
     first, digest = next(iter(theirs.items()))
