@@ -137,13 +137,39 @@ def test_an_undetermined_free_fit_says_why_from_its_curve(synth, K, mu, depths, 
                                          depth_min=depths[0], depth_max=depths[1])
     a = 2 * K * mu / 3.4
     rise = (1 - math.exp(-a * depths[0])) / (1 - math.exp(-a * depths[1]))
-    assert b.janssen_free.rise(3.4) == pytest.approx(rise, rel=1e-12)
+    assert b.janssen_free.shallow_to_deep(3.4) == pytest.approx(rise, rel=1e-12)
     b.numbers = []
     add_numbers(b)
     row = _row(b, "Janssen free fit after filling")
     assert row.startswith("not determined (K = ") and why in row, row
     other = ("scatters too much" if why.startswith("nearly") else "nearly the same")
     assert other not in row
+
+
+def test_an_undetermined_free_fit_of_two_bins_or_no_wall_friction_says_so(synth):
+    """Two bins fit K and mu_w exactly with no error: that is the reason, not scatter (rms
+    0 Pa was called too much scatter). With K mu_w = 0 the curve is the hydrostatic line
+    rho_b g z, whose shallow-to-deep share is z_min / z_max (it was 0 / 0)."""
+    b = copy.copy(synth)
+    b.janssen_free = dataclasses.replace(synth.janssen_free, K=1.3, K_err=NAN, rms=0.0,
+                                         n_points=2, depth_min=0.5, depth_max=4.0)
+    b.numbers = []
+    add_numbers(b)
+    row = _row(b, "Janssen free fit after filling")
+    assert "2 wall bins, which the curve passes through exactly" in row, row
+    flat = dataclasses.replace(b.janssen_free, mu_w=0.0)
+    assert flat.shallow_to_deep(3.4) == 0.5 / 4.0
+
+
+def test_the_fit_keeps_the_depths_it_fitted():
+    """The flat-or-scattered reason reads the depth range the fit kept: the shallowest and
+    deepest depths with a finite stress above the surface (depth > 0), not the ones left out."""
+    from silodem.theory import fit_janssen
+
+    z = np.array([-0.2, 0.3, 0.9, 1.7, 2.6, np.nan])
+    s = 5000.0 * (1 - np.exp(-np.where(np.isfinite(z), z, 1.0) / 2.0))
+    fit = fit_janssen(z, s, 800.0, 9.81, 2.0)
+    assert (fit.depth_min, fit.depth_max, fit.n_points) == (0.3, 2.6, 4)
 
 
 @pytest.mark.parametrize(("K", "err", "flagged"), [

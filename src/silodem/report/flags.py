@@ -77,26 +77,31 @@ WALLS_HELD_UP = (  # the mobilised wall friction below 0 (walls_held_up): the ke
 WALLS_HELD_UP_SHORT = "net negative on the fitted bins: the walls carry none of the weight"
 
 
-FLAT_RISE = 0.9  # a fitted curve whose sigma_h at its shallowest point is this share of the
-# deepest's, or more, is called flat over the fitted depths (JanssenFit.rise) [-]
+FLAT_SHARE = 0.9  # a fitted curve whose sigma_h at its shallowest point is this share of the
+# deepest's, or more, is called flat over the fitted depths (JanssenFit.shallow_to_deep) [-]
 
 
 def undetermined_why(fit: JanssenFit, B: float) -> str:
     """Why a free fit's K is not determined (:func:`free_fit_undetermined`), from the fit:
-    a curve flat over the fitted depths (``FLAT_RISE``), which any large K fits, or else a
-    profile too scattered for its shape to fix K. ``B``: the silo's width [m]. (K = 1.30 +-
-    2.10 over a profile scattered between 1.7 and 19 kPa was said to be a flat one.)"""
-    rise = fit.rise(B)
-    if not math.isfinite(rise) or rise >= FLAT_RISE:
+    two bins, which any (K, mu_w) through them fits exactly with no error; a curve flat over
+    the fitted depths (``FLAT_SHARE``), which any large K fits; or else a profile too
+    scattered for its shape to fix K. ``B``: the silo's width [m]. (K = 1.30 +- 2.10 over a
+    profile scattered between 1.7 and 19 kPa was said to be a flat one.)"""
+    if fit.n_points <= 2:
+        return (f"{fit.n_points} wall bins, which the curve passes through exactly, leaving K "
+                "and mu_w no error")
+    share = fit.shallow_to_deep(B)
+    if not math.isfinite(share) or share >= FLAT_SHARE:
         return "the wall stress is nearly the same at every depth, which any large K fits"
     return (f"the profile scatters too much (rms {fit.rms:,.0f} Pa about the fitted curve) "
             "for its shape to fix K")
 
 
 def free_fit_undetermined(fit: JanssenFit) -> bool:
-    """A Janssen fit of both K and mu_w whose K has no finite error, or one larger than K: a
-    wall stress nearly the same at every depth (a steep hopper's short cell, a smooth wall),
-    which any large K fits (sigma_h = rho_b g B / (2 mu_w) (1 - exp(-2 K mu_w z / B)) is then
+    """A Janssen fit of both K and mu_w whose K has no finite error, or one larger than K
+    (:func:`undetermined_why` says which cause: two bins, a flat profile or a scattered one).
+    A wall stress nearly the same at every depth (a steep hopper's short cell, a smooth wall)
+    fits any large K (sigma_h = rho_b g B / (2 mu_w) (1 - exp(-2 K mu_w z / B)) is then
     its asymptote throughout, and mu_w only sets its level).  K = 31.4 with no error and
     36 +- 3.6e8 were reported and drawn as results.  Not for a mu_w at its lower bound, where
     K is sigma_h / (rho_b g depth), determined."""

@@ -82,13 +82,15 @@ class JanssenFit:
     depth_min: float = float("nan")
     depth_max: float = float("nan")
 
-    def rise(self, B: float) -> float:
+    def shallow_to_deep(self, B: float) -> float:
         """sigma_h of the fitted curve at the shallowest fitted depth over that at the deepest
         [-]: (1 - exp(-a z_min)) / (1 - exp(-a z_max)), a = 2 K mu_w / B, B the silo's width
-        [m]. Near 1: the curve is flat over the fitted depths. NaN where the depths are not
-        known."""
+        [m]; z_min / z_max, its limit, where a = 0 (hydrostatic). Near 1: the curve is flat
+        over the fitted depths. NaN where the depths are not known."""
         a = 2.0 * self.K * self.mu_w / B
-        return float(-np.expm1(-a * self.depth_min) / -np.expm1(-a * self.depth_max))
+        if a == 0.0:
+            return float(self.depth_min / self.depth_max)
+        return float(np.expm1(-a * self.depth_min) / np.expm1(-a * self.depth_max))
 
     @property
     def mu_w_at_bound(self) -> bool:
