@@ -174,6 +174,9 @@ def test_cells_outside_the_silo_or_without_samples_are_nan():
     assert np.isnan(density[0, 1]) and np.all(np.isnan(stress[0, 1]))
     assert density[0, 0] == 1.0 and np.all(stress[0, 0] == -1.0)  # compression positive
     assert np.all(np.isnan(fields_of(msum, mom, area, 1.0, 0)[0]))
+    # a cell inside with no contact: 0 Pa, printed as 0, not -0 (the sign change's -0.0)
+    stress = fields_of(msum, np.zeros((2, 2, 3)), area, 1.0, 1)[1]
+    assert np.array_equal(stress[1], np.zeros((2, 3))) and not np.signbit(stress[1]).any()
 
 
 @pytest.fixture(scope="module")

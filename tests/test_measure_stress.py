@@ -157,8 +157,11 @@ def test_grains_without_contacts_carry_plus_zero_stress():
     m = grain_moments(2, x, z, rr, none, none, no_f, no_f, none, no_f, no_f, no_f, no_f)
     region = region_stress(m, np.ones(2, bool), 4.0, 1.0)
     circle = circle_measure(x, z, rr, m, np.zeros(2), 0.0, 0.0, 1.0)["stress"]
-    for s in (region, circle):
-        assert np.array_equal(s, np.zeros(3)) and not np.signbit(s).any(), s
+    from silodem.measure.wall_profiles import binned_stress  # the strips' and slices'
+
+    binned = binned_stress(m, z, np.ones(2, bool), np.array([-1.0, 0.0, 1.0]), np.ones(2), 1.0)
+    for s in (region, circle, binned):
+        assert np.array_equal(s, np.zeros_like(s)) and not np.signbit(s).any(), s
 
 
 def _lens_closed_form(d: float, r: float, R: float) -> float:

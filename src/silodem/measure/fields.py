@@ -189,8 +189,8 @@ def fields_of(mass_sum: np.ndarray, moment_sum: np.ndarray, area_inside: np.ndar
     with np.errstate(invalid="ignore", divide="ignore"):
         ok = volume > 0
         density = np.where(ok, mass_sum / np.where(ok, volume, 1.0), np.nan)
-        stress = np.where(ok[..., None], -moment_sum / np.where(ok, volume, 1.0)[..., None],
-                          np.nan)
+        stress = np.where(ok[..., None],  # (0.0 - x: an empty cell's 0 is +0.0, not -0.0)
+                          0.0 - moment_sum / np.where(ok, volume, 1.0)[..., None], np.nan)
     return density, stress
 
 

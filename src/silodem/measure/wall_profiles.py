@@ -116,8 +116,8 @@ def binned_stress(moments: np.ndarray, z: np.ndarray, mask: np.ndarray, z_edges:
     parts = [m[:, 0, 0], m[:, 1, 1], 0.5 * (m[:, 0, 1] + m[:, 1, 0])]
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(areas > 0, -1.0 / (np.asarray(areas) * thickness), np.nan)
-    for c, vals in enumerate(parts):
-        out[:, c] = np.bincount(kk, weights=vals, minlength=nb)[:nb] * scale
+    for c, vals in enumerate(parts):  # (+ 0.0: an empty bin's 0 * -scale is +0.0, not -0.0)
+        out[:, c] = np.bincount(kk, weights=vals, minlength=nb)[:nb] * scale + 0.0
     return out
 
 
