@@ -929,7 +929,7 @@ def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monk
 
     plan = _plan(tmp_path)
     clock = iter([0.0, 20.0, 120.0])
-    monkeypatch.setattr(study_api.time, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(study_api, "_clock", lambda: next(clock))
     result = {"status": "computed", "wall_s": 9.5, "host": "h", "pid": 7}
     with study_api._progress_bar(5, True) as done:
         for run in plan.runs[:2]:
@@ -941,6 +941,10 @@ def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monk
                                "left)")
     assert study_api._time_left(100000.0, 5, 5) == "all done"
     assert study_api._time_left(3600.0, 1, 3) == "about 2.0 h left"
+    # with 4 runs under way at once, the first finishes when all 4 nearly have: after 100 s,
+    # 1 of 12 done would say 11 x 100 s; it waits for 4 (400 s / 4 x 8 = 800 s = 13 min)
+    assert study_api._time_left(100.0, 1, 12, 4) == "time left said once 4 runs have finished"
+    assert study_api._time_left(400.0, 4, 12, 4) == "about 13 min left"
 
 
 def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():

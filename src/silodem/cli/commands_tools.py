@@ -144,8 +144,7 @@ def sweep(
     try:
         _quiet_dask_client()  # (imports distributed: a good part of a second)
         with warnings.catch_warnings():
-            warnings.simplefilter("always", SilodemWarning)
-            warnings.showwarning = say_warning
+            warnings.showwarning = say_warning  # (silodem.api shows each SilodemWarning)
             outcome = run_study(plan, out_dir, scheduler=scheduler, workers=workers,
                                 progress=True)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (errors.Terminated); the cluster is

@@ -88,7 +88,10 @@ def finish_study(plan: StudyPlan, out_dir: Path, outcome: StudyOutcome | None = 
 
 
 @contextlib.contextmanager
-def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, dict], None]]:
+def _progress_bar(total: int, enabled: bool,
+                  slots: int = 1) -> Iterator[Callable[[PlannedRun, dict], None]]:
+    """The sweep's bar, and its line per finished run with k/N and the time left
+    (:func:`_time_left`, once ``slots`` runs, the runs under way at once, have finished)."""
     if not enabled:
         yield lambda run, result: None
         return
@@ -103,7 +106,7 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
     from rich.progress import Progress as Bar
 
     console = Console(stderr=True, soft_wrap=True)
-    start = time.perf_counter()
+    start = _clock()
     count = [0]
     with Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
              TextColumn("left"), TimeRemainingColumn(), TextColumn("{task.description}"),
@@ -114,7 +117,7 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
             count[0] += 1  # (each line says how far: a log, where the bar is not drawn, too)
             status = result.get("status", "?")
             where = f"{result.get('host', '?')}:{result.get('pid', '?')}"
-            k = f"{count[0]}/{total}, {_time_left(time.perf_counter() - start, count[0], total)}"
+            k = f"{count[0]}/{total}, {_time_left(_clock() - start, count[0], total, slots)}"
             if status == "failed":
                 text = f"[red]failed[/] {run.id} ({k}): {result.get('error', '')}"
             else:
@@ -131,11 +134,19 @@ def _progress_bar(total: int, enabled: bool) -> Iterator[Callable[[PlannedRun, d
             raise
 
 
-def _time_left(elapsed: float, done: int, total: int) -> str:
+_clock = time.perf_counter  # the progress lines' clock [s] (a test sets its own)
+
+
+def _time_left(elapsed: float, done: int, total: int, slots: int = 1) -> str:
     """'about 12 min left' after ``done`` of ``total`` runs in ``elapsed`` seconds: the mean
-    time between finished runs so far, times the runs still to come; 'all done' at the end."""
+    time between finished runs so far, times the runs still to come; 'all done' at the end.
+    Not before ``slots`` runs have finished, ``slots`` being the runs under way at once: the
+    first of 16 runs on 16 workers finishes when all 16 are nearly done, and the mean time
+    between finished runs is then 16 times too long."""
     if done >= total:
         return "all done"
+    if done < slots:
+        return f"time left said once {slots} runs have finished"
     left = elapsed / done * (total - done)
     if left < 90.0:
         return f"about {left:.0f} s left"
@@ -184,6 +195,15 @@ def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
             "again with this code")
 
 
+def _slots(client: Any) -> int:
+    """How many runs ``client``'s workers take at once (their threads), at least 1; 1 where
+    it cannot say."""
+    try:
+        return max(1, int(sum(client.nthreads().values())))
+    except Exception:  # noqa: BLE001 - a client that cannot say: the time left comes sooner
+        return 1
+
+
 def _stderr_line(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
@@ -198,7 +218,8 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
     given; else on the scheduler at ``scheduler``; else on a new LocalCluster of ``workers``
     single-threaded processes (default one per core), closed at the end.  Nothing is started
     when every run is finished already.  A study.toml of another study in ``out_dir`` is
-    replaced with a :class:`silodem.api.SilodemWarning` (its finished runs are kept)."""
+    replaced with a :class:`silodem.api.SilodemWarning` (its finished runs are kept), and
+    finished runs computed by other silodem code are named in another (:func:`other_code_note`)."""
     if not isinstance(plan, StudyPlan):
         raise InputError(f"run_study takes a plan from expand(load_study(...)); got a "
                          f"{type(plan).__name__}")
@@ -233,12 +254,13 @@ def run_study(plan: StudyPlan, out_dir: Path | str, *, scheduler: str | None = N
             with _progress_bar(len(todo), progress) as on_done:
                 outcome = run_serial(plan, out_dir, on_done)
         elif own is None:
-            with _progress_bar(len(todo), progress) as on_done:
+            with _progress_bar(len(todo), progress, _slots(client)) as on_done:
                 outcome = run_on_client(plan, out_dir, client, on_done, say)
             outcome.where = f"Dask client of {client.scheduler.address}"
         else:
-            with _progress_bar(len(todo), progress) as on_done:  # (a local cluster's nannies
-                # restart its workers: only an external scheduler's are watched)
+            with _progress_bar(len(todo), progress, _slots(own)) as on_done:
+                # (a local cluster's nannies restart its workers: only an external
+                # scheduler's are watched)
                 outcome = run_on_client(plan, out_dir, own, on_done,
                                         say if cluster is None else None)
             outcome.where = where
