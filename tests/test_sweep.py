@@ -538,6 +538,9 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
      ["'output.png' changes what a run writes, not what it computes", "put it in [set]"]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"checkpoint.every_steps" = [1, 2]'),
      ["'checkpoint.every_steps' changes what a run writes"]),
+    (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"measure.report" = [true, false]')
+     .replace('"measure.report" = false\n', ''),
+     ["'measure.report' changes what a run writes"]),
     (TINY.replace('seeds = [3]\n', ''), ["missing required key 'seeds'"]),
     # pydantic's words before: "List should have at least 1 item after validation, not 0"
     (TINY.replace('seeds = [3]', 'seeds = []'), ["seeds is empty: give one or more"]),
@@ -795,20 +798,13 @@ def test_a_sweep_says_when_it_replaces_another_study_file(tmp_path, capsys, monk
     assert not replaced_study_file(expand(load_study(str(edited)), quick=True), study_dir)
 
 
-def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, capsys,
-                                                                   monkeypatch):
-    """The note came in a `finally` at the end of the sweep, hours after the file was
-    replaced; it is now on stderr by the time the first run is handed out. The cluster and
-    the runs are stood in for: this checks when the line is said, not the runs."""
-    from silodem.cli import main
+@pytest.fixture
+def stand_in_cluster(capsys, monkeypatch):
+    """A sweep's cluster and runs stood in for: its first hand-out of runs records what
+    stderr held by then (``seen["err"]``) and computes nothing."""
     from silodem.study import api as study_api
-    from silodem.study.execute import StudyOutcome, prepare
+    from silodem.study.execute import StudyOutcome
 
-    plan = _plan(tmp_path)
-    study_dir = tmp_path / "study"
-    prepare(plan, study_dir)
-    edited = tmp_path / "edited.toml"
-    edited.write_text(TINY.replace("[20.0, 30.0]", "[20.0, 30.0, 40.0]"), encoding="utf-8")
     seen = {}
 
     def first_run(plan, out_dir, client, on_done, say):
@@ -818,6 +814,23 @@ def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, caps
     monkeypatch.setattr(study_api, "connect", lambda *args: (object(), None, "here"))
     monkeypatch.setattr(study_api, "close_cluster", lambda *args, **kwargs: None)
     monkeypatch.setattr(study_api, "run_on_client", first_run)
+    return seen
+
+
+def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, capsys,
+                                                                   stand_in_cluster):
+    """The note came in a `finally` at the end of the sweep, hours after the file was
+    replaced; it is now on stderr by the time the first run is handed out. The cluster and
+    the runs are stood in for: this checks when the line is said, not the runs."""
+    from silodem.cli import main
+    from silodem.study.execute import prepare
+
+    plan = _plan(tmp_path)
+    study_dir = tmp_path / "study"
+    prepare(plan, study_dir)
+    edited = tmp_path / "edited.toml"
+    edited.write_text(TINY.replace("[20.0, 30.0]", "[20.0, 30.0, 40.0]"), encoding="utf-8")
+    seen = stand_in_cluster
     with pytest.raises(SystemExit) as stop:
         main(["sweep", str(edited), "--quick", "--out", str(study_dir), "--workers", "1"])
     assert stop.value.code == 0
@@ -826,8 +839,8 @@ def test_the_sweep_says_it_replaced_the_study_file_before_any_run(tmp_path, caps
     assert note not in capsys.readouterr().err  # said once
 
 
-def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path, capsys,
-                                                                      monkeypatch):
+def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path,
+                                                                      stand_in_cluster):
     """A study resumed after an update tabled runs of two engines side by side without a
     word (__version__ stays 0.1.0; they differed in signed zeros): results.h5 records a
     digest of the code's files, and a sweep names the finished runs whose digest is not its
@@ -837,7 +850,7 @@ def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path, 
     from silodem.cli import main
     from silodem.provenance import source_digest
     from silodem.study import api as study_api
-    from silodem.study.execute import StudyOutcome, prepare
+    from silodem.study.execute import prepare
 
     plan = _plan(tmp_path)
     study_dir = tmp_path / "study"
@@ -864,16 +877,8 @@ def test_a_resumed_sweep_says_which_finished_runs_other_code_computed(tmp_path, 
         del h5.attrs["silodem_source_started"]
     with h5py.File(study_dir / "runs" / plan.runs[1].id / "results.h5", "a") as h5:
         h5.attrs["silodem_source"] = "fedcba9876543210"
-    seen = {}
-
-    def first_run(plan, out_dir, client, on_done, say):
-        seen["err"] = capsys.readouterr().err
-        return StudyOutcome(plan, out_dir)
-
+    seen = stand_in_cluster
     (study_dir / "runs" / plan.runs[0].id / "summary.json").unlink()  # one run still to do
-    monkeypatch.setattr(study_api, "connect", lambda *args: (object(), None, "here"))
-    monkeypatch.setattr(study_api, "close_cluster", lambda *args, **kwargs: None)
-    monkeypatch.setattr(study_api, "run_on_client", first_run)
     with pytest.raises(SystemExit):
         main(["sweep", str(tmp_path / "tiny.toml"), "--quick", "--out", str(study_dir)])
     assert (f"silodem: warning: 1 of the 1 finished runs in {study_dir / 'runs'} were "

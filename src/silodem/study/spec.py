@@ -98,7 +98,7 @@ def _first_repeat(values: list[Any]) -> int | None:
 # keys that change what a run writes or when it saves its state, not what it computes: a grid
 # over them runs one simulation once per value (output.sample_interval is not among them: the
 # time series it samples are what the discharge rate is fitted to)
-NOT_SWEPT = ("output.png", "output.frame_interval", "output.vtk_interval")
+NOT_SWEPT = ("output.png", "output.frame_interval", "output.vtk_interval", "measure.report")
 NOT_SWEPT_SECTION = "checkpoint."  # every key of it
 
 
