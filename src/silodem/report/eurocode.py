@@ -115,6 +115,12 @@ def hopper_loads(a: Analysis, K: float, p_vft: float) -> dict[str, Any]:
     return out
 
 
+def wedge_exponent_departs(hopper: dict[str, Any]) -> bool:
+    """Whether ``hopper`` (:func:`hopper_loads`) has discharge loads of a steep hopper, whose
+    wedge exponent n_e (the slice balance's) is not §6.3.1's printed one, n_e_printed."""
+    return "n_e" in hopper and hopper["kind"] == "steep"
+
+
 K_ABOVE_1 = (  # the loads drawn from a K above 1 (add_loads' "K_above_1"), after its value
     "above 1 by more than its error, which no fill at rest has (EN 1991-4's own K = 1.1 "
     "(1 - sin phi_i) is under 1 for phi_i over 5.2 deg): these are the standard's formulas fed "
@@ -203,7 +209,7 @@ def _hopper_numbers(n: list, h: dict[str, Any]) -> None:
     label = ("EN 1991-4 hopper normal pressure at the transition, filling / discharge "
              f"(p_vft = p_vf there = {pascals(h['p_vft'])} Pa)")
     n.append((label, at_top, "Pa"))
-    if "n_e" in h and h["kind"] == "steep":
+    if wedge_exponent_departs(h):
         label = ("EN 1991-4 hopper discharge exponent n: the wedge's slice balance (drawn) / "
                  "as printed in §6.3.1, S (F_e mu cot beta + F_e) - 2, which gives higher "
                  "pressures (docs/theory.md)")

@@ -23,6 +23,7 @@ from silodem.report.draw import (
     tight_layout,
     walls_at,
 )
+from silodem.report.eurocode import wedge_exponent_departs
 from silodem.report.flags import (
     ABOVE_HYDROSTATIC_SHORT,
     WALLS_HELD_UP_SHORT,
@@ -208,8 +209,8 @@ def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
     if p_n is not None:
         what = "filling F_f p_v" if key == "fill" else "discharge F_e p_v"
         full = "" if key == "fill" else "; the full silo's"
-        if key == "discharge" and "n_e" in h and h["kind"] == "steep":  # (the key numbers give
-            # both exponents; the legend said §6 with no word that its n is not the printed one)
+        if key == "discharge" and wedge_exponent_departs(h):  # (the key numbers give both
+            # exponents; the legend said §6 with no word that its n is not the printed one)
             full += (f"; wedge exponent n = {h['n_e']:.3g} by the slice balance, not "
                      f"§6.3.1's printed {h['n_e_printed']:.3g}")
         ax.plot(p_n, h["z"], color="#9467bd", lw=1.4, ls=(0, (1, 1)),
