@@ -215,13 +215,17 @@ def show(
                              "shrinks every run)")
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
         return
-    from silodem.silo.checks import check_numbers
+    from silodem.cli.entry import numba_threads_usable
 
     notes: list[str] = []
     cfg = read_config(source, sets, quick, notes)
     sys.stdout.write(config_to_toml(cfg))
     for note in notes:
         sys.stderr.write(note + "\n")
+    if not numba_threads_usable():  # the checks import numba, which would refuse with a
+        return  # traceback: show computes nothing, and works whatever NUMBA_NUM_THREADS says
+    from silodem.silo.checks import check_numbers
+
     try:  # values each valid that make no run together: printed (to be edited), and said
         check_numbers(cfg)
     except InputError as exc:

@@ -94,6 +94,12 @@ def _numba_threads_ok(text: str) -> bool:
             and 1 <= int(text) <= MAX_NUMBA_THREADS)
 
 
+def numba_threads_usable() -> bool:
+    """Whether numba can be imported in this process: NUMBA_NUM_THREADS unset, or a whole
+    number it takes (``_numba_threads_ok``)."""
+    return _numba_threads_ok(os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1")
+
+
 def _needs_kernels(args: list[str]) -> bool:
     """Whether the command may import numba (which refuses a NUMBA_NUM_THREADS below 1 with
     a traceback): not to list or show scenarios, or for --help and --version."""
@@ -106,7 +112,7 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     args = list(sys.argv[1:] if argv is None else argv)
     numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
-    if _needs_kernels(args) and not _numba_threads_ok(numba_threads):
+    if _needs_kernels(args) and not numba_threads_usable():
         fail(f"error: NUMBA_NUM_THREADS={short_repr(numba_threads)}: must be a whole number of "
              f"threads from 1 to {MAX_NUMBA_THREADS} (or unset)")
     empty = _empty_path(args)
