@@ -55,3 +55,15 @@ def source_digest() -> str:
     except OSError:
         return UNKNOWN
     return h.hexdigest()[:DIGEST_CHARS]
+
+
+def other_code(recorded: object) -> str | None:
+    """``recorded`` (a ``silodem_source`` read back from a file: str, bytes or None) where it
+    names other code than this: a known digest that is not :func:`source_digest`; else None
+    (not recorded, ``UNKNOWN`` on either side, or this code's)."""
+    if isinstance(recorded, bytes):
+        recorded = recorded.decode(errors="replace")
+    ours = source_digest()
+    if recorded is None or UNKNOWN in (str(recorded), ours) or str(recorded) == ours:
+        return None
+    return str(recorded)

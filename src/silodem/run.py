@@ -210,17 +210,15 @@ def _resumed_in(out: Path, cfg: Config, toml_text: str, run: SiloRun,
     without a word, an audit): the run goes on with the config of its checkpoint.  A
     checkpoint written by other code (its ``silodem_source``, provenance.py) is warned about
     and recorded (results.h5 ``silodem_source_started``)."""
-    from silodem.provenance import UNKNOWN, source_digest
+    from silodem.provenance import other_code, source_digest
     from silodem.scenario_files import config_from_text
 
-    started, ours = checkpoint_attrs.get("silodem_source"), source_digest()
-    if isinstance(started, bytes):
-        started = started.decode(errors="replace")
-    if started is not None and UNKNOWN not in (str(started), ours) and str(started) != ours:
-        run.started_by = str(started)
+    started = other_code(checkpoint_attrs.get("silodem_source"))
+    if started is not None:
+        run.started_by = started
         said = (f"the run was started by other silodem code (source {started}) than the code "
-                f"it goes on with (source {ours}): its results mix the two (results.h5 records "
-                "both)")
+                f"it goes on with (source {source_digest()}): its results mix the two "
+                "(results.h5 records both)")
         if said not in run.warnings:  # (a second resume restores the first one's warning)
             run.warnings.append(said)
     remove_pictures(out)

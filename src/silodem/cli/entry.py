@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     args = list(sys.argv[1:] if argv is None else argv)
     numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
-    if _needs_kernels(args) and not numba_threads_usable():
+    if _needs_kernels(args) and not _numba_threads_ok(numba_threads):
         fail(f"error: NUMBA_NUM_THREADS={short_repr(numba_threads)}: must be a whole number of "
              f"threads from 1 to {MAX_NUMBA_THREADS} (or unset)")
     empty = _empty_path(args)

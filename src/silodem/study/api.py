@@ -163,12 +163,10 @@ def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
     or ``UNKNOWN`` are not judged.  None when every recorded one is this code's."""
     import h5py
 
-    from silodem.provenance import UNKNOWN, source_digest
+    from silodem.provenance import other_code, source_digest
     from silodem.study.execute import RESULTS_NAME
 
-    ours, theirs, finished = source_digest(), {}, 0
-    if ours == UNKNOWN:
-        return None
+    theirs, finished = {}, 0
     for run in plan.runs:
         folder = out_dir / "runs" / run.id
         if not is_finished(folder):
@@ -180,19 +178,16 @@ def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
                                                       "silodem_source")]
         except (OSError, ValueError):  # (an unreadable file is the summary's to report)
             continue
-        for digest in made:
-            if isinstance(digest, bytes):
-                digest = digest.decode(errors="replace")
-            if digest is not None and str(digest) not in (ours, UNKNOWN):
-                theirs[run.id] = str(digest)
-                break
+        other = next((d for d in map(other_code, made) if d is not None), None)
+        if other is not None:
+            theirs[run.id] = other
     if not theirs:
         return None
     first, digest = next(iter(theirs.items()))
     return (f"{len(theirs)} of the {finished} finished runs in {out_dir / 'runs'} were computed "
-            f"by other silodem code (source {digest}, this is {ours}; first: {first}): they "
-            "are kept and tabled beside this code's; delete their folders to compute them "
-            "again with this code")
+            f"by other silodem code (source {digest}, this is {source_digest()}; first: "
+            f"{first}): they are kept and tabled beside this code's; delete their folders to "
+            "compute them again with this code")
 
 
 def _slots(client: Any) -> int:
