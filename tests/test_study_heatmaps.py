@@ -154,6 +154,9 @@ def test_a_runs_name_carries_the_units_of_its_grid_values():
     assert label_of(point, 3) == ("theta=45 deg, outlet_width=0.4 m, "
                                   "contact_model=hertz_mindlin, seed 3")
     assert label_of(point) == "theta=45 deg, outlet_width=0.4 m, contact_model=hertz_mindlin"
+    # an error's label shows a list as one, and a list of lengths keeps its unit [m]
+    circles = {"measure.circle_x": [0.1, 0.25]}
+    assert label_of(circles, 1, brackets=True) == "circle_x=[0.1, 0.25] m, seed 1"
 
 
 def test_the_runs_table_keeps_one_line_per_run(tmp_path):

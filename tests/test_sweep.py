@@ -530,7 +530,7 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
      ["[set] (it fails with the base alone): material.radii"]),
     # a list inside a grid's list is quoted, in its label too ('phiG=30 deg' looked valid)
     (TINY.replace("[20.0, 30.0]", "[20.0, [30.0]]"),
-     [("run phiG=[30], seed 3: material.friction_deg: Input should be a valid number (got "
+     [("run phiG=[30] deg, seed 3: material.friction_deg: Input should be a valid number (got "
       "[30.0])")]),
     (TINY.replace('"material.friction_deg" = [20.0, 30.0]', '"seed" = [1, 2]'), ["seeds"]),
     # keys that change what a run writes, not what it computes: the same simulation twice

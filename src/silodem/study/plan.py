@@ -95,11 +95,14 @@ def key_unit(key: str) -> str:
     return unit.group(1) if unit and unit.group(1) != "-" else ""
 
 
-def value_label(name: str, unit: str, value: Any) -> str:
+def value_label(name: str, unit: str, value: Any, brackets: bool = False) -> str:
     """'theta=35 deg': a grid key's short ``name``, its ``value`` (``format_value``) and the
-    key's ``unit`` (:func:`key_unit`; a number's only, not a choice's or a bool's)."""
+    key's ``unit`` (:func:`key_unit`; a number's only, not a choice's or a bool's).
+    ``brackets``: a list shown as one, 'x=[0.1, 0.2] m', not 'x=0.1+0.2 m'."""
     number = isinstance(value, int | float | list | tuple) and not isinstance(value, bool)
-    return f"{name}={format_value(value)}" + (f" {unit}" if unit and number else "")
+    text = "[" + ", ".join(format_value(x) for x in value) + "]" \
+        if brackets and isinstance(value, list | tuple) else format_value(value)
+    return f"{name}={text}" + (f" {unit}" if unit and number else "")
 
 
 def nicknames(keys: list[str]) -> dict[str, str]:
@@ -146,13 +149,7 @@ def label_of(point: dict[str, Any], seed: int | None = None, *, brackets: bool =
     one, '[20]', not '20' (an error's label: a list where a number belongs looked like that
     number)."""
     names = nicknames(list(point))
-
-    def shown(v: Any) -> Any:
-        if brackets and isinstance(v, list | tuple):
-            return "[" + ", ".join(format_value(x) for x in v) + "]"
-        return v
-
-    text = ", ".join(value_label(names[k], key_unit(k), shown(v)) for k, v in point.items())
+    text = ", ".join(value_label(names[k], key_unit(k), v, brackets) for k, v in point.items())
     return text + (f", seed {seed}" if seed is not None else "")
 
 
