@@ -157,6 +157,15 @@ def test_a_set_that_breaks_a_check_across_keys_is_named(capsys, tmp_path, sets, 
     assert "must exceed the largest grain" in line and line.endswith(f"(in {bad})"), line
 
 
+def test_empty_measurement_circles_are_refused(capsys):
+    """Four empty circle lists were accepted: a run without circles, whose report and study
+    table have no switch-zone stresses to show."""
+    args = [a for key in ("names", "x", "z", "radius")
+            for a in ("--set", f"measure.circle_{key}=[]")]
+    line = refused(capsys, "show", "paper-case2", *args)
+    assert_names(line, "circle_radius are empty", "at least one circle", "default three")
+
+
 @pytest.mark.parametrize("sets, first, named", [
     (["discharge.clog_time=0.01", "seed=3"], "discharge.clog_time = 0.01 s is shorter",
      ["discharge.clog_time=0.01"]),

@@ -485,6 +485,10 @@ class Measure(_Strict):
         if len(sizes) != 1:
             raise ValueError("measure.circle_names, circle_x, circle_z and circle_radius must "
                              "have the same length")
+        if not self.circle_names:  # (the report, the study table read the circles)
+            raise ValueError("measure.circle_names, circle_x, circle_z and circle_radius are "
+                             "empty: give at least one circle, or leave all four out for the "
+                             "default three at the junction")
         if len(set(self.circle_names)) != len(self.circle_names):
             raise ValueError("measure.circle_names must be unique")
         if not all(name.strip() for name in self.circle_names):
