@@ -1087,3 +1087,14 @@ def test_the_field_width_bound_keeps_the_grids_gaussian_within_3_percent():
     with pytest.raises(InputError, match="less than half the field grid's largest cell side"):
         check_numbers(quick.model_copy(update={"measure": quick.measure.model_copy(
             update={"field_width": 0.4})}))
+
+
+def test_a_character_the_output_encoding_lacks_is_written_as_an_escape():
+    """`show` prints the config's '§' (EN 1991-4 §5.3 in a description); an output encoding
+    without it (PYTHONIOENCODING=ascii; not LC_ALL=C, where Python writes UTF-8 since 3.7)
+    ended the command with a UnicodeEncodeError traceback.  It is written as an escape."""
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    result = subprocess.run([sys.executable, "-m", "silodem", "show", "paper-case2"],
+                            capture_output=True, env=env, check=False, timeout=120)
+    assert result.returncode == 0 and result.stderr == b"", result.stderr
+    assert b"(\\xa75.3)" in result.stdout

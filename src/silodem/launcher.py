@@ -68,7 +68,7 @@ def main() -> None:
         stream = getattr(sys, name)
         if stream is None or isinstance(stream, ReaderGone) or not hasattr(stream, "fileno"):
             continue
-        # a character the stream's encoding lacks (ASCII under LC_ALL=C: the config's '§')
+        # a character the stream's encoding lacks (PYTHONIOENCODING=ascii: the config's '§')
         # is written as an escape, not a UnicodeEncodeError's traceback
         with contextlib.suppress(AttributeError, ValueError, OSError):
             stream.reconfigure(errors="backslashreplace")
