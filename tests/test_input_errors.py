@@ -1098,3 +1098,13 @@ def test_a_character_the_output_encoding_lacks_is_written_as_an_escape():
                             capture_output=True, env=env, check=False, timeout=120)
     assert result.returncode == 0 and result.stderr == b"", result.stderr
     assert b"(\\xa75.3)" in result.stdout
+
+
+@pytest.mark.parametrize("blank", ["", " "])
+def test_a_blank_numba_thread_count_is_unset(blank):
+    """`NUMBA_NUM_THREADS= silodem show` (blank: unset, as silodem reads it) printed numba's
+    parse warning with a ValueError traceback at numba's import."""
+    env = {**os.environ, "NUMBA_NUM_THREADS": blank}
+    result = subprocess.run([sys.executable, "-m", "silodem", "show", "paper-case2"],
+                            capture_output=True, text=True, env=env, check=False, timeout=120)
+    assert result.returncode == 0 and result.stderr == "", result.stderr

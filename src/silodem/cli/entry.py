@@ -111,6 +111,9 @@ def _needs_kernels(args: list[str]) -> bool:
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; bad input -> one line on stderr and exit code 2."""
     args = list(sys.argv[1:] if argv is None else argv)
+    if os.environ.get("NUMBA_NUM_THREADS", "x").strip() == "":
+        # blank is unset, as here; numba would print a parse error's traceback at its import
+        del os.environ["NUMBA_NUM_THREADS"]
     numba_threads = os.environ.get("NUMBA_NUM_THREADS", "1").strip() or "1"
     if _needs_kernels(args) and not _numba_threads_ok(numba_threads):
         fail(f"error: NUMBA_NUM_THREADS={short_repr(numba_threads)}: must be a whole number of "
