@@ -1108,3 +1108,12 @@ def test_a_blank_numba_thread_count_is_unset(blank):
     result = subprocess.run([sys.executable, "-m", "silodem", "show", "paper-case2"],
                             capture_output=True, text=True, env=env, check=False, timeout=120)
     assert result.returncode == 0 and result.stderr == "", result.stderr
+
+
+def test_a_terminal_escape_in_the_input_is_shown_not_sent(capsys):
+    """`--set $'material.kn=\\x1b[2J'`: the error line carried the live ESC of the value it
+    quoted after '(from --set ...)', which clears a terminal's screen; newlines were already
+    made spaces.  Control characters are written as escapes."""
+    line = refused(capsys, "show", "paper-case2", "--set", "material.kn=\x1b[2J")
+    assert not any(ord(c) < 32 or 127 <= ord(c) < 160 for c in line), repr(line)
+    assert line.endswith("(from --set material.kn=\\x1b[2J)"), line

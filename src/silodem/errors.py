@@ -85,9 +85,15 @@ def parse_toml(text: str, where: str) -> dict[str, Any]:
         raise InputError(f"{where}: malformed TOML: nested too deeply") from None
 
 
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
 def one_line(text: str) -> str:
-    """Collapse ``text`` to a single line (newlines and runs of blanks become one space)."""
-    return " ".join(str(text).split())
+    """Collapse ``text`` to a single line (newlines and runs of blanks become one space); a
+    control character left (a terminal's escape, ESC, from a --set value) is written as an
+    escape, ``\\x1b``, that the terminal shows and does not act on."""
+    line = " ".join(str(text).split())
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", line)
 
 
 # --- walking the schema --------------------------------------------------------------------
