@@ -1,7 +1,7 @@
 """Run one configured silo end to end and write its results folder.
 
 Data path: Config -> SiloRun (walls, grains, Simulation) -> fill -> settle -> discharge
--> results folder (config.toml, results.h5, settled.png, final.png).
+-> results folder (config.toml, results.h5, settled.png, final.png, report.html).
 """
 
 from __future__ import annotations

@@ -261,8 +261,9 @@ def pair_forces(strip_start, blocks, i_start, i_apart, pair_j, pair_fs, pair_fn,
     half stencil reaches at most one row up, so a strip writes only to its own grains and to
     the first row of the next strip.  The even strips run first, then the odd ones: two strips
     of one parity never write the same grain, so they run in parallel with no race, and every
-    grain receives its terms in the same order with or without threads (its own strip's pairs
-    in list order, then the lower strip's): the same bits for any thread count.  Each grain's
+    grain receives its terms in the same order with or without threads (in an even strip its
+    own strip's pairs in list order, then the lower strip's; in an odd strip the lower
+    strip's, then its own): the same bits for any thread count.  Each grain's
     candidates are listed touching-at-the-build first (``i_apart``, ``strip_pairs``).  Each even
     strip first zeroes the sums of its grains and of the next strip's.
 

@@ -3,7 +3,7 @@
 n_c is the number of touching contacts of a grain: those carrying a force (F_n or F_s not 0; a
 contact still overlapping whose damped normal force is clipped to 0 while it opens, and so
 carries no shear force either, does not count).  Grain-grain contacts count once for each of
-their two grains; grain-wall contacts count for their grain (``include_walls``), as in PFC2D,
+their two grains; grain-wall contacts count for their grain (``wall_grain``), as in PFC2D,
 whose measurement logic counts every contact of a ball.  Grains without contacts (rattlers)
 count in N_p.  Reference values for infinite packings of equal disks (the paper's Table 3):
 square lattice 4, triangular (hexagonal) lattice 6.

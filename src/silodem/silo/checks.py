@@ -73,7 +73,7 @@ def choose_time_step(cfg: Config, law: GrainLaw, wall_kn: np.ndarray,
     if law.hertz:
         force = estimate_overlap(cfg).contact_force
         law, wall_kn, wall_ks = linearised(cfg, law, wall_kn, wall_ks, force)
-        stiffest = "Hertz stiffness at the overlap of a fall from the wall top"
+        stiffest = "Hertz stiffness at the largest design overlap: static, impact or 1 % of r_max"
     dt_crit = critical_time_step(m_min, law, wall_kn, wall_ks)
     if cfg.time.dt is None:
         return cfg.time.safety * dt_crit, dt_crit

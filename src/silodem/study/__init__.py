@@ -6,6 +6,9 @@
     cluster.py  the local cluster or a scheduler's client, its workers, its shutdown
     table.py    per-run summaries and the results table (CSV)
     report.py   the study report (report.html, figures/)
+    beverloo.py the fit of Beverloo's C and k to a grid over the outlet width
+    api.py      run_study and finish_study
+    worker_setup.py  what each Dask worker does first
 
 ``run_study`` does it all: plan, run what is missing, write results.csv and report.html.
 """

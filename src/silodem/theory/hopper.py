@@ -148,7 +148,7 @@ def hopper_wall_normal(h: npt.ArrayLike, H: float, q: float, gamma: float, alpha
 def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamma: float,
                alpha_deg: float, mu_w: float) -> np.ndarray | float:
     """The paper's eq. (12) as printed [Pa], with its hopper angle read as alpha, the half-angle
-    from the vertical (DESIGN.md section 4; the paper writes one theta for this angle and for
+    from the vertical (docs/theory.md; the paper writes one theta for this angle and for
     the hopper slopes of its cases, which the config reads from the horizontal):
 
     sigma = gamma [(h' - z)/n_i + (q/gamma - h'/n_i) (1 - z/h')^(n_i + 1)],
