@@ -223,7 +223,7 @@ def test_a_refused_resume_changes_nothing_and_an_edited_config_is_named(referenc
         ax = h5["walls/ax"][()]
         del h5["walls/ax"]
         h5["walls/ax"] = ax[:1]
-        del h5.attrs["plain_sha256"]
+        del h5.attrs["sha256"]
     refused = cli("run", "--resume", str(out))
     assert refused.returncode == 2 and "Walls.ax" in refused.stderr, refused.stderr[-2000:]
     assert (out / "report.html").read_text() == "the run so far"
@@ -876,10 +876,35 @@ def test_a_checkpoint_with_wrong_contents_is_refused_in_one_line(uninterrupted, 
     with pytest.raises(CheckpointError, match="has changed on disk since it was written"):
         read_checkpoint(path)  # the digest of its numbers and texts sees every such edit
     with h5py.File(path, "r+") as h5:  # without it (an older file), the contents' checks do
-        del h5.attrs["plain_sha256"]
+        del h5.attrs["sha256"]
     with pytest.raises(CheckpointError) as exc:
         read_checkpoint(path).restore(SiloRun(quick_config()))
     assert "\n" not in str(exc.value) and needle in str(exc.value), exc.value
+
+
+def test_an_array_edited_through_hdf5_is_refused(uninterrupted, tmp_path):
+    """`f["particles/x"][3] += 1e-9` through h5py (which writes the array's Fletcher-32 anew)
+    was resumed from without a word, and the run ended 0.2 s later than the uninterrupted one:
+    the file's SHA-256 covers every dataset.  A checkpoint of an earlier version, whose
+    ``plain_sha256`` covers only the datasets without Fletcher-32, is still checked by it."""
+    from silodem import checkpoint
+
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(uninterrupted, path, config_toml=config_to_toml(quick_config()),
+                    reason="test")
+    with h5py.File(path, "r+") as h5:
+        h5["particles/x"][3] += 1e-9
+        assert h5["particles/x"].fletcher32  # (HDF5's own checksum still matches)
+    with pytest.raises(CheckpointError, match="has changed on disk since it was written"):
+        read_checkpoint(path)
+    with h5py.File(path, "r+") as h5:  # as an earlier version wrote it
+        del h5.attrs["sha256"]
+        h5.attrs["plain_sha256"] = checkpoint._digest(h5, every=False)
+    read_checkpoint(path)  # its digest does not cover the arrays: read
+    with h5py.File(path, "r+") as h5:
+        h5["simulation/steps"][()] = h5["simulation/steps"][()] + 1
+    with pytest.raises(CheckpointError, match="has changed on disk since it was written"):
+        read_checkpoint(path)
 
 
 def test_bytes_changed_on_disk_in_a_checkpoints_arrays_are_refused(uninterrupted, tmp_path):
@@ -950,7 +975,7 @@ def test_a_refused_resume_prints_one_line_and_no_progress_bar(uninterrupted, tmp
         ax = h5["walls/ax"][()]
         del h5["walls/ax"]
         h5["walls/ax"] = ax[:1]
-        del h5.attrs["plain_sha256"]  # (else refused for the digest, before the restore)
+        del h5.attrs["sha256"]  # (else refused for the digest, before the restore)
     result = cli("run", "--resume", str(out))
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and "Walls.ax" in result.stderr, result.stderr

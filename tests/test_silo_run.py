@@ -594,7 +594,7 @@ def test_a_grain_outside_the_silo_when_the_gate_opens_is_lost_wherever_it_falls(
     assert resumed.state.pushed_out == [moved["uid"]]
     with h5py.File(path, "r+") as h5:  # as an older silodem wrote it: no list, no digest
         del h5["run/state/pushed_out"]
-        del h5.attrs["plain_sha256"]
+        del h5.attrs["sha256"]
     older = SiloRun(cfg, recorders=recorders_for(cfg))
     read_checkpoint(path).restore(older)
     assert older.state.pushed_out == [moved["uid"]]

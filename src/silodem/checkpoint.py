@@ -21,11 +21,14 @@ Values are stored as HDF5 datasets: arrays as they are, numbers and booleans as 
 datasets, dicts as groups, other values (strings, lists, None) as JSON text in a string dataset
 (Python's JSON writes floats with the shortest repr that reads back to the same double).  The
 attribute ``silodem_kind`` tells how to read a node back; every value comes back exact.
-HDF5's Fletcher-32 checksum guards each numeric array; the datasets it cannot guard (scalars
-and texts: the time step, the clock, the config, the random generator's state) are guarded by
-a SHA-256 over their names and bytes, the root attribute ``plain_sha256``, so that bytes
-changed on disk in any dataset are refused when the checkpoint is read, not resumed from (the
-attributes, which say how far the run went and how a node is read, are not in it).
+HDF5's Fletcher-32 checksum guards each numeric array as it is read; a SHA-256 over the names
+and bytes of every dataset, the root attribute ``sha256``, guards them all, with the scalars
+and texts Fletcher-32 cannot (the time step, the clock, the config, the random generator's
+state), and the arrays edited through HDF5, which writes their Fletcher-32 anew.  So bytes
+changed on disk or by hand in any dataset are refused when the checkpoint is read, not resumed
+from (the attributes, which say how far the run went and how a node is read, are not in it).
+Checkpoints of earlier versions carry ``plain_sha256``, over the datasets without Fletcher-32
+only, and are checked by it.
 """
 
 from __future__ import annotations
@@ -56,7 +59,8 @@ FORMAT = "silodem-checkpoint"
 FORMAT_VERSION = 1
 
 _KIND = "silodem_kind"  # attribute naming how a dataset or group is decoded
-_DIGEST = "plain_sha256"  # root attribute: _plain_digest of the file (older files: none)
+_DIGEST = "sha256"  # root attribute: _digest of every dataset of the file
+_PLAIN_DIGEST = "plain_sha256"  # earlier files': _digest of those without Fletcher-32 (or none)
 _SCALARS = {"bool": bool, "int": int, "float": float}  # scalar datasets -> Python values
 # attributes of the engine objects that are other objects (saved on their own) or derived from
 # the config (rebuilt identically by SiloRun(cfg))
@@ -125,16 +129,17 @@ def put(group: h5py.Group, name: str, value: Any) -> None:
         ds.attrs[_KIND] = "json"
 
 
-def _plain_digest(h5: h5py.File) -> str:
-    """SHA-256 of the names and bytes of the datasets of ``h5`` that Fletcher-32 does not
-    guard (scalars, texts, empty arrays), in the order of their names."""
+def _digest(h5: h5py.File, every: bool = True) -> str:
+    """SHA-256 of the names and bytes of the datasets of ``h5``, in the order of their names:
+    every one, or (``every=False``, the ``plain_sha256`` of earlier files) those Fletcher-32
+    does not guard (scalars, texts, empty arrays)."""
     names: list[str] = []
 
-    def unguarded(name: str, node: h5py.Group | h5py.Dataset) -> None:
-        if isinstance(node, h5py.Dataset) and not node.fletcher32:
+    def counted(name: str, node: h5py.Group | h5py.Dataset) -> None:
+        if isinstance(node, h5py.Dataset) and (every or not node.fletcher32):
             names.append(name)
 
-    h5.visititems(unguarded)
+    h5.visititems(counted)
     digest = hashlib.sha256()
     for name in sorted(names):
         value = h5[name][()]
@@ -286,7 +291,7 @@ def save_checkpoint(run: SiloRun, path: Path | str, *, config_toml: str, reason:
         recorders = h5.create_group("recorders", track_order=True)
         for key, rec in zip(_recorder_keys(run), run.recorders):
             put(recorders, key, rec.state())
-        h5.attrs[_DIGEST] = _plain_digest(h5)
+        h5.attrs[_DIGEST] = _digest(h5)
         h5.flush()
 
 
@@ -423,7 +428,11 @@ def read_checkpoint(where: Path | str) -> LoadedCheckpoint:
                     f"silodem {attrs.get('silodem_version')}); this silodem {__version__} reads "
                     f"format {FORMAT_VERSION}")
             data = {key: get(node) for key, node in h5.items()}
-            if _DIGEST in attrs and attrs[_DIGEST] != _plain_digest(h5):
+            if _DIGEST in attrs:
+                changed = attrs[_DIGEST] != _digest(h5)
+            else:
+                changed = _PLAIN_DIGEST in attrs and attrs[_PLAIN_DIGEST] != _digest(h5, False)
+            if changed:
                 raise CheckpointError(
                     f"{path} has changed on disk since it was written (the checksum of its "
                     "numbers and texts does not match): the file is damaged; no run can go on "
