@@ -372,3 +372,22 @@ def test_the_advice_for_an_unstable_a_checkpointless_and_a_study_folder_is_what_
     assert err.splitlines() == [(f"error: {study} is a study's folder: its report is "
                                 f"{study / 'report.html'}, and each run's folder is under "
                                 f"{study / 'runs'}")]
+
+
+def test_a_changed_byte_in_an_uncompressed_frames_column_is_an_error(tmp_path):
+    """A byte flipped in a segment's small (uncompressed) column was read back as another
+    number, and `animate` and a resume went on with it: every column carries a Fletcher-32
+    checksum, and reading it fails."""
+    from silodem.silo.frames import _write_arrays
+
+    path = tmp_path / "frames.h5"
+    with h5py.File(path, "w") as h5:
+        _write_arrays(h5, {"time": np.linspace(0.0, 0.9, 10)})
+    with h5py.File(path, "r") as h5:
+        ds = h5["time"]
+        offset = ds.id.get_offset() if ds.chunks is None else ds.id.get_chunk_info(0).byte_offset
+    data = bytearray(path.read_bytes())
+    data[offset + 3] ^= 0x10
+    path.write_bytes(bytes(data))
+    with h5py.File(path, "r") as h5, pytest.raises(OSError):
+        h5["time"][()]

@@ -213,10 +213,10 @@ def _write_arrays(group: h5py.Group, arrays: dict[str, np.ndarray]) -> None:
     units = {"time": "s"} | {k: "-" for k in INDEX_KEYS if k != "time"}  # counts, codes
     for table, fields in FIELDS.items():
         units.update({f"{table}/{k}": u for k, (_, u) in fields.items()})
-    for key, arr in arrays.items():
-        big = arr.size > 1024
+    for key, arr in arrays.items():  # each with a Fletcher-32 checksum: a changed byte of an
+        big = arr.size > 1024            # uncompressed column read back as another number
         ds = group.create_dataset(key, data=arr, compression="gzip" if big else None,
-                                  shuffle=big)
+                                  shuffle=big, fletcher32=arr.size > 0)
         if key in units:
             ds.attrs["unit"] = units[key]
 
