@@ -400,6 +400,7 @@ class MeasureRecorder(Recorder):
     """Circles, wall and edge profiles, and discharge flow, sampled every ``measure.interval``."""
 
     name = "measure"
+    key = "measure.interval"
 
     def __init__(self, cfg: Config) -> None:
         super().__init__(cfg.measure.interval)
