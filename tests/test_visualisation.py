@@ -525,6 +525,33 @@ def test_animate_ends_with_143_when_a_callback_drops_the_sigterm(run_dir, tmp_pa
     assert capsys.readouterr().err.strip().splitlines()[-1] == "interrupted (SIGTERM)"
 
 
+def test_a_full_disk_names_the_file_that_could_not_be_written(run_dir, tmp_path,
+                                                             monkeypatch, capsys):
+    """A full disk during `plot` or `animate` said "error: No space left on device" and no
+    file (the write's OSError names none): the line names the file asked for, exit code 1."""
+    import silodem.viz.animate
+    from silodem.atomic import write_atomic
+    from silodem.cli import main
+
+    target = tmp_path / "figure.png"
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_bytes", full)
+    with pytest.raises(OSError) as exc:
+        write_atomic(target, b"png")
+    assert exc.value.filename == str(target) and not list(tmp_path.iterdir())
+    monkeypatch.undo()
+    monkeypatch.setattr(silodem.viz.animate, "_write_gif", full)
+    video = tmp_path / "a.gif"
+    with pytest.raises(SystemExit) as code:
+        main(["animate", str(run_dir), "--format", "gif", "--out", str(video)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code.value.code == 1 and err[-1] == f"error: No space left on device: {video}", err
+    assert not list(tmp_path.iterdir())
+
+
 def test_animate_mp4_has_one_video_frame_per_saved_frame(run_dir, h5):
     out = run_dir / "anim.mp4"
     res = cli("animate", str(run_dir), "--color", "force", "--out", str(out))

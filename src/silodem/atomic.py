@@ -40,9 +40,11 @@ def atomic_file(path: Path | str) -> Iterator[Path]:
         yield tmp
         fsync_path(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and not exc.filename:  # (a full disk's write names no
+            exc.filename = str(path)                        # file: the one asked for)
         raise
     with suppress(OSError):  # make the rename itself durable (not possible everywhere)
         fsync_path(path.parent)

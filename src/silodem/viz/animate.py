@@ -174,6 +174,10 @@ def _render(plan: AnimationPlan,
         else:
             _write_gif(tmp, pictures(), plan.fps)
         os.replace(tmp, out_path)
+    except OSError as exc:
+        if not exc.filename:  # (a full disk's write names no file: the video asked for)
+            exc.filename = str(out_path)
+        raise
     finally:
         if tmp.exists():
             tmp.unlink()
