@@ -110,13 +110,18 @@ def runnable_config(source: str, sets: list[str] | None, quick: bool,
     (``silo.checks.check_numbers``): an InputError naming the ``--set`` values that broke a
     config that runs without them, as a schema check's does (``load_config``)."""
     from silodem.errors import InputError
-    from silodem.scenario_files import breaking_sets
+    from silodem.scenario_files import QUICK_SUFFIX, breaking_sets
     from silodem.silo.checks import check_numbers
 
     cfg = read_config(source, sets, quick, notes)
     try:
         check_numbers(cfg)
     except InputError as exc:
+        if quick:  # the error of the values given where they fail too (not the shrunk ones,
+            runnable_config(source, sets, False)  # which no file holds), else --quick's
+            raise InputError(f"--quick cannot shrink "
+                             f"'{cfg.name.removesuffix(QUICK_SUFFIX)}': {exc}") from None
+
         def runs_with(items: list[str]) -> bool:
             try:
                 check_numbers(read_config(source, items, quick))
