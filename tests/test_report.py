@@ -11,6 +11,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -319,11 +320,13 @@ def test_plot_ends_with_130_when_a_callback_drops_the_ctrl_c(run_dir, tmp_path, 
     assert capsys.readouterr().err.strip().splitlines() == ["interrupted"]
 
 
-@pytest.mark.parametrize("what", ["missing", "empty", "garbage", "the file"])
+@pytest.mark.parametrize("what", ["missing", "empty", "garbage", "the file", "a device"])
 def test_plot_of_a_bad_folder_is_one_line_and_exit_2(what, tmp_path, capsys):
     folder = tmp_path / "x"
-    if what != "missing":
+    if what not in ("missing", "a device"):
         folder.mkdir()
+    if what == "a device":  # /dev/null was "no such directory", though it exists
+        folder = Path(os.devnull)
     if what in ("garbage", "the file"):
         (folder / "results.h5").write_text("not hdf5")
     if what == "the file":  # results.h5 itself given: it was "no such directory"
@@ -335,6 +338,9 @@ def test_plot_of_a_bad_folder_is_one_line_and_exit_2(what, tmp_path, capsys):
     assert err.count("\n") == 1 and "Traceback" not in err and str(folder) in err
     if what == "the file":
         assert "is a file; give the results folder" in err
+    if what in ("missing", "a device"):
+        said = {"missing": "no such folder", "a device": "not a folder"}[what]
+        assert err == f"error: {folder} is not a results folder ({said})\n", err
 
 
 def test_plot_of_a_damaged_results_file_is_one_line_and_exit_2(run_dir, tmp_path, capsys):

@@ -128,7 +128,8 @@ def load_results(folder: Path | str, only: tuple[str, ...] | None = None) -> Res
     if folder.is_file():
         raise InputError(f"{folder} is a file; give the results folder that holds it")
     if not folder.is_dir():
-        raise InputError(f"{folder} is not a results folder (no such directory)")
+        what = "not a folder" if folder.exists() else "no such folder"  # (/dev/null: exists)
+        raise InputError(f"{folder} is not a results folder ({what})")
     if path.exists() and not path.is_file():
         raise InputError(f"{path} is not a file")
     if not path.is_file():
