@@ -442,13 +442,19 @@ def test_the_summary_counts_one_grain_as_one_and_a_resumed_runs_steps_apart():
     events = {"n_poured": 1, "fill_time": 0.5, "settle_time": 1.0, "fill_level": 0.2}
     lines = RunSummary("x", Path("out"), 2.0, 1000, 1e-3, events).lines()
     assert lines[:2] == ["scenario x: 1000 steps of dt = 0.001 s in 2.0 s wall time",
-                         "fill: 1 grain in 0.50 s; settled in 1.00 s to a fill level of 0.20 m"]
+                         "fill: 1 grain in 0.50 s; settled in 1.00 s, at a fill level of 0.20 m"]
     resumed = RunSummary("x", Path("out"), 2.0, 1000, 1e-3, {**events, "n_poured": 2},
                          resumed_at=600).lines()
     assert resumed[:2] == [
         ("scenario x: 1000 steps of dt = 0.001 s, 400 of them after the resume from step 600, "
          "in 2.0 s wall time"),
-        "fill: 2 grains in 0.50 s; settled in 1.00 s to a fill level of 0.20 m"]
+        "fill: 2 grains in 0.50 s; settled in 1.00 s, at a fill level of 0.20 m"]
+    # settle.max_time passed unsettled (one grain, force_ratio inf): "settled in" was said
+    unsettled = RunSummary("x", Path("out"), 2.0, 1000, 1e-3, events, [
+        ("not settled: force_ratio = inf is still above settle.threshold = 0.001 after "
+        "settle.max_time = 1.0 s; going on anyway")]).lines()
+    assert unsettled[1] == "fill: 1 grain in 0.50 s; not settled after 1.00 s, at a fill " \
+        "level of 0.20 m"
 
 
 def test_a_warning_with_brackets_is_printed_as_written():

@@ -23,7 +23,7 @@ from silodem.safety import RunGuard
 from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
 from silodem.silo.frame_store import FramesRecorder
-from silodem.silo.procedure import LOST_TOTAL, PHASES, Progress, SiloRun
+from silodem.silo.procedure import LOST_TOTAL, NOT_SETTLED, PHASES, Progress, SiloRun
 
 
 @dataclass
@@ -48,11 +48,13 @@ class RunSummary:
         leg = (f", {self.steps - self.resumed_at} of them after the resume from step "
                f"{self.resumed_at}," if self.resumed_at else "")  # (the wall time is theirs)
         poured = e.get("n_poured", 0)
+        settled = "not settled after" if any(w.startswith(NOT_SETTLED) for w in self.warnings) \
+            else "settled in"  # (settle.max_time passed: the warning says how far it was)
         out = [
             (f"scenario {self.name}: {self.steps} steps of dt = {self.dt:.3g} s{leg} in "
              f"{self.wall_seconds:.1f} s wall time"),
             (f"fill: {poured} grain{'' if poured == 1 else 's'} in "
-             f"{e.get('fill_time', 0):.2f} s; settled in {e.get('settle_time', 0):.2f} s to a "
+             f"{e.get('fill_time', 0):.2f} s; {settled} {e.get('settle_time', 0):.2f} s, at a "
              f"fill level of {e.get('fill_level', 0):.2f} m"),
         ]
         if "discharge_end_reason" in e:

@@ -39,6 +39,7 @@ from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
 
 PHASES = ("fill", "settle", "discharge", "done")
 LOST_TOTAL = "grains lost in all: "  # the warning that holds the running total
+NOT_SETTLED = "not settled: "  # the warning of a settling that ended at settle.max_time
 BATCH_INTERVAL = 0.05  # pouring: grains are placed in batches this often [s]
 CHECK_INTERVAL = 0.05  # equilibrium / discharge checks this often [s]
 _PLACEMENT_TRIES = 40  # random positions tried per grain before waiting for room
@@ -234,7 +235,7 @@ class SiloRun:
             return
         if not settled:
             self.warnings.append(
-                f"not settled: {s.criterion} = {st.criterion_value:.3g} is still above "
+                f"{NOT_SETTLED}{s.criterion} = {st.criterion_value:.3g} is still above "
                 f"settle.threshold = {s.threshold:g} after settle.max_time = {s.max_time} s; "
                 "going on anyway"
             )
