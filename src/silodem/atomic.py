@@ -28,14 +28,15 @@ def fsync_path(path: Path) -> None:
 
 
 @contextmanager
-def atomic_file(path: Path | str) -> Iterator[Path]:
-    """Yield a temporary name in the folder of ``path``; on success, fsync it and rename it
-    onto ``path`` (``os.replace``), so ``path`` is always either the old or the new file.  On
-    any exception (KeyboardInterrupt included) the temporary file is removed."""
+def atomic_file(path: Path | str, temporary: Path | None = None) -> Iterator[Path]:
+    """Yield a temporary name in the folder of ``path`` (``temporary``, where a writer needs
+    another: ffmpeg picks a video's container by its suffix); on success, fsync it and rename
+    it onto ``path`` (``os.replace``), so ``path`` is always either the old or the new file.
+    On any exception (KeyboardInterrupt included) the temporary file is removed."""
     path = Path(path)
     if path.is_dir():  # say so before the work, naming the file asked for, not the temporary
         raise IsADirectoryError(errno.EISDIR, "a folder is in the way of the file", str(path))
-    tmp = path.with_name(f".{path.name}.tmp")
+    tmp = temporary if temporary is not None else path.with_name(f".{path.name}.tmp")
     try:
         yield tmp
         fsync_path(tmp)

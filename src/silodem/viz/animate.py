@@ -8,7 +8,6 @@ written by Pillow.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from silodem.atomic import atomic_file
 from silodem.checkpoint import CHECKPOINT_NAME as CHECKPOINT
 from silodem.errors import InputError, short_repr
 from silodem.silo.frames import Frames, NoFramesError, read_frames
@@ -131,7 +131,7 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
         if not out_path.parent.is_dir():
             what = "is not a folder" if out_path.parent.exists() else "does not exist"
             raise InputError(f"--out {out_path}: '{out_path.parent}' {what}")
-        probe = out_path.with_name(f".{out_path.stem}.tmp.{fmt}")  # render's temporary file
+        probe = _temporary(out_path, fmt)
         probe.touch()
         probe.unlink()
     except OSError as exc:  # before rendering, not after
@@ -167,23 +167,19 @@ def _render(plan: AnimationPlan,
             if on_frame is not None:
                 on_frame(k + 1, total)
 
-    tmp = out_path.with_name(f".{out_path.stem}.tmp.{fmt}")
-    try:
+    with atomic_file(out_path, _temporary(out_path, fmt)) as tmp:
         if fmt == "mp4":
             _write_mp4(tmp, pictures(), plan.fps)
         else:
             _write_gif(tmp, pictures(), plan.fps)
-        os.replace(tmp, out_path)
-    except OSError as exc:
-        if not exc.filename:  # (a full disk's write names no file: the video asked for)
-            exc.filename = str(out_path)
-        raise
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     played = plan.fps if fmt == "mp4" else 100.0 / gif_delay_cs(plan.fps)
     return AnimationResult(out_path, total, time.perf_counter() - t0, artist.width_px,
                            artist.height_px, played)
+
+
+def _temporary(out_path: Path, fmt: str) -> Path:
+    """The video's temporary file while it is rendered, with the format's suffix."""
+    return out_path.with_name(f".{out_path.stem}.tmp.{fmt}")
 
 
 def _write_mp4(path: Path, pictures, fps: int) -> None:
