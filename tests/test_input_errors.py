@@ -830,6 +830,32 @@ def test_a_scenario_name_with_spaces_around_it_says_so(capsys):
     assert_names(line, "' paper-case2'", "spaces", "did you mean 'paper-case2'?")
 
 
+@pytest.mark.parametrize("command, name, hint", [("show", "PAPER-CASE2", "paper-case2"),
+                                                 ("sweep", "Paper-Study", "paper-study")])
+def test_a_scenario_or_study_name_in_the_wrong_case_gets_a_did_you_mean(capsys, command,
+                                                                        name, hint):
+    """'PAPER-CASE2' got no did-you-mean: difflib compares case, and no letter matched."""
+    line = refused(capsys, command, name)
+    assert_names(line, f"'{name}'", f"did you mean '{hint}'?")
+
+
+def test_an_unknown_key_in_the_wrong_case_gets_a_did_you_mean(capsys):
+    line = refused(capsys, "show", "paper-case2", "--set", "material.KN=3")
+    assert_names(line, "'material.KN'", "did you mean 'material.kn'?")
+
+
+@pytest.mark.parametrize("command, name", [("show", "my.yaml"), ("sweep", "grid.json")])
+def test_a_missing_file_named_without_a_folder_is_called_a_missing_file(capsys, tmp_path,
+                                                                        monkeypatch, command,
+                                                                        name):
+    """A missing 'my.yaml' (in the working folder) was an "unknown scenario 'my.yaml'", as
+    if the user had mistyped a scenario's name; a name with a suffix is a file's name."""
+    monkeypatch.chdir(tmp_path)
+    line = refused(capsys, command, name)
+    assert_names(line, "not found", name, ".toml")
+    assert "unknown" not in line
+
+
 def test_a_study_named_by_a_file_name_that_names_no_folder_is_refused(capsys, tmp_path):
     """A study without `name` is named by its file's stem: `..toml` gave the name '.', which
     the `name` key refuses, and the study went into studies/ itself, not studies/<name>."""

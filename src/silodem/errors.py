@@ -141,9 +141,16 @@ def schema_keys(root: type[BaseModel], prefix: str = "") -> list[str]:
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str | None:
-    """The closest of ``choices`` to ``word`` (difflib), or None."""
-    matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
-    return matches[0] if matches else None
+    """The closest of ``choices`` to ``word`` (difflib, ignoring case), or None.
+
+    Case is ignored because difflib alone finds nothing for ``PAPER-CASE2`` against
+    ``paper-case2`` (every letter differs); a choice equal but for case wins outright.
+    """
+    by_lower: dict[str, str] = {}
+    for choice in choices:
+        by_lower.setdefault(choice.lower(), choice)
+    matches = difflib.get_close_matches(word.lower(), list(by_lower), n=1, cutoff=0.6)
+    return by_lower[matches[0]] if matches else None
 
 
 def suggest_key(root: type[BaseModel], parts: Sequence[str]) -> str | None:

@@ -123,6 +123,11 @@ def _read_source(source: str) -> dict[str, Any]:
     if base != source and base in files:  # a quick run's config name, as in its folder
         raise InputError(f"unknown scenario {source!r}: it is the quick variant of '{base}'; "
                          f"give '{base}' with --quick (quick=True in the Python API)")
+    if Path(source).suffix:  # 'my.yaml': a file name, not a scenario's
+        raise InputError(
+            f"file not found: {shorten(source, 200)} (a config is a .toml file; or give an "
+            f"embedded scenario: {names})"
+        )
     hint = did_you_mean(source, files)
     hint_text = f" (did you mean '{hint}'?)" if hint else ""
     raise InputError(

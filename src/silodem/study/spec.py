@@ -293,6 +293,9 @@ def _read(source: str) -> tuple[str, str, Path | None]:
     if source in scenario_names():
         raise InputError(f"'{source}' is a scenario, not a study; a study names it as its base "
                          f"(see 'silodem show paper-study'); embedded studies: {names}")
+    if path.suffix:  # 'my.yaml': a file name, not a study's
+        raise InputError(f"study file not found: {source} (a study is a .toml file; or give "
+                         f"an embedded study: {names})")
     hint = did_you_mean(str(source), files)
     hint_text = f" (did you mean '{hint}'?)" if hint else ""
     raise InputError(f"unknown study '{one_line(source)[:60]}'{hint_text}; embedded studies: "
