@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import itertools
 import math
+import os
 import shutil
 import subprocess
 import xml.etree.ElementTree as ET
@@ -501,6 +502,18 @@ def test_animate_out_under_a_file_says_it_is_not_a_folder(run_dir, tmp_path):
     res = cli("animate", str(run_dir), "--out", str(tmp_path / "afile" / "x.gif"))
     assert res.returncode == 2 and res.stderr.strip().splitlines() == [
         f"error: --out {tmp_path / 'afile' / 'x.gif'}: '{tmp_path / 'afile'}' is not a folder"]
+
+
+def test_animate_out_a_pipe_or_device_is_refused(run_dir, tmp_path):
+    """`--out /dev/null` wrote /dev/null.mp4 (a name without a suffix gets one): a new file
+    among the devices.  A named pipe stands in for the device here."""
+    pipe = tmp_path / "video"
+    os.mkfifo(pipe)
+    res = cli("animate", str(run_dir), "--out", str(pipe))
+    assert res.returncode == 2 and res.stderr.strip().splitlines() == [
+        (f"error: --out {pipe} is not a regular file (a device, a pipe or a socket); give the "
+         "video's file name")]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["video"]
 
 
 def test_animate_ends_with_143_when_a_callback_drops_the_sigterm(run_dir, tmp_path,

@@ -105,6 +105,19 @@ class AnimationPlan:
     fps: int
 
 
+def _refuse_special_file(out_path: Path | None) -> None:
+    """Refuse an --out that is a device, a pipe or a socket: '--out /dev/null' wrote the video
+    to /dev/null.mp4 (a name without a suffix gets one), a new file among the devices."""
+    try:
+        special = out_path is not None and out_path.exists() \
+            and not (out_path.is_file() or out_path.is_dir())
+    except (OSError, ValueError):
+        return  # (the checks below name what is wrong with the path)
+    if special:
+        raise InputError(f"--out {out_path} is not a regular file (a device, a pipe or a "
+                         "socket); give the video's file name")
+
+
 def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
                    color: str = "velocity", fmt: str | None = None,
                    fps: int = 10) -> AnimationPlan:
@@ -118,6 +131,7 @@ def plan_animation(run_dir: Path | str, out: Path | str | None = None, *,
         raise InputError(f"--fps must be an integer from 1 to 60; got {short_repr(fps)}")
     out_path = Path(out) if out is not None else None
     fmt = _choose_format(out_path, fmt)
+    _refuse_special_file(out_path)
     if out_path is not None and out_path.name and not out_path.suffix \
             and not out_path.is_dir():  # "--out movie": movie.mp4, which players recognise
         out_path = out_path.with_name(f"{out_path.name}.{fmt}")
