@@ -389,6 +389,18 @@ def test_out_pointing_at_a_file_is_refused(capsys, tmp_path):
                  "is a file, not a folder")
 
 
+@pytest.mark.parametrize("points_to", ["gone/elsewhere", "link"])
+def test_out_through_a_broken_symbolic_link_says_so(capsys, tmp_path, points_to):
+    """An --out that is (or lies under) a symbolic link to nothing, or a link to itself, said
+    "cannot write a folder there (File exists)", naming nothing that exists."""
+    link = tmp_path / "link"
+    link.symlink_to(points_to)
+    for out in (link, link / "sub"):
+        line = refused(capsys, "run", "--quick", "--out", str(out), silent=True)
+        assert_names(line, f"--out {out}: {link} is a symbolic link to {points_to}",
+                     "does not exist")
+
+
 @pytest.mark.parametrize("command", [["run", "--quick"], ["validate", "--quick"],
                                      ["sweep", "paper-study", "--quick"]])
 @pytest.mark.parametrize("where", ["/proc/silodem-out", "/sys/silodem-out", "name-too-long"])

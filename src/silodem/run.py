@@ -93,6 +93,9 @@ def _check_out_folder(out: Path, flag: str, make: bool) -> None:
         raise InputError(f"{flag} {out} is a file, not a folder; give a folder for the results "
                          "(created if missing)")
     for folder in (out, *out.parents):
+        if folder.is_symlink() and not folder.exists():  # (mkdir said only "File exists")
+            raise InputError(f"{flag} {out}: {folder} is a symbolic link to "
+                             f"{os.readlink(folder)}, which does not exist (or is a loop)")
         if folder.exists():
             if not folder.is_dir():
                 raise InputError(f"{flag} {out}: {folder} is a file, not a folder")
