@@ -229,6 +229,22 @@ def test_paper_case1_stiffness_warns_with_the_numbers():
     assert not SiloRun(load_config("paper-case2")).warnings
 
 
+def test_a_hopper_lower_than_one_grain_is_warned():
+    """A hopper angle of 0.0001 deg (a hopper micrometres high) ran without a word, its report
+    quoting hopper theory for a floor the grains could not tell from flat.  The hopper is
+    (B - D)/2 tan(theta) high; the warning comes exactly when that is under 2 r_max."""
+    base = load_config("paper-case2")
+    B, D, d = base.silo.cell_width, base.silo.outlet_width, 2 * base.material.radius_max
+    edge = math.degrees(math.atan(d / (0.5 * (B - D))))  # a hopper one grain high
+    for angle, warned in ((0.0001, True), (0.99 * edge, True), (1.01 * edge, False)):
+        cfg = load_config("paper-case2", [f"silo.hopper_angle_from_horizontal_deg={angle}"])
+        said = [w for w in SiloRun(cfg).warnings if "lower than one grain" in w]
+        assert len(said) == warned, (angle, said)
+    assert said == [] and "lower than one grain" not in " ".join(SiloRun(base).warnings)
+    flat = load_config("paper-case1", ["silo.hopper_angle_from_horizontal_deg=0.0001"])
+    assert not any("lower than one grain" in w for w in SiloRun(flat).warnings)
+
+
 def test_tangential_springs_too_soft_to_mobilise_friction_are_warned():
     """Table 1's k_s = 1e3 N/m with k_n raised to 2e7 N/m (the overlap advice alone): a
     grain-grain contact of k_s/2 = 500 N/m reaches mu F = tan(45 deg) F only after F / 500 N/m

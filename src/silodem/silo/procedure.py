@@ -33,6 +33,7 @@ from silodem.silo.geometry import (
     build_walls,
     gate_opening_time,
     outlet_room,
+    shallow_hopper_warning,
     silo_shape,
 )
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot
@@ -149,6 +150,8 @@ class SiloRun:
             self.warnings.append(self.overlap_estimate.warning())
         elif self.overlap_estimate.soft_shear:
             self.warnings.append(self.overlap_estimate.shear_warning())
+        if (warning := shallow_hopper_warning(cfg)) is not None:
+            self.warnings.append(warning)
         self.warnings += [w for rec in self.recorders if (w := rec.volume_warning(self))]
         if (warning := self._early_window()) is not None:
             self.warnings.append(warning)
