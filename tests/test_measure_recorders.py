@@ -67,8 +67,9 @@ def test_state_and_restore_carry_everything(runs, tmp_path):
 
 
 def test_every_number_under_measure_carries_its_unit(runs, tmp_path):
-    """docs/output.md: datasets of numbers under /measure carry a ``unit`` attribute (the
-    discharge snapshot's columns had none); names and the walls-in-place flags do not."""
+    """docs/output.md: datasets of numbers and flags under /measure carry a ``unit``
+    attribute (the discharge snapshot's columns had none; its walls-in-place flags and the
+    lost-grain flags had none, where /walls/active had '-'); names do not."""
     _, _, measured = runs
     rec = next(r for r in measured.recorders if isinstance(r, MeasureRecorder))
     with h5py.File(tmp_path / "m.h5", "w") as h5:
@@ -76,9 +77,10 @@ def test_every_number_under_measure_carries_its_unit(runs, tmp_path):
     with h5py.File(tmp_path / "m.h5") as h5:
         missing = []
         h5["measure"].visititems(lambda name, item: missing.append(name) if (
-            isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf"
+            isinstance(item, h5py.Dataset) and item.dtype.kind in "iufb"
             and "unit" not in item.attrs) else None)
         assert missing == []
+        assert h5["measure/flow/lost_during_discharge"].attrs["unit"] == "-"
         snap = h5["measure/discharge_snapshot"]
         assert snap["particles/vx"].attrs["unit"] == "m/s"
         assert snap["contacts/fn"].attrs["unit"] == "N"

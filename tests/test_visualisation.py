@@ -1083,3 +1083,15 @@ def test_every_number_under_frames_carries_its_unit(run_dir):
             and "unit" not in item.attrs) else None)
         assert f["frames/step"].attrs["unit"] == "-" and f["frames/time"].attrs["unit"] == "s"
     assert missing == []
+
+
+def test_every_number_and_flag_in_results_h5_carries_its_unit(run_dir):
+    """docs/output.md: datasets of numbers carry a ``unit`` attribute, flags (bool) '-':
+    /walls/active and /frames/walls_active had '-', /settled and /final walls_active none."""
+    missing = []
+    with h5py.File(run_dir / "results.h5", "r") as f:
+        f.visititems(lambda name, item: missing.append(name) if (
+            isinstance(item, h5py.Dataset) and item.dtype.kind in "iufb"
+            and "unit" not in item.attrs) else None)
+        assert f["settled/walls_active"].attrs["unit"] == f["walls/active"].attrs["unit"] == "-"
+    assert missing == []

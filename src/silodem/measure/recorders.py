@@ -372,10 +372,10 @@ class _FlowPart:
                  "distance from its place at the gate opening up to the end of the discharge "
                  "window (window_start + window after the opening), the dead zone's horizon "
                  "(NaN: lost through a wall)")
-        _dataset(f, "lost_before_discharge", self.lost, meaning="the grain's centre was under "
+        _dataset(f, "lost_before_discharge", self.lost, "-", meaning="the grain's centre was under "
                  "the floor (z < 0 away from the outlet) or beyond a wall when the gate "
                  "opened: lost through a wall while filling, not discharged")
-        _dataset(f, "lost_during_discharge", self.lost_later, meaning="the grain left through "
+        _dataset(f, "lost_during_discharge", self.lost_later, "-", meaning="the grain left through "
                  "a wall after the gate opened (pushed through it), not through the outlet")
         grid = f.create_group("grid")
         _dataset(grid, "x_edges", self.x_edges, "m")

@@ -152,7 +152,7 @@ def write_snapshot(group: h5py.Group, snap: Snapshot) -> None:
     """``snap`` into ``group``: attr ``time`` [s], ``walls_active`` and the groups particles,
     contacts, wall_contacts, each column with its ``unit`` (docs/output.md, /settled)."""
     group.attrs["time"] = snap.time
-    group.create_dataset("walls_active", data=snap.walls_active)
+    group.create_dataset("walls_active", data=snap.walls_active).attrs["unit"] = "-"
     for sub in ("particles", "contacts", "wall_contacts"):
         g = group.create_group(sub)
         for key, arr in getattr(snap, sub).items():
