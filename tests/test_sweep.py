@@ -952,6 +952,33 @@ def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monk
     assert study_api._time_left(400.0, 4, 12, 4) == "about 13 min left"
 
 
+def test_a_log_gets_a_line_while_no_run_finishes(tmp_path, capsys, monkeypatch):
+    """A sweep's log (stderr to a file: no bar drawn) said nothing between finished runs: a
+    study of hour-long runs looked hung.  A line comes each HEARTBEAT_S without one (here
+    0.05 s, 0.5 s without a run: several lines), and a finished run's line starts the wait
+    again; none after the sweep has ended."""
+    from silodem.study import api as study_api
+
+    plan = _plan(tmp_path)
+    monkeypatch.setattr(study_api, "HEARTBEAT_S", 0.05)
+    result = {"status": "computed", "wall_s": 9.5, "host": "h", "pid": 7}
+    with study_api._progress_bar(3, True) as done:
+        t0 = time.monotonic()
+        time.sleep(0.5)
+        waited = time.monotonic() - t0
+        done(plan.runs[0], result)
+        time.sleep(0.5)
+    assert not any(t.name == "silodem-heartbeat" for t in threading.enumerate())
+    lines = capsys.readouterr().err.splitlines()
+    first = lines.index(next(line for line in lines if line.startswith("computed")))
+    before, after = lines[:first], lines[first + 1:]
+    beats = [line for line in before if line.startswith("still running: 0/3 runs finished")]
+    assert 3 <= len(beats) <= waited / 0.05 + 1, lines  # not more often than each 0.05 s
+    assert all(line.endswith("the others are under way or waiting for a worker")
+               for line in beats)
+    assert 3 <= sum(line.startswith("still running: 1/3 runs finished") for line in after)
+
+
 def test_run_ids_of_configs_planned_before_the_hertz_law_are_unchanged():
     """The Hertz-Mindlin law added keys to the schema (``plan.LATER_KEYS``); a study planned
     before keeps its run ids, so that its finished runs are found and not run again.  The

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 from silodem.errors import InputError, check_flag, short_repr
 from silodem.output import write_text
@@ -108,7 +109,8 @@ def _progress_bar(total: int, enabled: bool,
     console = Console(stderr=True, soft_wrap=True)
     start = _clock()
     count = [0]
-    with Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+    beat = _Heartbeat(console, start, total) if not console.is_terminal else None
+    with beat or contextlib.nullcontext(), Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
              TextColumn("left"), TimeRemainingColumn(), TextColumn("{task.description}"),
              console=console, transient=False) as bar:
         task = bar.add_task("", total=total)
@@ -125,6 +127,8 @@ def _progress_bar(total: int, enabled: bool,
                         f"{k})")
             bar.console.print(text, highlight=False)
             bar.update(task, advance=1, description=run.slug)
+            if beat is not None:
+                beat.finished(count[0])
 
         try:
             yield done
@@ -135,6 +139,51 @@ def _progress_bar(total: int, enabled: bool,
 
 
 _clock = time.perf_counter  # the progress lines' clock [s] (a test sets its own)
+HEARTBEAT_S = 600.0  # [s] a log's line after this long without a finished run's line
+
+
+class _Heartbeat:
+    """A line on ``console`` each ``HEARTBEAT_S`` seconds in which no run has finished, from
+    a daemon thread, while the context is open: a log (stderr to a file, where no bar is
+    drawn) of a study whose runs take hours showed nothing between their lines, as if the
+    sweep had hung.  A terminal has the bar's elapsed time instead."""
+
+    def __init__(self, console: Any, start: float, total: int) -> None:
+        self.console, self.start, self.total = console, start, total
+        self.done = 0
+        self.last = time.monotonic()  # (real time: the thread waits on it)
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, name="silodem-heartbeat", daemon=True)
+
+    def __enter__(self) -> Self:
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.set()
+        self.thread.join()
+
+    def finished(self, done: int) -> None:
+        """A run's line was just printed: the next heartbeat is HEARTBEAT_S from now."""
+        self.done, self.last = done, time.monotonic()
+
+    def _run(self) -> None:
+        while not self.stop.wait(max(self.last + HEARTBEAT_S - time.monotonic(), 0.0)):
+            if time.monotonic() - self.last >= HEARTBEAT_S:
+                self.console.print(
+                    f"still running: {self.done}/{self.total} runs finished after "
+                    f"{_duration(_clock() - self.start)}; the others are under way or "
+                    "waiting for a worker", highlight=False, markup=False)
+                self.last = time.monotonic()
+
+
+def _duration(seconds: float) -> str:
+    """'80 s', '13 min' or '2.0 h'."""
+    if seconds < 90.0:
+        return f"{seconds:.0f} s"
+    if seconds < 5400.0:
+        return f"{seconds / 60.0:.0f} min"
+    return f"{seconds / 3600.0:.1f} h"
 
 
 def _time_left(elapsed: float, done: int, total: int, slots: int = 1) -> str:
@@ -147,12 +196,7 @@ def _time_left(elapsed: float, done: int, total: int, slots: int = 1) -> str:
         return "all done"
     if done < slots:
         return f"time left said once {slots} runs have finished"
-    left = elapsed / done * (total - done)
-    if left < 90.0:
-        return f"about {left:.0f} s left"
-    if left < 5400.0:
-        return f"about {left / 60.0:.0f} min left"
-    return f"about {left / 3600.0:.1f} h left"
+    return f"about {_duration(elapsed / done * (total - done))} left"
 
 
 def other_code_note(plan: StudyPlan, out_dir: Path) -> str | None:
