@@ -748,3 +748,31 @@ def test_figures_left_out_for_lack_of_data_are_named(run_dir, tmp_path):
     page = (copy / "report.html").read_text(encoding="utf-8")
     assert "Left out: network_end_of_filling, network_early_discharge, network_late_discharge;"\
         in page and "Left out for lack of data" not in page
+
+
+def _ink_at_the_edges(png: Path) -> float:
+    """The darkest pixel's distance below white (0-255) in the outermost 2 px of a PNG: text
+    cut by the picture's edge leaves ink there; a figure's white margin none."""
+    from matplotlib.image import imread
+
+    img = imread(png)[..., :3]  # (floats in 0..1)
+    edges = np.concatenate([img[:2].reshape(-1, 3), img[-2:].reshape(-1, 3),
+                            img[:, :2].reshape(-1, 3), img[:, -2:].reshape(-1, 3)])
+    return float(255 * (1.0 - edges.min()))
+
+
+def test_no_title_or_label_is_cut_by_a_pictures_edge(tmp_path):
+    """A study's runs have long names: their settled.png title ran off the left edge
+    ('aper-study-theta35_...'); and a steep (75 deg) hopper's tall switch-zone zoom had its
+    panel titles cut at the top of fig4.  Every picture's outer 2 px stay white."""
+    from silodem.scenario_files import load_config, quick_variant
+
+    cfg = quick_variant(load_config("paper-case2", [
+        "silo.hopper_angle_from_horizontal_deg=75", "walls.friction_deg=10",
+        "silo.wall_height=8.5", "fill.n_particles=480",  # (paper-study's [set])
+        "name='paper-study-theta75_phiG20_phiP10_seed2'"]))
+    out = tmp_path / "run"
+    run_simulation(cfg, out, progress=False)
+    pictures = [out / "settled.png", out / "final.png", *sorted((out / "figures").glob("*.png"))]
+    assert out / "figures" / "fig4_switch_zone_network.png" in pictures
+    assert {p.name: _ink_at_the_edges(p) for p in pictures} == {p.name: 0.0 for p in pictures}

@@ -114,6 +114,7 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str,
     Fig. 5, with its colour bar) and the walls (``walls``: ax, ay, bx, by [m]; dotted where
     withdrawn; a sliding gate where it stood, from the run's ``events``)."""
     from silodem.report.draw import draw_force_network, save_png, tight_layout
+    from silodem.viz.title import TITLE_MARGIN, TITLE_SIZES, fit_title, title_lines, title_tokens
 
     p = snap["particles"]
     wall_x = np.concatenate([walls["ax"], walls["bx"]])
@@ -136,7 +137,12 @@ def draw_state(snap: dict, walls: dict, path: Path, title: str,
     ax.set_ylim(*ylim)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
-    ax.set_title(title, fontsize=9)
+    # over the figure, fitted to its width (viz.title): a long scenario name, as a study's
+    # runs have, ran off the picture's left edge
+    tokens = title_tokens(title)
+    size_pt, breaks = fit_title(tokens, 100 * size[0] - 2 * TITLE_MARGIN, 2) \
+        or (TITLE_SIZES[-1], [])
+    fig.suptitle("\n".join(title_lines(tokens, breaks)), fontsize=size_pt)
     if lines is not None:  # the colours of the chains mean forces: say which
         fig.colorbar(lines, ax=ax, shrink=0.5, pad=0.02, label="normal contact force F_n [N]")
     tight_layout(fig)

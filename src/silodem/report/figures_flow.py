@@ -71,14 +71,19 @@ def fig_switch_network(a: Analysis) -> Figure | None:
     xs = [(-0.2, min(g["B"], 2 * half) + 0.1)]
     walls_seen = "both walls" if g["B"] <= 2 * half else "left wall"  # a narrow silo: whole
     fmax = _common_scale(snaps)
-    fig = Figure(figsize=(4.6 * len(snaps) + 1.2, 4.6), dpi=110, layout="constrained")
+    ys = (max(zc - half, -0.3), zc + half)
+    # the height that an equal-aspect panel 3.6 in wide needs, with room for the title and
+    # the x label (a fixed 4.6 in cut the titles of a tall zoom, e.g. a 75-deg hopper's)
+    tall = (ys[1] - ys[0]) / (xs[0][1] - xs[0][0])
+    fig = Figure(figsize=(4.6 * len(snaps) + 1.2, min(max(3.6 * tall + 1.0, 3.0), 9.0)),
+                 dpi=110, layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(snaps)))
     lc = None
     for ax, (title, snap) in zip(axes, snaps):
         lc, _ = draw_force_network(ax, snap, walls, fmax, max_width=6.0, events=a.res.events)
         ax.set_aspect("equal")
         ax.set_xlim(*xs[0])
-        ax.set_ylim(max(zc - half, -0.3), zc + half)
+        ax.set_ylim(*ys)
         ax.axhspan(*a.switch, color="#f6e7b5", alpha=0.35, zorder=0)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("z [m]")
