@@ -314,3 +314,28 @@ def test_the_discharge_rate_figure_marks_when_a_sliding_gate_cleared_the_outlet(
     assert ("outlet clear: the sliding gate open" in labels) == bool(clear)
     assert ax2.get_xlabel() == ("time since the gate began to open [s]" if clear else
                                 "time since the gate opened [s]")
+
+
+def test_the_steady_rate_line_is_the_least_squares_line_of_the_mass_it_fitted():
+    """The discharge-rate figure's red line had the fit's slope but went through the mass at
+    the interval's middle: with a discharge that speeds up and slows down it ran under the
+    curve (up to 142 kg, 5 grains, in paper-case2 --quick).  It is numpy's least-squares line
+    of the samples in the steady interval: its residuals there sum to zero."""
+    from types import SimpleNamespace
+
+    from silodem.measure.discharge import flow_rate_series, steady_rate
+    from silodem.report.figures_flow import fig_discharge_rate
+
+    t = np.linspace(0.0, 4.0, 201)
+    mass = 100.0 * t + 40.0 * np.sin(3.0 * t) ** 2  # a rate that pulses about 100 kg/s
+    rate = steady_rate(t, mass)
+    a = SimpleNamespace(res=SimpleNamespace(events={}),
+                        flow={"t": t, "mass": mass, "rate": rate,
+                              "series": flow_rate_series(t, mass)})
+    ax1 = fig_discharge_rate(a).axes[0]
+    red = next(line for line in ax1.get_lines() if line.get_label().startswith("steady rate"))
+    inside = (t >= rate.t0) & (t <= rate.t1)
+    slope, intercept = np.polyfit(t[inside], mass[inside], 1)
+    np.testing.assert_allclose(red.get_xdata(), [rate.t0, rate.t1], rtol=1e-12)
+    np.testing.assert_allclose(red.get_ydata(), intercept + slope * red.get_xdata(),
+                               rtol=1e-9)

@@ -106,9 +106,11 @@ def fig_discharge_rate(a: Analysis) -> Figure | None:
     t, m, r = f["t"], f["mass"], f["rate"]
     ax1.plot(t, m, color="k", lw=1.5, label="discharged mass")
     if np.isfinite(r.rate):
-        tt = np.array([r.t0, r.t1])
-        mid = np.interp(0.5 * (r.t0 + r.t1), t, m)
-        ax1.plot(tt, mid + r.rate * (tt - 0.5 * (r.t0 + r.t1)), color="#d62728", lw=2.5,
+        # the least-squares line itself: through the centroid of the samples it fitted (it
+        # went through the mass at the interval's middle, up to 5 grains under the curve)
+        tt, fitted = np.array([r.t0, r.t1]), (t >= r.t0) & (t <= r.t1)
+        tc, mc = float(t[fitted].mean()), float(m[fitted].mean())
+        ax1.plot(tt, mc + r.rate * (tt - tc), color="#d62728", lw=2.5,
                  alpha=0.8, label=f"steady rate W = {significant(r.rate, 4)} +- "
                  f"{significant(r.err, 2)} kg/s")  # (as the key numbers write it)
     ax1.set_ylabel("mass [kg]")
