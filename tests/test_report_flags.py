@@ -89,13 +89,14 @@ def test_a_fitted_k_above_1_is_flagged_in_the_legends(synth):
     is in flow; the free fit's entry too, after its Coulomb flag when it has one."""
     b = _with_fits(synth, (1.3, 0.05), discharge=(1.4, 0.1), free=(1.45, 0.2))
     assert "above 1 by more than its error" in _row(b, FILL_ROW)
-    fitted = f"Janssen 2D, K = 1.30 fitted, mu_w = tan phi_P {FILL_FLAG}"
+    fitted = f"Janssen 2D, K = 1.30 +- 0.05 fitted, mu_w = tan phi_P {FILL_FLAG}"
     free = f"Janssen free fit K = 1.45, mu_w = 0.45 {FILL_FLAG}"  # mu_w = tan 24 deg = 0.445
     for fig in (fig_horizontal(b, "fill"), fig_vertical(b, "fill")):
         labels = _legend(fig)
         assert fitted in labels and free in labels, labels
     labels = _legend(fig_horizontal(b, "discharge"))
-    assert f"Janssen 2D, K = 1.40 fitted, mu_w = tan phi_P {DISCHARGE_FLAG}" in labels, labels
+    assert f"Janssen 2D, K = 1.40 +- 0.1 fitted, mu_w = tan phi_P {DISCHARGE_FLAG}" in labels, \
+        labels
     # a free fit also over tan phi_P (walls of tan phi_P = 0.2): both flags, one parenthesis
     c = copy.copy(b)
     c.geom = {**b.geom, "mu_wall": 0.2}
@@ -185,9 +186,12 @@ def test_the_legend_flag_holds_exactly_where_the_key_number_flags(synth, K, err,
     'above 1 by more than its error'."""
     b = _with_fits(synth, (K, err))
     assert ("above 1 by more than its error" in _row(b, FILL_ROW)) is flagged
-    plain = f"Janssen 2D, K = {K:.2f} fitted, mu_w = tan phi_P"
+    plain = f"Janssen 2D, K = {K:.2f}{'' if math.isnan(err) else f' +- {err}'} fitted, " \
+        "mu_w = tan phi_P"
     labels = _legend(fig_horizontal(b, "fill"))
-    assert (f"{plain} {FILL_FLAG}" if flagged else plain) in labels, labels
+    flags = (["poorly determined"] if math.isnan(err) else []) + (
+        [FILL_FLAG[1:-1]] if flagged else [])
+    assert (f"{plain} ({'; '.join(flags)})" if flags else plain) in labels, labels
     assert any(FILL_FLAG in t for t in labels if t.startswith("Janssen 2D")) is flagged
 
 
@@ -288,3 +292,22 @@ def test_captions_name_the_fill_window_as_the_titles_do():
         assert "{" not in spec.caption_for(unsettled), spec.name  # every field filled
         assert "after filling" not in spec.caption_for(unsettled) or spec.name in (
             "fig4_switch_zone_network", "fig5_force_network")  # the settled snapshot's
+
+
+@pytest.mark.parametrize(("K", "err", "poor"), [(1.32, 0.72, True), (0.55, 0.02, False),
+                                                (0.6, 0.3, False), (0.6, 0.31, True)])
+def test_a_poorly_determined_fitted_k_is_said_and_drawn_thin(synth, K, err, poor):
+    """paper-case2 --quick fitted K = 1.32 +- 0.72, which the key numbers call poorly
+    determined (an error over half the value: 0.72 > 0.66), and Fig. 3a drew it as its
+    boldest curve with no error in the legend.  The legend gives K +- its error and the
+    flag; the line is 1.2 pt wide, not 2 (0.3 is exactly half of 0.6: not flagged)."""
+    b = _with_fits(synth, (K, err))
+    assert ("poorly determined" in _row(b, FILL_ROW)) is poor
+    fig = fig_horizontal(b, "fill")
+    entry = next(t for t in _legend(fig) if t.startswith("Janssen 2D, K = "))
+    assert entry.startswith(f"Janssen 2D, K = {K:.2f} +- {err} fitted, mu_w = tan phi_P")
+    assert ("(poorly determined" in entry) is poor
+    line = next(ln for ax in fig.axes for ln in ax.get_lines()
+                if ln.get_label().startswith("Janssen 2D, K = ") and "paper" not in
+                ln.get_label())
+    assert line.get_linewidth() == (1.2 if poor else 2.0)

@@ -31,7 +31,7 @@ from silodem.report.flags import (
     free_fit_undetermined,
     walls_held_up,
 )
-from silodem.report.numbers import UNLOADED, resolved
+from silodem.report.numbers import UNLOADED, poorly_determined, resolved
 from silodem.silo.geometry import silo_shape
 
 PAPER_K = 0.4  # the paper's Janssen coefficient during filling
@@ -137,9 +137,10 @@ def janssen_label(fit: th.JanssenFit, key: str) -> str:
 
 
 def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
-    """Janssen's sigma_h or sigma_v (``which``: "h" or "v") with the window's fitted K, the
-    paper's K = 0.4 and, after filling, the free fit; a fitted K above 1 says so in its
-    legend, as in the key numbers."""
+    """Janssen's sigma_h or sigma_v (``which``: "h" or "v") with the window's fitted K (its
+    error in the legend; a thin line, "poorly determined", where the error is over half of
+    K), the paper's K = 0.4 and, after filling, the free fit; a fitted K above 1 says so in
+    its legend, as in the key numbers."""
     g = a.geom
     surf = a.surface[key]
     if not np.isfinite(surf) or not np.isfinite(a.rho_b):
@@ -148,11 +149,14 @@ def _janssen_curves(ax, a: Analysis, key: str, which: str) -> None:
     depth = surf - z
     f = th.janssen_sigma_h if which == "h" else th.janssen_sigma_v
     j = a.janssen.get(key)
-    if j is not None:
-        label = _flagged(f"Janssen 2D, K = {j.K:.2f} fitted, mu_w = tan phi_P",
-                         janssen_label(j, key))
-        ax.plot(f(depth, a.rho_b, g["g"], g["B"], j.K, g["mu_wall"]), z, color="#1f77b4", lw=2,
-                label=label)
+    if j is not None:  # with its error, and thin where that is over half of K, as the key
+        # numbers say it (a K of 1.32 +- 0.72 was the boldest curve, without a word)
+        poor = poorly_determined(j.K, j.K_err)
+        err = f" +- {j.K_err:.2g}" if np.isfinite(j.K_err) else ""
+        label = _flagged(f"Janssen 2D, K = {j.K:.2f}{err} fitted, mu_w = tan phi_P",
+                         "poorly determined" if poor else "", janssen_label(j, key))
+        ax.plot(f(depth, a.rho_b, g["g"], g["B"], j.K, g["mu_wall"]), z, color="#1f77b4",
+                lw=1.2 if poor else 2, label=label)
     ax.plot(f(depth, a.rho_b, g["g"], g["B"], PAPER_K, g["mu_wall"]), z, color="#1f77b4",
             lw=1.2, ls="--", label="Janssen 2D, K = 0.4 (paper)")
     if key == "fill" and a.janssen_free is not None \
