@@ -203,10 +203,10 @@ def ratio_axis(ax: Axes, *curves: npt.ArrayLike) -> None:
     top = np.max(values[np.isfinite(values)], initial=-np.inf)
     if top > RATIO_TOP:
         digits = next(d for d in range(3, 18) if float(f"{top:.{d}g}") > RATIO_TOP)
+        # in an opaque box above the traces (a spike showed through one of alpha 0.85)
         ax.text(0.99, 0.97, f"axis cut at {RATIO_TOP:g}: values up to {top:.{digits}g}",
                 transform=ax.transAxes, ha="right", va="top", fontsize=7, color="0.35",
-                zorder=5, bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none",
-                                "pad": 1.0})  # above the traces, readable
+                zorder=5, bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.0})
 
 
 def loaded_ratio(sh: npt.ArrayLike, sv: npt.ArrayLike) -> np.ndarray:
