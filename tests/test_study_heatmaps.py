@@ -21,6 +21,7 @@ from silodem.study.report import (
     colour_range,
     fig_heatmaps,
     layout_of,
+    shared_colour_range,
 )
 
 NAN = float("nan")
@@ -108,6 +109,54 @@ def test_a_poorly_determined_K_is_left_out_of_the_colour_range():
     im = heat_map(both, "Janssen K after filling").images[0]
     assert im.get_clim() == pytest.approx((0.7, 1.4), rel=1e-12)
     assert im.colorbar.extend == "both"
+
+
+def test_the_same_quantity_after_filling_and_in_discharge_shares_one_colour_scale():
+    """The wall peak after filling (8,300-37,000 Pa) beside the same peak in discharge
+    (5,300-25,000 Pa), each on its own range, drew 22,735 Pa teal and 23,774 Pa yellow.  Both
+    maps now span 5,300..37,000 Pa, so equal colours are equal stresses; the changes of
+    sigma_h (+-56 %) and sigma_v (+-77 %) share +-77 %.  A map on its own (the discharge
+    rate) keeps its range, and each shared map's bar is extended only for its own values."""
+    plan = fake_plan()
+    fill = dict(zip(CELLS, (8300.0, 22735.0, 37000.0, 15000.0)))
+    flow = dict(zip(CELLS, (5300.0, 23774.0, 25000.0, 9000.0)))
+    dh = dict(zip(CELLS, (-56.0, 10.0, 20.0, -5.0)))
+    dv = dict(zip(CELLS, (-77.0, 40.0, 30.0, 5.0)))
+    rate = dict(zip(CELLS, (900.0, 1100.0, 1000.0, 1200.0)))
+    fig = fig_heatmaps(plan, _rows(plan, {"wall_peak_fill": fill, "wall_peak_discharge": flow,
+                                          "switch_sigma_h_change_pct": dh,
+                                          "switch_sigma_v_change_pct": dv,
+                                          "discharge_rate": rate}), layout_of(plan))
+    for title in ("wall peak in the switch zone, after filling",
+                  "wall peak in the switch zone, discharge"):
+        ax = heat_map(fig, title)
+        assert ax.images[0].get_clim() == pytest.approx((5300.0, 37000.0), rel=1e-12)
+        assert ax.images[0].colorbar.extend == "neither"
+        assert "one colour scale with the map beside it" in ax.get_title()
+    for title in ("change of sigma_h", "change of sigma_v"):
+        assert heat_map(fig, title).images[0].get_clim() == pytest.approx((-77.0, 77.0))
+    own = heat_map(fig, "discharge rate").images[0]
+    assert own.get_clim() == pytest.approx((900.0, 1200.0), rel=1e-12)
+    # the maps that share a scale stand side by side: one row of the two-column grid
+    for key in {hm.shares for hm in HEATMAPS} - {""}:
+        where = [k for k, hm in enumerate(HEATMAPS) if hm.shares == key]
+        assert len(where) == 2 and where[0] % 2 == 0 and where[1] == where[0] + 1, key
+
+
+def test_a_shared_colour_scale_extends_a_bar_only_for_its_own_values():
+    """shared_colour_range on hand-worked grids: the union of both maps, 1..9, sets both
+    ranges; a starred 30 in the first map is left out of the range and extends only the
+    first map's bar; a map without a finite value gets none."""
+    a = np.array([[1.0, 30.0], [4.0, 5.0]])
+    b = np.array([[2.0, 9.0], [NAN, 3.0]])
+    star_a = np.array([[False, True], [False, False]])
+    no = np.zeros((2, 2), dtype=bool)
+    maps = [(a, star_a), (b, no)]
+    assert shared_colour_range(maps, False, a) == (1.0, 9.0, "max")
+    assert shared_colour_range(maps, False, b) == (1.0, 9.0, "neither")
+    assert shared_colour_range(maps, True, b) == (-9.0, 9.0, "neither")
+    assert shared_colour_range([(a, star_a), (np.full((2, 2), NAN), no)], False,
+                               np.full((2, 2), NAN)) is None
 
 
 def test_colour_range_of_hand_worked_grids():

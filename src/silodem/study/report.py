@@ -252,19 +252,22 @@ class HeatMap(NamedTuple):
     title: str  # what it is, with its unit
     signed: bool  # below 0 by its definition: a two-sided map centred on 0 (SIGNED_CMAP)
     cmap: str = "viridis"  # the one-way map of a quantity that is not signed
+    shares: str = ""  # maps with the same (non-empty) key, side by side, share one colour range
 
 
 SIGNED_CMAP = "RdBu_r"  # white at 0, red above, blue below
 HEATMAPS = [
-    HeatMap("switch_sigma_h_change_pct", "change of sigma_h [%]", True),
-    HeatMap("switch_sigma_v_change_pct", "change of sigma_v [%]", True),
+    HeatMap("switch_sigma_h_change_pct", "change of sigma_h [%]", True, shares="change"),
+    HeatMap("switch_sigma_v_change_pct", "change of sigma_v [%]", True, shares="change"),
     # one-sided: compressive (positive) stresses and their ratio, a CV, a fitted K (bounded
     # above 0), a mass rate, a contact count
     HeatMap("switch_ratio_discharge", "sigma_h / sigma_v, discharge [-]", False),
     HeatMap("switch_ratio_cv_discharge", "CV of sigma_h / sigma_v, discharge [-]", False,
             "magma_r"),
-    HeatMap("wall_peak_fill", "wall peak in the switch zone, after filling [Pa]", False),
-    HeatMap("wall_peak_discharge", "wall peak in the switch zone, discharge [Pa]", False),
+    HeatMap("wall_peak_fill", "wall peak in the switch zone, after filling [Pa]", False,
+            shares="peak"),
+    HeatMap("wall_peak_discharge", "wall peak in the switch zone, discharge [Pa]", False,
+            shares="peak"),
     HeatMap("janssen_K_fill", "Janssen K after filling (mu_w = tan phi_P) [-]", False),
     # signed: sum(tau) / sum(sigma_n) on the walls, below 0 where they push the grains up
     HeatMap("wall_friction_mobilised_fill", "mobilised wall friction after filling [-]", True),
@@ -335,12 +338,47 @@ def colour_range(grid: np.ndarray, signed: bool,
         vmin, vmax = -lim, lim
     else:
         vmin, vmax = float(ranged.min()), float(ranged.max())
-    over, under = bool((grid[finite] > vmax).any()), bool((grid[finite] < vmin).any())
-    return vmin, vmax, {(True, True): "both", (True, False): "max", (False, True): "min",
-                        (False, False): "neither"}[over, under]
+    return vmin, vmax, _extend(grid, vmin, vmax)
+
+
+def _extend(grid: np.ndarray, vmin: float, vmax: float) -> str:
+    """matplotlib's colorbar ``extend`` for the finite values of ``grid`` beyond vmin, vmax."""
+    finite = grid[np.isfinite(grid)]
+    over, under = bool((finite > vmax).any()), bool((finite < vmin).any())
+    return {(True, True): "both", (True, False): "max", (False, True): "min",
+            (False, False): "neither"}[over, under]
+
+
+def shared_colour_range(maps: list[tuple[np.ndarray, np.ndarray]], signed: bool,
+                        own: np.ndarray) -> tuple[float, float, str] | None:
+    """``colour_range`` over the values of several maps, ``maps`` ((grid, starred) each), for
+    the map ``own`` among them (its colour bar's ``extend``): the same quantity after filling
+    and in discharge side by side, each on its own range, drew 22,735 Pa teal on the left
+    and 23,774 Pa yellow on the right.  None when ``own`` has no finite value."""
+    if not np.isfinite(own).any():
+        return None
+    limits = colour_range(np.concatenate([g.ravel() for g, _ in maps]), signed,
+                          np.concatenate([st.ravel() for _, st in maps]))
+    if limits is None:
+        return None
+    vmin, vmax, _ = limits
+    return vmin, vmax, _extend(own, vmin, vmax)
 
 
 CELL_FONT = 9  # [pt] of the cells' values: 11 px at the figure's 90 dpi (7 pt was 9 px)
+
+
+def _map_values(rows_by_id: dict, cells: list[list[list[PlannedRun]]],
+                column: str) -> tuple[np.ndarray, np.ndarray]:
+    """(grid, starred) of a heat map of ``column``: the seed mean per cell (of ``cells``, the
+    runs at each), and where a run's fit there is poorly determined (``FIT_ERRORS``)."""
+    grid = np.array([[_mean_std(_values(rows_by_id, runs, column))[0] for runs in line]
+                     for line in cells], dtype=float)
+    starred = np.zeros(grid.shape, dtype=bool)
+    if column in FIT_ERRORS:
+        for (i, j), v in np.ndenumerate(grid):
+            starred[i, j] = math.isfinite(v) and _poorly_fitted(rows_by_id, cells[i][j], column)
+    return grid, starred
 
 
 def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | None:
@@ -355,17 +393,17 @@ def fig_heatmaps(plan: StudyPlan, rows_by_id: dict, lay: Layout) -> Figure | Non
     fig = Figure(figsize=(6.2 * ncols, (0.6 * len(lay.rows) + 2.6) * nrows), dpi=90)
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     any_value = False
+    cells = [[_runs_at(plan, lay, row, col) for col in lay.cols] for row in lay.rows]
+    maps = {hm.column: _map_values(rows_by_id, cells, hm.column) for hm in HEATMAPS}
     for ax, hm in zip(axes, HEATMAPS):
         column, title = hm.column, hm.title
-        cells = [[_runs_at(plan, lay, row, col) for col in lay.cols] for row in lay.rows]
-        grid = np.array([[_mean_std(_values(rows_by_id, runs, column))[0] for runs in line]
-                         for line in cells], dtype=float)
-        starred = np.zeros(grid.shape, dtype=bool)
-        if column in FIT_ERRORS:
-            for (i, j), v in np.ndenumerate(grid):
-                starred[i, j] = math.isfinite(v) and _poorly_fitted(rows_by_id, cells[i][j],
-                                                                    column)
-        limits = colour_range(grid, hm.signed, starred)
+        grid, starred = maps[column]
+        if hm.shares:
+            limits = shared_colour_range([maps[m.column] for m in HEATMAPS
+                                          if m.shares == hm.shares], hm.signed, grid)
+            title += "\n(one colour scale with the map beside it)"
+        else:
+            limits = colour_range(grid, hm.signed, starred)
         any_value |= limits is not None
         vmin, vmax, extend = limits or (None, None, "neither")
         im = ax.imshow(np.ma.masked_invalid(grid), cmap=SIGNED_CMAP if hm.signed else hm.cmap,
