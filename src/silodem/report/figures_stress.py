@@ -222,6 +222,13 @@ def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
                 f"{full})")
 
 
+def _from_zero(ax) -> None:
+    """A stress axis from zero, with a margin of 2 % of its length below it: a wall bin at
+    0 Pa keeps its whole marker (the axis line hid half of it)."""
+    ax.set_xlim(0.0, ax.get_xlim()[1])
+    ax.set_xlim(-0.02 * ax.get_xlim()[1], ax.get_xlim()[1])
+
+
 def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
     """Figs. 3a (after filling) and 6 (during discharge): horizontal stress along the wall."""
     e = a.edge.get(key)
@@ -251,7 +258,7 @@ def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:
                 label=f"switch-zone peak {v:,.0f} Pa at z = {z:.2f} m")
     on_hopper = " (normal stress on the hopper)" if a.res.cfg.silo.kind == "hopper" else ""
     ax.set_xlabel(f"horizontal stress sigma_h on the wall{on_hopper} [Pa]")
-    ax.set_xlim(left=0)
+    _from_zero(ax)
     _z_axis(ax, a)
     title = a.labels[key]
     t0, t1 = a.windows.get(key, (np.nan, np.nan))
@@ -281,7 +288,7 @@ def fig_vertical(a: Analysis, key: str = "fill") -> Figure | None:
     _janssen_curves(ax, a, key, "v")
     _hopper_curves(ax, a, "v", key)
     ax.set_xlabel("vertical stress sigma_v [Pa]")
-    ax.set_xlim(left=0)
+    _from_zero(ax)
     _z_axis(ax, a)
     t0, t1 = a.windows.get(key, (np.nan, np.nan))
     when = f" (t = {t0:.2f}-{t1:.2f} s)" if key == "discharge" else ""
