@@ -545,3 +545,47 @@ def test_en1991_4_printed_exponent_is_the_cone_slice_balance_and_one_less_for_a_
     load = th.en1991_4_hopper_discharge(1.0, 2.0, 3e4, 16e3, beta, 0.2, mu, 60.0)
     assert load.n == pytest.approx(th.en1991_4_printed_exponent(load.F, mu, beta) + 1,
                                    rel=1e-12)
+
+
+@pytest.mark.parametrize("n_i", [1e-10, 1e-11, 2e-12, -3e-11])
+def test_paper_eq12_keeps_its_precision_next_to_n_i_0(n_i):
+    """Just outside the switch to the n_i = 0 limit, eq. (12) as printed cancels: at n_i =
+    1e-11 it lost 1.7e-5 of sigma.  It equals the conical Walker form (D = 1), which has no
+    such cancellation, to 1e-12.  mu_w = tan(alpha) (1 + n_i) / 2 sets n_i."""
+    alpha, H, q = 45.0, 1.7, 12000.0
+    mu = math.tan(math.radians(alpha)) * (1.0 + n_i) / 2.0
+    z = np.linspace(0.0, 1.2, 13)
+    np.testing.assert_allclose(th.paper_eq12(z, H, q, GAMMA, alpha, mu),
+                               th.hopper_sigma_v(H - z, H, q, GAMMA, alpha, mu, 1.0,
+                                                 planar=False), rtol=1e-12)
+
+
+def test_janssen_and_en1991_4_filling_of_nearly_frictionless_walls_are_hydrostatic():
+    """A wall friction so small that 2 K mu_w / B (or K mu / (A/U)) is under 1e-304: Janssen's
+    rho_b g B / (2 K mu_w) overflowed and sigma_v came back inf, and EN 1991-4's p_ho Y_J was
+    inf x 0 = NaN.  Both are the hydrostatic load (to 1e-12): the walls carry nothing."""
+    z = np.array([0.0, 0.5, 3.0, 40.0])
+    for mu in (1e-305, 1e-309):
+        np.testing.assert_allclose(th.janssen_sigma_v(z, 800.0, 9.81, 3.4, 0.4, mu),
+                                   800.0 * 9.81 * z, rtol=1e-12)
+        p_h, _, p_v = th.en1991_4_filling(z, GAMMA, 0.4, mu, 1.7)
+        np.testing.assert_allclose(p_v, GAMMA * z, rtol=1e-12)
+        np.testing.assert_allclose(p_h, 0.4 * GAMMA * z, rtol=1e-12)
+
+
+@pytest.mark.parametrize("mu", [1e-9, 1e-12, 1e-15])
+def test_en1991_4_squat_filling_of_a_smooth_wall_keeps_its_precision(mu):
+    """With a smooth wall z_o = A / (K mu U) is huge and x = z / z_o tiny; 1 - (1 + x)^n formed
+    from 1 + x lost 3.5e-4 of p_h at mu = 1e-12 (and p_v rose above the hydrostatic gamma z),
+    all of it at 1e-15.  The series in x of the standard's formulas (h_o = 0, n = -(1 + tan
+    phi_r)): p_h = gamma K z (-n) (1 + (n - 1) x / 2 + ...), p_v = gamma z (1 + n x / 2 + ...),
+    so p_v never exceeds gamma z."""
+    K, A_over_U, phi_r = 0.4, 1.7, 24.0
+    n = -(1.0 + math.tan(math.radians(phi_r)))
+    z = np.array([0.01, 1.0, 10.0])
+    x = z * K * mu / A_over_U
+    p_h, _, p_v = th.en1991_4_filling_squat(z, GAMMA, K, mu, A_over_U, phi_r, 0.0)
+    np.testing.assert_allclose(p_h, GAMMA * K * z * -n * (1.0 + (n - 1.0) * x / 2.0),
+                               rtol=1e-12)
+    np.testing.assert_allclose(p_v, GAMMA * z * (1.0 + n * x / 2.0), rtol=1e-12)
+    assert np.all(p_v <= GAMMA * z)

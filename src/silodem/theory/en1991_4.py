@@ -68,11 +68,12 @@ def _check_wall(func: str, gamma, K, mu, A_over_U) -> None:
 def _filling(func: str, depth, gamma, K, mu, A_over_U):
     _check_wall(func, gamma, K, mu, A_over_U)
     z = np.maximum(ck.array(func, "depth", depth), 0.0)
-    z_o = A_over_U / (K * mu)
-    p_ho = gamma * K * z_o
-    yj = -np.expm1(-z / z_o)
-    p_h = p_ho * yj
-    return p_h, mu * p_h, p_ho / K * yj
+    # z_o Y_J(z) = (1 - exp(-z / z_o)) / (1 / z_o), never larger than z: p_ho = gamma K z_o
+    # overflowed for K mu / (A/U) < ~1e-308, and p_ho Y_J was inf x 0
+    inv_z_o = K * mu / A_over_U
+    z_yj = -np.expm1(-inv_z_o * z) / inv_z_o if inv_z_o > 0.0 else z
+    p_h = gamma * K * z_yj
+    return p_h, mu * p_h, gamma * z_yj
 
 
 def en1991_4_discharge(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
@@ -90,8 +91,9 @@ def en1991_4_discharge(depth: npt.ArrayLike, gamma: float, K: float, mu: float,
 
 def en1991_4_h_o(d_c: float, phi_r_deg: float, planar: bool = True) -> float:
     """Depth h_o [m] below the equivalent surface of the highest solid-wall contact, for a
-    silo filled centrally to a heap at the angle of repose phi_r (EN 1991-4:2006 §1.6 and
-    Fig. 1.1): d_c tan(phi_r) / 4 for a planar (or rectangular) silo of width d_c, and
+    silo filled centrally to a heap at the angle of repose phi_r (EN 1991-4:2006: h_o as its
+    symbol list, §1.6, and Fig. 1.1 define it; its formulas are with the squat silos' filling
+    loads, §5.3.1.1): d_c tan(phi_r) / 4 for a planar (or rectangular) silo of width d_c, and
     r tan(phi_r) / 3 for a circular one of radius r = d_c / 2.  Geometry: the heap is a
     triangle (a cone) of height (d_c/2) tan(phi_r) on the level of the wall contacts; the level
     surface of the same volume lies 1/2 (1/3) of that height above it.  ValueError unless
@@ -135,11 +137,14 @@ def en1991_4_filling_squat(depth: npt.ArrayLike, gamma: float, K: float, mu: flo
     z = np.maximum(ck.array(func, "depth", depth), 0.0)
     below = np.maximum(z, h_o)  # the wall-loaded part starts at the highest wall contact
     n = -(1.0 + math.tan(math.radians(phi_r_deg))) * (1.0 - h_o / z_o)
-    ratio = 1.0 + (below - h_o) / (z_o - h_o)  # = (z + z_o - 2 h_o) / (z_o - h_o) >= 1
-    p_h = gamma * K * z_o * (1.0 - ratio**n)
+    # ratio = 1 + x = (z + z_o - 2 h_o) / (z_o - h_o) >= 1, taken as log1p(x): 1 - ratio^n
+    # formed from ratio itself cancelled where x is small (a smooth wall, z_o huge: 3.5e-4
+    # of p_h lost at mu = 1e-12, all of it at 1e-15)
+    log_r = np.log1p((below - h_o) / (z_o - h_o))
+    p_h = gamma * K * z_o * -np.expm1(n * log_r)
     # z_V = h_o + (z_o - h_o) (ratio^(n+1) - 1) / (n + 1), written with expm1 so that it stays
     # exact as n + 1 -> 0 (where it becomes h_o + (z_o - h_o) ln(ratio))
-    m, log_r = n + 1.0, np.log(ratio)
+    m = n + 1.0
     z_v = h_o + (z_o - h_o) * (np.expm1(m * log_r) / m if m != 0.0 else log_r)
     p_v = gamma * np.where(z < h_o, z, z_v)
     return p_h, mu * p_h, p_v

@@ -28,7 +28,8 @@ def _sigma_v(depth, rho_b, g, B, K, mu_w):
     c = 2.0 * K * mu_w / B
     if c == 0.0:
         return rho_b * g * depth
-    return rho_b * g / c * -np.expm1(-c * depth)
+    # (1 - exp(-c z)) / c, never larger than z: rho_b g / c overflowed for c < ~1e-304
+    return rho_b * g * (-np.expm1(-c * depth) / c)
 
 
 def _sigma_h(depth, rho_b, g, B, K, mu_w):
