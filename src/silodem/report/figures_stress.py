@@ -225,8 +225,8 @@ def _en1991_4_curve(ax, a: Analysis, key: str) -> None:
 def _from_zero(ax) -> None:
     """A stress axis from zero, with a margin of 2 % of its length below it: a wall bin at
     0 Pa keeps its whole marker (the axis line hid half of it)."""
-    ax.set_xlim(0.0, ax.get_xlim()[1])
-    ax.set_xlim(-0.02 * ax.get_xlim()[1], ax.get_xlim()[1])
+    right = ax.get_xlim()[1]
+    ax.set_xlim(-0.02 * right, right)
 
 
 def fig_horizontal(a: Analysis, key: str = "fill") -> Figure | None:

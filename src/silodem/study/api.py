@@ -110,9 +110,10 @@ def _progress_bar(total: int, enabled: bool,
     start = _clock()
     count = [0]
     beat = _Heartbeat(console, start, total) if not console.is_terminal else None
-    with beat or contextlib.nullcontext(), Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-             TextColumn("left"), TimeRemainingColumn(), TextColumn("{task.description}"),
-             console=console, transient=False) as bar:
+    with beat or contextlib.nullcontext(), \
+            Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                TextColumn("left"), TimeRemainingColumn(), TextColumn("{task.description}"),
+                console=console, transient=False) as bar:
         task = bar.add_task("", total=total)
 
         def done(run: PlannedRun, result: dict) -> None:
