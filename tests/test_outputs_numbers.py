@@ -307,8 +307,17 @@ def test_heatmaps_are_seed_means_of_the_documented_quantities(study):
     discharge, its CV, the wall peak after filling and in discharge, Janssen's K and the
     mobilised wall friction after filling, the discharge rate and the mass flow index,
     rows = theta, columns = (phi_G, phi_P), seed means written in the cells ('n/a' where no
-    seed has a value).  The change maps are centred on zero (limits +- the largest |mean|)."""
+    seed has a value).  The change maps are centred on zero, both on one range: +- the largest
+    |mean| of either (they stand side by side and share their colours); the two wall-peak
+    maps share the range of both."""
     plan, rows, _, _ = study
+    changes = [_seed_mean(column, r, c) for column in HEATMAP_COLUMNS
+               if column.endswith("change_pct")
+               for r in range(len(THETAS)) for c in range(len(COLS))]
+    lim = max(abs(v) for v in changes if not np.isnan(v))
+    peaks = [v for column in ("wall_peak_fill", "wall_peak_discharge")
+             for r in range(len(THETAS)) for c in range(len(COLS))
+             if not np.isnan(v := _seed_mean(column, r, c))]
     fig = fig_heatmaps(plan, {r["id"]: r for r in rows}, layout_of(plan))
     maps = [ax for ax in fig.axes if ax.images]
     assert len(maps) == len(HEATMAP_COLUMNS)
@@ -325,8 +334,9 @@ def test_heatmaps_are_seed_means_of_the_documented_quantities(study):
             assert _shown_ok(texts[(c, r)], v, 3), (column, r, c, texts[(c, r)])
         assert not any(t.endswith("*") for t in texts.values())  # no fit errors in these rows
         if column.endswith("change_pct"):
-            lim = max(abs(v) for v in expected[ok])
             assert ax.images[0].get_clim() == pytest.approx((-lim, lim), rel=REL)
+        if column.startswith("wall_peak_"):  # (the peaks too: after filling, in discharge)
+            assert ax.images[0].get_clim() == pytest.approx((min(peaks), max(peaks)), rel=REL)
         assert [t.get_text() for t in ax.get_yticklabels()] == [f"theta={t} deg" for t in THETAS]
         assert [t.get_text() for t in ax.get_xticklabels()] == [
             f"phiG={g} deg, phiP={p} deg" for g, p in COLS]
