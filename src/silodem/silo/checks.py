@@ -17,6 +17,8 @@
   k_n (Table 1's 1e3 N/m beside a k_n raised to 2e7 N/m: about 20 m) leaves the friction
   unmobilised, and the grains behave as frictionless in shear: warned, like the overlap, above
   5 % of the mean radius, with the k_s that keeps it under 1 %.
+* A hopper lower than the largest grain's diameter (``shallow_hopper_warning``): the grains
+  see a flat floor, and the hopper theory of the report does not apply; warned.
 * Values that are each valid but give no usable run together (``check_numbers``, before
   anything is written): stiffnesses out of range, a time step that is zero or not finite,
   or in which a grain that fell from the top of the walls crosses more than its radius,
@@ -498,3 +500,18 @@ def check_sizes(cfg: Config) -> None:
                          f"against {size} that its neighbour search needs {cells:.3g} cells, "
                          f"more than {MAX_SEARCH_CELLS:.0e}; give larger grains or a smaller "
                          "silo")
+
+
+def shallow_hopper_warning(cfg: Config) -> str | None:
+    """A warning for a hopper lower than the largest grain's diameter: the grains cannot tell
+    it from a flat floor, and the hopper's measurements (the junction's stress peak, the
+    hopper theory's predictions) then describe a hopper the run did not have."""
+    s = cfg.silo
+    diameter = 2.0 * cfg.material.radius_max
+    if s.kind != "hopper" or s.hopper_height >= diameter:
+        return None
+    return (f"silo.hopper_angle_from_horizontal_deg = {s.hopper_angle_from_horizontal_deg:.3g} "
+            f"deg makes a hopper {s.hopper_height:.3g} m high, lower than one grain "
+            f"({diameter:.3g} m, 2 material.radius_max): the grains sit on it as on a flat "
+            f"floor, and the hopper theory's predictions do not apply; give silo.kind = "
+            f"'flat', or a steeper hopper")

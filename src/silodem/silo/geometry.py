@@ -191,21 +191,6 @@ def silo_shape(cfg: Config) -> SiloShape:
                      s.hopper_height)
 
 
-def shallow_hopper_warning(cfg: Config) -> str | None:
-    """A warning for a hopper lower than the largest grain's diameter: the grains cannot tell
-    it from a flat floor, and the hopper's measurements (the junction's stress peak, the
-    hopper theory's predictions) then describe a hopper the run did not have."""
-    s = cfg.silo
-    diameter = 2.0 * cfg.material.radius_max
-    if s.kind != "hopper" or s.hopper_height >= diameter:
-        return None
-    return (f"silo.hopper_angle_from_horizontal_deg = {s.hopper_angle_from_horizontal_deg:.3g} "
-            f"deg makes a hopper {s.hopper_height:.3g} m high, lower than one grain "
-            f"({diameter:.3g} m, 2 material.radius_max): the grains sit on it as on a flat "
-            f"floor, and the hopper theory's predictions do not apply; give silo.kind = "
-            f"'flat', or a steeper hopper")
-
-
 def build_walls(cfg: Config) -> Walls:
     """The silo's wall segments with their contact parameters (with the grains', combined by
     ``materials.contact_constants``)."""

@@ -26,14 +26,19 @@ from silodem.engine.particles import Particles
 from silodem.engine.simulation import Simulation
 from silodem.errors import InputError
 from silodem.silo import sizes
-from silodem.silo.checks import PACKING_FRACTION, choose_time_step, estimate_overlap, grain_law
+from silodem.silo.checks import (
+    PACKING_FRACTION,
+    choose_time_step,
+    estimate_overlap,
+    grain_law,
+    shallow_hopper_warning,
+)
 from silodem.silo.geometry import (
     GATE,
     SiloShape,
     build_walls,
     gate_opening_time,
     outlet_room,
-    shallow_hopper_warning,
     silo_shape,
 )
 from silodem.silo.recorders import Recorder, Snapshot, TimeSeries, take_snapshot

@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 from silodem.theory import _checks as ck
 from silodem.theory.hopper import _exponent, _sigma_v, walker_distribution_factor
+from silodem.theory.janssen import _loaded_depth
 
 
 def en1991_4_slenderness(h_c: float, d_c: float, flat_bottom: bool) -> str:
@@ -67,11 +68,9 @@ def _check_wall(func: str, gamma, K, mu, A_over_U) -> None:
 
 def _filling(func: str, depth, gamma, K, mu, A_over_U):
     _check_wall(func, gamma, K, mu, A_over_U)
-    z = np.maximum(ck.array(func, "depth", depth), 0.0)
-    # z_o Y_J(z) = (1 - exp(-z / z_o)) / (1 / z_o), never larger than z: p_ho = gamma K z_o
-    # overflowed for K mu / (A/U) < ~1e-308, and p_ho Y_J was inf x 0
-    inv_z_o = K * mu / A_over_U
-    z_yj = -np.expm1(-inv_z_o * z) / inv_z_o if inv_z_o > 0.0 else z
+    # z_o Y_J(z), Janssen's loaded depth with 1 / z_o: p_ho = gamma K z_o overflowed for
+    # K mu / (A/U) < ~1e-308, and p_ho Y_J was inf x 0
+    z_yj = _loaded_depth(ck.array(func, "depth", depth), K * mu / A_over_U)
     p_h = gamma * K * z_yj
     return p_h, mu * p_h, gamma * z_yj
 

@@ -83,20 +83,20 @@ def walker_exponent(alpha_deg: float, mu_w: float, D: float = 1.0, planar: bool 
     return _exponent(alpha_deg, mu_w, D, planar)
 
 
+def _one_minus_power(log_x, a: float):
+    """(1 - x^a) / a from ln x, continuous through a = 0, where it is -ln x (expm1: no
+    cancellation for a near 0)."""
+    return -log_x if abs(a) < 1e-12 else -np.expm1(a * log_x) / a
+
+
 def _sigma_v(h, H, q, gamma, alpha_deg, mu_w, D, planar):
     """:func:`hopper_sigma_v` unchecked."""
     h = np.asarray(h, dtype=float)
     n = _exponent(alpha_deg, mu_w, D, planar)
     x = np.clip(h / H, 1e-300, None)
-    a = n - 1.0
     log_x = np.log(x)
-    # (1 - x^a)/a, continuous through a = 0, where it is -ln x
     with np.errstate(over="ignore", invalid="ignore"):  # at the apex for n < 0: see below
-        if abs(a) < 1e-12:
-            growth = -log_x
-        else:
-            growth = -np.expm1(a * log_x) / a
-        sigma = gamma * h * growth + q * np.exp(n * log_x)
+        sigma = gamma * h * _one_minus_power(log_x, n - 1.0) + q * np.exp(n * log_x)
     # at the apex sigma_v -> (gamma H / (1 - n) + q) (h/H)^n: 0 for n > 0, infinite for n < 0
     # (the clipped x above leaves q 1e-300^n there, far from 0 for n near 0)
     if n > 0.0:
@@ -174,8 +174,7 @@ def paper_eq12(z_below_transition: npt.ArrayLike, h_prime: float, q: float, gamm
     n_i = 2.0 * (1.0 + mu_w / math.tan(math.radians(alpha_deg))) - 3.0
     x = 1.0 - z / h_prime
     log_x = np.log(np.clip(x, 1e-300, None))  # (x = 0 at the apex: x times it is 0)
-    slope_part = -np.expm1(n_i * log_x) / n_i if n_i != 0.0 else -log_x
-    return gamma * h_prime * x * slope_part + q * x ** (n_i + 1.0)
+    return gamma * h_prime * x * _one_minus_power(log_x, n_i) + q * x ** (n_i + 1.0)
 
 
 def walker_distribution_factor(delta_deg: float, phi_w_deg: float, alpha_deg: float) -> float:

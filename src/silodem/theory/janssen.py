@@ -22,14 +22,18 @@ def _check(func: str, rho_b, g, B, K, mu_w) -> None:
     ck.non_negative(func, "mu_w", mu_w)
 
 
+def _loaded_depth(depth, c: float):
+    """(1 - exp(-c z)) / c [m] at depth z [m] (z < 0 as 0): the depth of grains whose weight a
+    Janssen column bears at z, its walls carrying the rest, for c = K U mu / A [1/m] (the
+    inverse of EN 1991-4's z_o); z for c = 0.  Never larger than z: the form rho g / c x
+    (1 - exp(-c z)) overflowed for c < ~1e-304."""
+    depth = np.maximum(np.asarray(depth, dtype=float), 0.0)
+    return depth if c == 0.0 else -np.expm1(-c * depth) / c
+
+
 def _sigma_v(depth, rho_b, g, B, K, mu_w):
     """:func:`janssen_sigma_v` unchecked (the fits evaluate it within their bounds)."""
-    depth = np.maximum(np.asarray(depth, dtype=float), 0.0)
-    c = 2.0 * K * mu_w / B
-    if c == 0.0:
-        return rho_b * g * depth
-    # (1 - exp(-c z)) / c, never larger than z: rho_b g / c overflowed for c < ~1e-304
-    return rho_b * g * (-np.expm1(-c * depth) / c)
+    return rho_b * g * _loaded_depth(depth, 2.0 * K * mu_w / B)
 
 
 def _sigma_h(depth, rho_b, g, B, K, mu_w):
