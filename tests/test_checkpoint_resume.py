@@ -635,7 +635,7 @@ def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, cap
     from silodem import api
     from silodem.cli import main
     from silodem.errors import InputError
-    from silodem.run_folder import check_config_kept
+    from silodem.run_folder import check_config_kept, run_config_text
     from silodem.scenario_files import config_to_toml, load_config
 
     out = tmp_path / "mine"
@@ -651,7 +651,7 @@ def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, cap
     cfg = load_config("paper-case2")
     with pytest.raises(InputError, match="^out .* holds a config.toml that silodem did not"):
         api.run(cfg, out)
-    (out / "config.toml").write_text(config_to_toml(cfg), encoding="utf-8")
+    (out / "config.toml").write_text(run_config_text(config_to_toml(cfg)), encoding="utf-8")
     check_config_kept("paper-case2", out, load_config("paper-case2", ["seed=3"]))
     study = tmp_path / "study"
     (study / "runs").mkdir(parents=True)
@@ -664,6 +664,46 @@ def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, cap
     assert exc.value.code == 2 and err.count("\n") == 1, err
     assert f"--out {study} is a study's folder (study.toml)" in err
     assert (study / "report.html").read_text() == "the study's"
+
+
+def test_a_silodem_show_copy_in_the_out_folder_is_not_written_over(tmp_path, capsys):
+    """The README writes a config with 'silodem show paper-case2 > my.toml'; saved as
+    DIR/config.toml and edited, it has the header of a config silodem wrote, and 'silodem run
+    paper-case2 --out DIR' wrote over it without a word (a docs audit): the edits were lost.
+    Refused in one line (exit 2), the file kept; a copy with the run's own values is replaced
+    (nothing is lost), and the config.toml a run writes carries the mark that lets a later run
+    replace it, also when the run stopped before its first save."""
+    from silodem.cli import main
+    from silodem.errors import InputError
+    from silodem.run_folder import RUN_CONFIG_MARK, check_config_kept
+    from silodem.scenario_files import config_to_toml, load_config, quick_variant
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    shown = config_to_toml(load_config("paper-case2"))
+    edited = shown.replace("n_particles = 430 ", "n_particles = 400 ")
+    assert edited != shown
+    (out / "config.toml").write_text(edited, encoding="utf-8")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "paper-case2", "--quick", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert "holds a config.toml that no run wrote" in err
+    assert (out / "config.toml").read_text(encoding="utf-8") == edited
+    quick = quick_variant(load_config("paper-case2"))
+    (out / "config.toml").write_text(config_to_toml(quick), encoding="utf-8")
+    check_config_kept("paper-case2", out, quick)  # the run's own values: nothing to lose
+    with pytest.raises(InputError, match="holds a config.toml that no run wrote"):
+        check_config_kept("paper-case2", out, load_config("paper-case2"))
+    written = tmp_path / "written"
+    done = cli(*run_args(written))
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = (written / "config.toml").read_text(encoding="utf-8").split("\n")
+    assert lines[1] == RUN_CONFIG_MARK
+    for path in written.iterdir():  # as a run stopped before its first save leaves it
+        if path.name != "config.toml":
+            shutil.rmtree(path) if path.is_dir() else path.unlink()
+    check_config_kept("paper-case2", written, load_config("paper-case2", ["seed=3"]))
 
 
 def test_a_run_over_an_earlier_run_says_it_replaces_it(tmp_path):

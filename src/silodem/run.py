@@ -18,7 +18,13 @@ from silodem.config import Config
 from silodem.errors import InputError, RunInterrupted, short_repr
 from silodem.measure.recorders import recorders_for
 from silodem.output import write_results, write_text, write_views
-from silodem.run_folder import clear_previous_run, ended_unstable, folder_lock, remove_pictures
+from silodem.run_folder import (
+    clear_previous_run,
+    ended_unstable,
+    folder_lock,
+    remove_pictures,
+    run_config_text,
+)
 from silodem.safety import RunGuard
 from silodem.signals import noted_signals, signal_of
 from silodem.silo.checks import check_numbers
@@ -171,7 +177,7 @@ def _run_in(cfg: Config, out: Path, progress: bool,
     guard = RunGuard(out, toml_text, cfg, resume_from)
     if resume_from is None:
         clear_previous_run(out)
-        write_text(out / "config.toml", toml_text)
+        write_text(out / "config.toml", run_config_text(toml_text))
     else:  # once the checkpoint is restored: a resume it refuses leaves the folder as it was
         guard.after_restore.append(
             lambda run: _resumed_in(out, cfg, toml_text, run, resume_from.attrs))
@@ -237,7 +243,7 @@ def _resumed_in(out: Path, cfg: Config, toml_text: str, run: SiloRun,
             f"config.toml in {out} was changed after the run stopped: a resume goes on with "
             "the config its checkpoint holds, written to config.toml again (to run the "
             "edited config, start a new run with a copy of it)")
-    write_text(path, toml_text)
+    write_text(path, run_config_text(toml_text))
 
 
 def _write_final(guard: RunGuard, run: SiloRun, toml_text: str) -> None:

@@ -22,6 +22,7 @@ from silodem.errors import InputError
 from silodem.silo import frame_store
 from silodem.silo.frames import FOLDER
 
+CONFIG_NAME = "config.toml"
 DIAGNOSTIC_NAME = "diagnostic.json"
 RESULTS_NAME = "results.h5"
 
@@ -29,6 +30,18 @@ RESULTS_NAME = "results.h5"
 ANIMATIONS = ("animation.mp4", "animation.gif")  # silodem animate's default names
 PICTURES = ("report.html", "settled.png", "final.png", *ANIMATIONS)  # (and figures/*.png)
 _RUN_FILES = (RESULTS_NAME, *PICTURES, DIAGNOSTIC_NAME, FAILURE_NAME)
+
+
+# the second line of the config.toml a run writes, which tells it from a copy of
+# 'silodem show' (the same first line) that a user saved there (check_config_kept)
+RUN_CONFIG_MARK = "# The config of the run in this folder: a new run here replaces this file."
+
+
+def run_config_text(toml_text: str) -> str:
+    """The config.toml a run writes: ``toml_text`` (``config_to_toml``'s) with
+    ``RUN_CONFIG_MARK`` as its second line."""
+    head, _, rest = toml_text.partition("\n")
+    return f"{head}\n{RUN_CONFIG_MARK}\n{rest}"
 
 
 def _replaced_files(out: Path) -> list[Path]:
@@ -127,39 +140,54 @@ def check_config_kept(source: str | None, out: Path, cfg: Any, flag: str = "--ou
       it is not written by silodem (no ``config_to_toml`` header: its comments and layout
       would go) or its values differ from the run's config ``cfg`` (``--set``, ``--quick``):
       a run rewrote the file it was given without a word;
-    * another config.toml that silodem did not write (no header): a user's own file in the
-      folder given as ``--out`` was written over without a word.
+    * another config.toml that no run wrote: a user's own file in the folder given as
+      ``--out`` was written over without a word, also a copy of ``silodem show``'s output (the
+      README's way to write a config; the same header) with values of the user's.
 
     A config a run wrote there, run again as it is, passes, also one written by another
     version (its comments' words may differ); so does one a run stopped before its first save
-    wrote (a run interrupted while its kernels compiled, run again with other values)."""
-    from silodem.scenario_files import CONFIG_HEADER, load_config
+    wrote (its ``RUN_CONFIG_MARK``: a run interrupted while its kernels compiled, run again
+    with other values), and a copy with the run's own values (nothing is lost)."""
+    from silodem.scenario_files import CONFIG_HEADER
 
-    target = out / "config.toml"
+    target = out / CONFIG_NAME
     try:
         if not target.is_file():
             return
         given = source is not None and Path(source).is_file() and Path(source).samefile(target)
         if not given and _a_runs_record(out):  # an earlier run's: replaced with its results
             return
-        ours = target.read_text(encoding="utf-8").startswith(CONFIG_HEADER)
+        text = target.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError, ValueError):
         return
+    ours = text.startswith(CONFIG_HEADER)
     if not given:
         if not ours:
             raise InputError(f"{flag} {out} holds a config.toml that silodem did not write (no "
                              f"'{CONFIG_HEADER.strip()}' line at its top) and no run's results, "
                              "which the run would write over; give a new or empty folder, or "
                              "move that file")
+        if text.split("\n")[1:2] != [RUN_CONFIG_MARK] and not _same_values(target, cfg):
+            raise InputError(f"{flag} {out} holds a config.toml that no run wrote (a copy of "
+                             "'silodem show'?) with other values than this run's, and no run's "
+                             "results; the run would write over it; give a new or empty folder, "
+                             "or move that file")
         return
-    try:
-        kept = ours and load_config(str(target)).model_dump() == cfg.model_dump()
-    except InputError:
-        kept = False
-    if not kept:
+    if not (ours and _same_values(target, cfg)):
         raise InputError(f"{flag} {out}: the config given, {source}, is that folder's "
                          "config.toml, which the run replaces with its resolved config; copy "
                          "it and run the copy, or give another --out")
+
+
+def _same_values(path: Path, cfg: Any) -> bool:
+    """Whether the config file ``path`` holds the values of ``cfg`` (False when it cannot be
+    read as a config)."""
+    from silodem.scenario_files import load_config
+
+    try:
+        return load_config(str(path)).model_dump() == cfg.model_dump()
+    except InputError:
+        return False
 
 
 def replacing_note(out: Path, flag: str = "out") -> str | None:
