@@ -615,6 +615,31 @@ def test_flow_pattern_dead_fraction_and_mass_flow_index(synth, tmp_path):
     assert s2["flow_pattern"] == "mass flow"
 
 
+def test_no_flow_by_the_windows_end_reads_no_dead_zone_and_no_pattern(tmp_path):
+    """A slow gate: the first grain leaves 0.8 s after the opening, after the discharge
+    window's end (0.25 + 0.5 s).  Every grain is at rest in the window and the column's
+    descent is 0, so a quarter of it lets no grain count as dead: the report said "dead-zone
+    fraction 0" and "mass flow" (MFI from the velocities of grains at rest; an audit).  The
+    dead fraction, MFI and pattern are not read then, and the dead-zone map says why."""
+    import matplotlib.pyplot as plt
+
+    from silodem.report.analysis import NO_FLOW
+    from silodem.report.figures_flow import fig_dead_zones
+
+    folder = write_synthetic(tmp_path / "slow", mass_flow=True)
+    with h5py.File(folder / "results.h5", "r+") as h5:
+        ts = h5["timeseries"]
+        later = np.clip(W_RATE * (ts["time"][:] - T_OPEN - 0.8), 0.0, M_TOTAL)
+        ts["discharged_mass"][...] = np.where(ts["phase"][:] == 2, later, 0.0)
+    a = analyse(load_results(folder))
+    assert np.isfinite(a.flow["rate"].rate)  # the flow after the window is still a flow
+    assert a.flow["pattern"] == NO_FLOW
+    assert np.isnan(a.flow["dead_fraction"]) and np.isnan(a.flow["mfi"])
+    fig = fig_dead_zones(a)
+    assert "none told: no grain had left by then" in fig.axes[0].get_title()
+    plt.close(fig)
+
+
 def test_plain_columns_copy_the_run(synth):
     """The columns copied from the run: junction height (B - D)/2 tan(theta), and the events
     and attributes written into the synthetic file."""

@@ -504,6 +504,8 @@ def wall_stress_at(edge: EdgeProfile, z: float) -> float:
 
 
 DEAD_TO = "the discharge window's end"  # the dead zone's horizon, in words
+# the flow pattern when no grain had left by the discharge window's end (a slow gate)
+NO_FLOW = "none read: no grain had left by the discharge window's end"
 
 
 def _dead_zone(f: dict, radius: float, descent: float = np.inf) -> tuple[np.ndarray, str]:
@@ -561,13 +563,17 @@ def _flow(a: Analysis, shape) -> None:
     dead, dead_to = _dead_zone(f, 0.5 * a.geom["d"], descent)
     before, during = dis.lost_grains(f)
     dead_frac = dis.dead_fraction(dead, before | during)
-    if np.isfinite(rate.rate):
+    flowed = descent > 0  # (nothing left by the window's end: every grain "at rest", none dead)
+    if np.isfinite(rate.rate) and flowed:
         mfi = dis.mass_flow_index(mi["v_wall"], mi["v_axis"], mi["level"], band_hi,
                                   band_hi - band_lo)
         pattern = dis.classify_flow(mfi, dead_frac, cfg.measure.mass_flow_index_threshold)
     else:  # no steady flow to classify: the velocities of grains at rest are noise
         mfi = float("nan")
-        pattern = "clogged" if res.events.get("discharge_end_reason") == "clog" else "unknown"
+        pattern = ("clogged" if res.events.get("discharge_end_reason") == "clog" else
+                   "unknown" if flowed else NO_FLOW)
+    if not flowed:
+        dead_frac = float("nan")
     a.flow.update(mfi=mfi, dead=dead, dead_to=dead_to, dead_fraction=dead_frac, pattern=pattern,
                   mfi_band=(band_lo, band_hi))
     composition = dis.flow_composition(f)

@@ -216,8 +216,11 @@ def fig_dead_zones(a: Analysis) -> Figure | None:
         note += (f"\n{'more: ' if lost.any() else ''}{gone} grain{'s' if gone > 1 else ''} "
                  "fell out through a wall before the gate opened (not drawn)")
     to = a.flow.get("dead_to", DEAD_TO)
+    share = a.flow.get("dead_fraction", 0.0)
+    share = (f"{100 * share:.1f} % of the grains" if np.isfinite(share) else
+             "none told: no grain had left by then")
     ax.set_title(f"when each grain left the silo\nblack: dead zone, at rest to {to} "
-                 f"({100 * a.flow.get('dead_fraction', 0):.1f} % of the grains)\n"
+                 f"({share})\n"
                  f"grey: still inside at the end{note}", fontsize=9)
     if left.any():
         fig.colorbar(pc, ax=ax, shrink=0.6, label="exit time after the gate opened [s]")
