@@ -1394,7 +1394,8 @@ def test_fits_whose_error_is_over_half_their_value_are_called_poorly_determined(
 
     assert _fitted(1.286, 0.69).endswith("(poorly determined: the error is over half the value)")
     assert _fitted(0.55, 0.012) == "0.55 +- 0.012"
-    assert "poorly" in _fitted(0.4, NAN)  # no error estimate is no determination
+    assert _fitted(0.4, NAN).endswith("(not determined: the wall bins do not fix it (no finite "
+                                      "error))")  # no error estimate is no determination
 
 
 def test_the_ratio_figure_leaves_out_the_samples_the_cv_leaves_out():
@@ -1558,7 +1559,8 @@ def test_a_janssen_k_above_1_is_flagged_after_filling_and_noted_during_discharge
     assert _janssen_K(dataclasses.replace(j, K=3.1, K_err=1.8), "fill") == (
         f"3.1 +- 1.8 ({poor}; {fill_note})")
     assert _janssen_K(dataclasses.replace(j, K=3.1, K_err=NAN), "fill") == (
-        f"3.1 +- n/a ({poor})")  # no error (an exact two-bin fit): not judged
+        "3.1 +- n/a (not determined: the wall bins do not fix it (no finite error))")  # (and
+    # not judged against 1)
 
 
 def test_grains_lost_through_a_wall_are_counted_in_the_key_numbers(synth):

@@ -215,6 +215,26 @@ def test_beverloo_2d_rate_scales_as_d_minus_kd_to_three_halves_and_inverts_for_c
     assert th.beverloo_2d(0.25, 0.2, RHO_B, G, C=1.0, k=1.5) == 0.0
 
 
+def test_a_parameter_the_model_does_not_depend_on_has_no_finite_error():
+    """curve_fit's pseudo-inverse (its bounded, trust-region method) gives a parameter that the
+    model ignores a variance of 0: a Janssen K with mu_w = tan 89 deg (its curve at its
+    asymptote, 119 Pa, from the first bin on; the wall bins of such a run at 4.8-14 kPa) came
+    out as 1 +- 0 (an audit).  Such a parameter now has an infinite variance; one the model
+    does use keeps its finite one."""
+    from silodem.theory._fit import curve_fit_quiet
+
+    x = np.array([0.0, 1.0, 2.0, 3.0])
+    y = np.array([0.1, 1.9, 4.2, 5.9])
+    popt, pcov = curve_fit_quiet(lambda xx, a, b: a * xx, x, y, p0=[1.0, 1.0],
+                                 bounds=([0.0, 0.0], [5.0, 5.0]))  # (trust region, as the fits)
+    assert popt[0] == pytest.approx(np.sum(x * y) / np.sum(x * x), rel=1e-6)
+    assert 0 < pcov[0, 0] < np.inf and pcov[1, 1] == np.inf
+    depth = np.array([1.9535, 1.5685, 1.1835, 0.7985, 0.4135])
+    sigma_h = np.array([11252.0, 14392.0, 6976.1, 5682.9, 4767.6])
+    fit = th.fit_janssen(depth, sigma_h, 680.32, 9.81, 2.04, mu_w=math.tan(math.radians(89.0)))
+    assert not np.isfinite(fit.K_err)
+
+
 def test_janssen_free_fit_of_a_hydrostatic_profile_says_mu_w_is_at_its_bound():
     """sigma_h = K rho g depth (no wall support): the free fit takes mu_w to its lower bound and
     K to the hydrostatic K; a Janssen profile is not flagged."""

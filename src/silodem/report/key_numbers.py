@@ -62,8 +62,11 @@ def _bulk_density_text(rho_b: float, rho_grain: float) -> str:
 def _fitted(value: float, error: float, *notes: str) -> str:
     """'value +- error', saying so when the error is more than half the value (a fit to few
     or noisy wall bins: a K of 1.29 +- 0.69 is no measurement of K), with any further
-    ``notes`` in the same parentheses, after it."""
-    said = (("poorly determined: the error is over half the value",)
+    ``notes`` in the same parentheses, after it; an error that is not finite says that the
+    data do not determine the value (``theory._fit.curve_fit_quiet``)."""
+    said = (("not determined: the wall bins do not fix it (no finite error)",)
+            if not math.isfinite(error) else
+            ("poorly determined: the error is over half the value",)
             if poorly_determined(value, error) else ()) + notes
     text = f"{_fmt(value, 3)} +- {_fmt(error, 2)}"
     return text + (f" ({'; '.join(said)})" if said else "")
