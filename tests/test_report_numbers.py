@@ -517,7 +517,35 @@ def test_walker_d_fit_recovers_the_d_of_an_exact_planar_profile(synth):
         hop = _walker(b, key)
         assert hop["q"] == a.hopper[key]["q"]
         assert hop["D_bins"] == 3
-        assert hop["D_fit"] == pytest.approx(D_true, rel=1e-4)
+        assert hop["D_fit"] == pytest.approx(D_true, rel=1e-4) and not hop["D_at_bound"]
+
+
+def test_a_walker_d_at_the_end_of_its_range_is_said_to_be_undetermined(synth):
+    """Hopper wall bins below every curve of D in 0.2 - 5 (walls that carry nothing: a run of
+    one grain) stop the fit at 5, where the wall stress falls fastest toward the apex (a run
+    with friction of 89 deg stopped at 0.2).  The report gave such a D as a fitted one without
+    a word (an audit); it now says it is the range's end."""
+    from silodem.report.analysis import EdgeProfile, _walker
+    from silodem.report.key_numbers import add_numbers
+
+    a, _ = synth
+    b = copy.copy(a)
+    b.hopper = dict(a.hopper)
+    for key in ("fill", "discharge"):
+        b.edge = {**a.edge, key: EdgeProfile(z=np.array([0.1, 0.2, 0.3]), sigma_n=np.zeros(3),
+                                             tau_down=np.zeros(3), on_vertical=np.zeros(3, bool),
+                                             sides={})}
+        b.hopper[key] = _walker(b, key)
+        assert b.hopper[key]["D_fit"] == pytest.approx(5.0, abs=1e-4)
+        assert b.hopper[key]["D_at_bound"]
+    b.numbers = []
+    add_numbers(b)
+    said = ("(the end of the range searched, 0.2 - 5: the wall bins lie beyond every curve of "
+            "the range, so D is not determined)")
+    for when in ("after filling", "during discharge"):
+        text = _number(b, f"Walker distribution factor D fitted on the hopper walls (planar), "
+                          f"{when}")
+        assert text == f"5 {said}"
 
 
 def test_a_window_cut_short_by_the_phase_is_reported_as_cut(synth):

@@ -348,6 +348,11 @@ def _fit_theory(a: Analysis, shape) -> None:
                 a.hopper[key] = hop
 
 
+# the range Walker's distribution factor D is fitted in [-]; a D at either end is no fit (the
+# wall bins lie below or above every curve of the range: a hopper carrying nearly nothing)
+WALKER_D_BOUNDS = (0.2, 5.0)
+
+
 def _walker(a: Analysis, key: str) -> dict[str, Any]:
     """Walker's slice solutions in the hopper for one window: q = the window's measured mean
     vertical stress just above the junction, D = 1 and D fitted (bounded, least squares) to
@@ -377,8 +382,9 @@ def _walker(a: Analysis, key: str) -> dict[str, Any]:
             pred = th.hopper_wall_normal(zh + g["apex"], H, q, gamma, g["alpha"], mu_h, D, True)
             return float(np.sum((pred - sh) ** 2))
 
-        D = float(minimize_scalar(err, bounds=(0.2, 5.0), method="bounded").x)
+        D = float(minimize_scalar(err, bounds=WALKER_D_BOUNDS, method="bounded").x)
         hop["D_fit"], hop["D_bins"] = D, int(on_hopper.sum())
+        hop["D_at_bound"] = min(abs(D - b) for b in WALKER_D_BOUNDS) <= 1e-3 * D
         hop["planar_D"] = th.hopper_wall_normal(h, H, q, gamma, g["alpha"], mu_h, D, True)
     return hop
 

@@ -183,7 +183,8 @@ def _hopper_curves(ax, a: Analysis, which: str, key: str = "fill") -> None:
             label="Walker slice, conical (form of paper eq. 12, virtual apex), D = 1")
     if which == "h" and "planar_D" in h:
         ax.plot(h["planar_D"], h["z"], color="#ff9896", lw=1.5, ls="-.",
-                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)")
+                label=f"planar, D = {h['D_fit']:.2f} fitted (sigma_n = D sigma_v)"
+                + (", at its range's end: not determined" if h.get("D_at_bound") else ""))
 
 
 def _en1991_4_curve(ax, a: Analysis, key: str) -> None:

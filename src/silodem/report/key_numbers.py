@@ -18,6 +18,7 @@ from silodem.report.analysis import (
     BATCHES,
     DEAD_TO,
     UNSETTLED,
+    WALKER_D_BOUNDS,
     Analysis,
     above_coulomb,
     density_band,
@@ -323,7 +324,12 @@ def add_numbers(a: Analysis) -> None:
         if "D_fit" in hop:  # (no error: a bounded 1-parameter fit, often to a few bins)
             label = (f"Walker distribution factor D fitted on the hopper walls (planar), {when}, "
                      f"to {hop['D_bins']} wall bins")
-            n.append((label, _fmt(hop["D_fit"], 3), "-"))
+            value = _fmt(hop["D_fit"], 3)
+            if hop.get("D_at_bound"):
+                lo, hi = WALKER_D_BOUNDS
+                value += (f" (the end of the range searched, {_fmt(lo)} - {_fmt(hi)}: the wall "
+                          "bins lie beyond every curve of the range, so D is not determined)")
+            n.append((label, value, "-"))
     window = a.res.cfg.measure.window
     # an unfinished run stopped in its discharge: the stop, not the discharge's end, cut the
     # discharge window short
