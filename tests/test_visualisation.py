@@ -326,6 +326,41 @@ def test_pvd_collections_list_every_vtk_file_at_the_vtk_interval(run_dir, h5):
     assert {p.name for p in vtk.glob("fields_*.vtu")} <= fields
 
 
+def test_the_pvd_collections_are_not_rewritten_after_every_vtk_output(tmp_path, monkeypatch):
+    """Each rewrite of the .pvd collections lists every VTK file so far: rewritten after every
+    output, a run with vtk_interval = 0.001 s slowed from 50,000 steps/s to 85 (an audit).
+    Within PVD_EVERY_S of wall time they are not rewritten, yet they are written at each
+    phase's end and every save of results.h5, so the finished run's collections list every
+    file (a brute-force count: one per output time, at the interval)."""
+    from measure_helpers import tiny_hopper_config
+
+    from silodem.run import run_simulation
+    from silodem.silo import frame_store
+    from silodem.viz import vtk as vtk_module
+
+    cfg = tiny_hopper_config()
+    cfg = cfg.model_copy(update={
+        "fill": cfg.fill.model_copy(update={"n_particles": 40}),
+        "discharge": cfg.discharge.model_copy(update={"max_time": 0.5}),
+        "output": cfg.output.model_copy(update={"vtk_interval": 0.02, "png": False})})
+    rewrites = []
+    real = vtk_module.VtkSeries.write_collections
+    monkeypatch.setattr(vtk_module.VtkSeries, "write_collections",
+                        lambda self, times: (rewrites.append(len(times)), real(self, times)))
+    monkeypatch.setattr(frame_store, "PVD_EVERY_S", 1e9)
+    out = tmp_path / "run"
+    run_simulation(cfg.model_copy(update={"measure": cfg.measure.model_copy(
+        update={"report": False})}), out, progress=False)
+    entries = _pvd(out / "vtk" / "particles.pvd")
+    with h5py.File(out / "results.h5", "r") as f:
+        end, dt = float(f.attrs["time"]), float(f.attrs["dt"])
+    step = round(0.02 / dt) * dt
+    assert len(entries) == math.floor(end / step + 1e-9)
+    assert [name for _, name in entries] == [f"particles_{k:06d}.vtu" for k in range(len(entries))]
+    assert 1 <= len(rewrites) <= 6 < len(entries)  # the phases' ends and the saves, no more
+    assert rewrites[-1] == len(entries)
+
+
 def test_a_vtk_write_that_fails_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
     """VTK files are written whole or not at all, as every other file of a run folder
     (atomic.atomic_file): a write that fails half-way (a full disk) leaves the file written
