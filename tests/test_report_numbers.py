@@ -668,6 +668,21 @@ def test_no_flow_by_the_windows_end_reads_no_dead_zone_and_no_pattern(tmp_path):
     plt.close(fig)
 
 
+def test_a_rate_read_before_a_clog_says_the_outlet_clogged(tmp_path):
+    """A silo that clogged after 12 % of its mass had left still has a steady rate, fitted to
+    the flow before the clog; the report gave it, and 'mass flow', without a word of the clog
+    (an audit).  Both rows now say it."""
+    folder = write_synthetic(tmp_path / "clog", mass_flow=True)
+    with h5py.File(folder / "results.h5", "r+") as h5:
+        h5["events"].attrs.update({"discharge_end_reason": "clog", "discharged_fraction": 0.12})
+    a = analyse(load_results(folder))
+    said = " (then the outlet clogged, after 12 % of the mass had left: the flow before the clog)"
+    assert _number(a, "steady discharge rate W").endswith(said)
+    assert _number(a, "flow pattern, measured") == "mass flow" + said
+    a_flowing = analyse(load_results(write_synthetic(tmp_path / "flowing", mass_flow=True)))
+    assert "clogged" not in _number(a_flowing, "steady discharge rate W")
+
+
 def test_plain_columns_copy_the_run(synth):
     """The columns copied from the run: junction height (B - D)/2 tan(theta), and the events
     and attributes written into the synthetic file."""

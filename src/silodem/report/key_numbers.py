@@ -104,6 +104,20 @@ def _janssen_K(fit: th.JanssenFit, key: str, mobilised: float = float("nan")) ->
     return _fitted(fit.K, fit.K_err, *notes)
 
 
+def _clogged_after(a: Analysis, rate) -> str:
+    """' (then the outlet clogged, after x % of the mass had left ...)' when the discharge
+    ended in a clog after a flow that gave a steady rate; else ''.  A silo that clogged after
+    12 % of its mass had left gave a rate, a Beverloo C and 'mass flow' without a word of the
+    clog (an audit)."""
+    events = a.res.events
+    if events.get("discharge_end_reason") != "clog" or rate is None or \
+            not np.isfinite(rate.rate):
+        return ""
+    share = 100.0 * float(events.get("discharged_fraction", np.nan))
+    return (f" (then the outlet clogged, after {_fmt(share, 3)} % of the mass had left: "
+            "the flow before the clog)")
+
+
 CHANGE_ERROR = f" (+- its standard error: batch means, {BATCHES} blocks a window)"
 
 
@@ -388,7 +402,8 @@ def add_numbers(a: Analysis) -> None:
                    + ("all of it of a partly open outlet)" if whole else
                       "its start of a partly open outlet)")
                    if np.isfinite(r.rate) and r.t0 < opening else "")
-        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}{sliding}", "kg/s"))
+        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}{sliding}{_clogged_after(a, r)}",
+                  "kg/s"))
     if "pattern" in f:
         where = mfi_where(a)
         n.append((f"mass flow index v_wall / v_axis, {where}", _fmt(f["mfi"], 3), "-"))
@@ -397,7 +412,8 @@ def add_numbers(a: Analysis) -> None:
         threshold = a.res.cfg.measure.mass_flow_index_threshold
         label = (f"flow pattern, measured: mass flow if v_wall / v_axis >= {threshold:g} "
                  f"({where}) and no dead zone; not Jenike's hopper design chart")
-        n.append((label, f["pattern"], ""))
+        clogged = _clogged_after(a, f.get("rate")) if f["pattern"] != "clogged" else ""
+        n.append((label, f["pattern"] + clogged, ""))
     if "composition" in f:
         c = f["composition"]
         label = ("size segregation in the discharge: mass mean diameter of the first and last "
