@@ -245,6 +245,20 @@ def test_a_hopper_lower_than_one_grain_is_warned():
     assert not any("lower than one grain" in w for w in SiloRun(flat).warnings)
 
 
+def test_local_damping_in_a_run_with_a_discharge_is_warned():
+    """material.local_damping = 0.7 tripled paper-case2 --quick's discharge time (3.1 s to
+    9.8 s) and its report gave the damped rate and a Beverloo C without a word (an audit).
+    PFC's local damping takes alpha |F| off a moving grain's unbalanced force: a grain falling
+    freely (F = m g) accelerates at (1 - alpha) g, which the warning states; none without a
+    discharge, or without the damping."""
+    said = [w for w in SiloRun(load_config("paper-case2", ["material.local_damping=0.7"])).warnings
+            if "material.local_damping" in w]
+    assert len(said) == 1 and "a falling grain accelerates at 0.3 g" in said[0]
+    for sets in ([], ["material.local_damping=0.7", "discharge.enabled=false"]):
+        cfg = load_config("paper-case2", sets)
+        assert not any("local_damping" in w for w in SiloRun(cfg).warnings), sets
+
+
 def test_tangential_springs_too_soft_to_mobilise_friction_are_warned():
     """Table 1's k_s = 1e3 N/m with k_n raised to 2e7 N/m (the overlap advice alone): a
     grain-grain contact of k_s/2 = 500 N/m reaches mu F = tan(45 deg) F only after F / 500 N/m

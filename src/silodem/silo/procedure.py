@@ -31,6 +31,7 @@ from silodem.silo.checks import (
     choose_time_step,
     estimate_overlap,
     grain_law,
+    local_damping_warning,
     shallow_hopper_warning,
 )
 from silodem.silo.geometry import (
@@ -155,8 +156,9 @@ class SiloRun:
             self.warnings.append(self.overlap_estimate.warning())
         elif self.overlap_estimate.soft_shear:
             self.warnings.append(self.overlap_estimate.shear_warning())
-        if (warning := shallow_hopper_warning(cfg)) is not None:
-            self.warnings.append(warning)
+        for warning in (shallow_hopper_warning(cfg), local_damping_warning(cfg)):
+            if warning is not None:
+                self.warnings.append(warning)
         self.warnings += [w for rec in self.recorders if (w := rec.volume_warning(self))]
         if (warning := self._early_window()) is not None:
             self.warnings.append(warning)
