@@ -696,6 +696,23 @@ def test_network_moments_are_the_documented_frames():
     assert select_frame(frames, 0.7).time == 0.5
 
 
+def test_a_discharge_moment_with_no_frame_near_it_has_no_picture():
+    """Frames 1000 s apart left one discharge frame, the run's last: the picture captioned
+    "early in the discharge (15 % of the discharge time)" showed 100 % of it (an audit).  A
+    discharge moment's frame must lie within 0.3 of the duration of it (half the span between
+    15 % and 75 %): t_open = 2, duration 2, so early is 2.3 +- 0.6 s and late 3.5 +- 0.6 s."""
+    from silodem.viz.network import force_network_pngs
+
+    times = [(1.0, "fill"), (2.0, "settle"), (3.0, "discharge"), (4.0, "discharge")]
+    frames = Frames([_frame(t, ph, [(0.5, 0.5)], [], [], 1) for t, ph in times], WALLS,
+                    {"discharge_start_time": 2.0, "discharge_time": 2.0}, {}, "s")
+    with pytest.raises(ValueError, match="no 'early-discharge' picture: the saved frame nearest "
+                       "to 15 % of the discharge time is at 50 % of it"):
+        select_frame(frames, "early-discharge")  # 3.0 is 0.7 s from 2.3: too far
+    assert select_frame(frames, "late-discharge").time == 3.0  # 0.5 s from 3.5: near enough
+    assert sorted(force_network_pngs(frames)) == ["end-of-filling", "late-discharge"]
+
+
 # =============================================================================================
 # 3. /frames and VTK files of a real run, against the engine's state
 # =============================================================================================

@@ -326,7 +326,7 @@ def _left_out_snapshots(a: Analysis, missing: list[str], unreadable: str) -> str
             "discharge_start_time" not in a.res.events:
         return text + "which hold no frame of that moment: the run stopped before its discharge."
     return text + ("which hold no frame of that moment (a run without discharge has none of "
-                   "it).")
+                   "it), or none near it (output.frame_interval too long for the discharge).")
 
 
 def _snapshot_caption(a: Analysis, name: str, caption: str) -> str:

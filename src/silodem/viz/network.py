@@ -6,6 +6,8 @@
 * ``"early-discharge"``: the frame nearest to 15 % of the discharge duration after the gate
   opened;
 * ``"late-discharge"``: the frame nearest to 75 % of the discharge duration;
+  (either: none when that frame is more than ``NEAR_SHARE`` of the duration away, as with an
+  ``output.frame_interval`` as long as the discharge);
 * ``"final"``: the last frame;
 * a number: the frame nearest to that time [s].
 """
@@ -20,6 +22,10 @@ from silodem.silo.frames import Frame, Frames
 
 VIEWS = ("end-of-filling", "early-discharge", "late-discharge")
 _DISCHARGE_FRACTION = {"early-discharge": 0.15, "late-discharge": 0.75}
+# a discharge moment's frame lies within this share of the discharge's duration of it: half
+# the span between the two moments (with frames 1000 s apart the "early discharge" picture
+# was the run's last frame, at 100 % of it: an audit)
+NEAR_SHARE = 0.3
 
 
 def select_frame(frames: Frames, which: str | float) -> Frame:
@@ -44,7 +50,13 @@ def select_frame(frames: Frames, which: str | float) -> Frame:
         t0 = float(frames.events.get("discharge_start_time", times[out[0]]))
         duration = float(frames.events.get("discharge_time", times[out[-1]] - t0))
         target = t0 + _DISCHARGE_FRACTION[which] * duration
-        return frames[min(out, key=lambda k: abs(times[k] - target))]
+        k = min(out, key=lambda j: abs(times[j] - target))
+        if abs(times[k] - target) > NEAR_SHARE * duration:
+            raise ValueError(f"no '{which}' picture: the saved frame nearest to "
+                             f"{100 * _DISCHARGE_FRACTION[which]:.0f} % of the discharge time "
+                             f"is at {100 * (times[k] - t0) / duration:.0f} % of it "
+                             "(output.frame_interval too long for the discharge)")
+        return frames[k]
     raise ValueError(f"unknown moment {which!r}: use one of {', '.join(VIEWS)}, 'final', "
                      "'settled' or a time in seconds")
 
