@@ -22,7 +22,6 @@ from silodem.errors import InputError
 from silodem.silo import frame_store
 from silodem.silo.frames import FOLDER
 
-CONFIG_NAME = "config.toml"
 DIAGNOSTIC_NAME = "diagnostic.json"
 RESULTS_NAME = "results.h5"
 
@@ -150,7 +149,7 @@ def check_config_kept(source: str | None, out: Path, cfg: Any, flag: str = "--ou
     with other values), and a copy with the run's own values (nothing is lost)."""
     from silodem.scenario_files import CONFIG_HEADER
 
-    target = out / CONFIG_NAME
+    target = out / "config.toml"
     try:
         if not target.is_file():
             return

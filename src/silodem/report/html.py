@@ -325,8 +325,11 @@ def _left_out_snapshots(a: Analysis, missing: list[str], unreadable: str) -> str
     if a.unfinished and a.res.cfg.discharge.enabled and \
             "discharge_start_time" not in a.res.events:
         return text + "which hold no frame of that moment: the run stopped before its discharge."
+    if "discharge_start_time" in a.res.events:
+        return text + ("which hold no frame near that moment (output.frame_interval too long "
+                       "for the discharge).")
     return text + ("which hold no frame of that moment (a run without discharge has none of "
-                   "it), or none near it (output.frame_interval too long for the discharge).")
+                   "it).")
 
 
 def _snapshot_caption(a: Analysis, name: str, caption: str) -> str:

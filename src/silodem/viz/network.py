@@ -5,8 +5,8 @@
 * ``"end-of-filling"`` (or ``"settled"``): the last frame before the gate opened;
 * ``"early-discharge"``: the frame nearest to 15 % of the discharge duration after the gate
   opened;
-* ``"late-discharge"``: the frame nearest to 75 % of the discharge duration;
-  (either: none when that frame is more than ``NEAR_SHARE`` of the duration away, as with an
+* ``"late-discharge"``: the frame nearest to 75 % of the discharge duration (either moment:
+  none when that frame is more than ``NEAR_SHARE`` of the duration away from it, as with an
   ``output.frame_interval`` as long as the discharge);
 * ``"final"``: the last frame;
 * a number: the frame nearest to that time [s].
@@ -51,7 +51,7 @@ def select_frame(frames: Frames, which: str | float) -> Frame:
         duration = float(frames.events.get("discharge_time", times[out[-1]] - t0))
         target = t0 + _DISCHARGE_FRACTION[which] * duration
         k = min(out, key=lambda j: abs(times[j] - target))
-        if abs(times[k] - target) > NEAR_SHARE * duration:
+        if duration > 0 and abs(times[k] - target) > NEAR_SHARE * duration:
             raise ValueError(f"no '{which}' picture: the saved frame nearest to "
                              f"{100 * _DISCHARGE_FRACTION[which]:.0f} % of the discharge time "
                              f"is at {100 * (times[k] - t0) / duration:.0f} % of it "
