@@ -683,6 +683,22 @@ def test_a_rate_read_before_a_clog_says_the_outlet_clogged(tmp_path):
     assert "clogged" not in _number(a_flowing, "steady discharge rate W")
 
 
+def test_a_switch_zone_peak_of_nothing_is_not_placed_at_a_height(synth):
+    """A run of 5 grains, none in the switch zone: the report gave its wall-stress "peak" as
+    "0 at z = 1.05 m" (an audit), the height of the first of equal zero bins.  A zero peak is
+    now said to be no grain pressing on those walls, with no height."""
+    from silodem.report.key_numbers import add_numbers
+
+    a, _ = synth
+    b = copy.copy(a)
+    b.peaks = {**a.peaks, "fill": (0.0, 1.05)}
+    b.numbers = []
+    add_numbers(b)
+    assert _number(b, "switch-zone peak of the wall normal stress, after filling") == (
+        "0: no grain pressed on the walls of the switch zone")
+    assert " at z = " in _number(b, "switch-zone peak of the wall normal stress, during")
+
+
 def test_plain_columns_copy_the_run(synth):
     """The columns copied from the run: junction height (B - D)/2 tan(theta), and the events
     and attributes written into the synthetic file."""

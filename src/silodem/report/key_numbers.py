@@ -278,8 +278,9 @@ def add_numbers(a: Analysis) -> None:
     for key, label in a.labels.items():
         if key in a.peaks:
             v, z = a.peaks[key]
-            n.append((f"switch-zone peak of the wall normal stress, {label}",
-                      f"{pascals(v)} at z = {_fmt(z, 3)} m{_peak_note(a.edge[key], z)}", "Pa"))
+            value = (f"{pascals(v)} at z = {_fmt(z, 3)} m{_peak_note(a.edge[key], z)}" if v > 0
+                     else f"{pascals(v)}: no grain pressed on the walls of the switch zone")
+            n.append((f"switch-zone peak of the wall normal stress, {label}", value, "Pa"))
     for key, label in a.labels.items():
         if key in a.edge:
             n.append(_largest_row(a.edge[key], a.switch, label))
