@@ -626,6 +626,17 @@ def test_a_run_given_its_folders_own_config_rewrites_it_only_as_it_was(tmp_path,
     check_config_kept(str(out / "config.toml"), tmp_path / "elsewhere", cfg)  # another file
 
 
+def _refused_in_one_line(capsys, *args: str) -> str:
+    """The command line's stderr for ``args``, asserted to be one line with exit code 2."""
+    from silodem.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(list(args))
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    return err
+
+
 def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, capsys):
     """silodem run paper-case2 --out DIR wrote over DIR/config.toml, a file of the user's own
     with no run's results beside it, without a word (an audit); a study's folder was taken as
@@ -642,10 +653,7 @@ def test_a_users_config_toml_in_the_out_folder_is_not_written_over(tmp_path, cap
     out.mkdir()
     mine = "# my own notes\nimportant = true\n"
     (out / "config.toml").write_text(mine, encoding="utf-8")
-    with pytest.raises(SystemExit) as exc:
-        main(["run", "paper-case2", "--quick", "--out", str(out)])
-    err = capsys.readouterr().err
-    assert exc.value.code == 2 and err.count("\n") == 1, err
+    err = _refused_in_one_line(capsys, "run", "paper-case2", "--quick", "--out", str(out))
     assert "holds a config.toml that silodem did not write" in err
     assert (out / "config.toml").read_text(encoding="utf-8") == mine
     cfg = load_config("paper-case2")
@@ -673,7 +681,6 @@ def test_a_silodem_show_copy_in_the_out_folder_is_not_written_over(tmp_path, cap
     Refused in one line (exit 2), the file kept; a copy with the run's own values is replaced
     (nothing is lost), and the config.toml a run writes carries the mark that lets a later run
     replace it, also when the run stopped before its first save."""
-    from silodem.cli import main
     from silodem.errors import InputError
     from silodem.run_folder import RUN_CONFIG_MARK, check_config_kept
     from silodem.scenario_files import config_to_toml, load_config, quick_variant
@@ -684,10 +691,7 @@ def test_a_silodem_show_copy_in_the_out_folder_is_not_written_over(tmp_path, cap
     edited = shown.replace("n_particles = 430 ", "n_particles = 400 ")
     assert edited != shown
     (out / "config.toml").write_text(edited, encoding="utf-8")
-    with pytest.raises(SystemExit) as exc:
-        main(["run", "paper-case2", "--quick", "--out", str(out)])
-    err = capsys.readouterr().err
-    assert exc.value.code == 2 and err.count("\n") == 1, err
+    err = _refused_in_one_line(capsys, "run", "paper-case2", "--quick", "--out", str(out))
     assert "holds a config.toml that no run wrote" in err
     assert (out / "config.toml").read_text(encoding="utf-8") == edited
     quick = quick_variant(load_config("paper-case2"))
