@@ -84,6 +84,27 @@ def test_steady_rate_without_a_record_is_nan():
         assert np.isnan(steady_rate(t, m).rate)
 
 
+def test_a_missing_rate_or_error_says_why():
+    """Each way ``steady_rate`` gives no rate, or a rate without an error, is said in words
+    (a run of 5 grains read "n/a +- n/a" in the report).  Five grains, 20 % of the mass each,
+    sampled so that the mass jumps from 0 past 15 % to 20 %, then past 75 %: 2 samples in the
+    interval.  Three samples in it, one in each of 3 of the 5 blocks: a slope (20 kg/s, the
+    straight line through them) but no block with the 3 samples of a slope of its own."""
+    assert steady_rate([0.0, 1.0], [0.0, 1.0]).why == (
+        "2 samples of the discharged mass: at least 3 are needed")
+    assert steady_rate([0.0, 1.0, 2.0], [0.0] * 3).why == "no grain left the outlet"
+    jumps = steady_rate(np.arange(6.0), [0.0, 20.0, 20.0, 100.0, 100.0, 100.0])
+    assert np.isnan(jumps.rate) and jumps.why == (
+        "2 samples in 15 - 75 % of the discharged mass, where the rate is fitted: too few "
+        "grains left, or they left together")
+    three = steady_rate(np.arange(5.0), [0.0, 20.0, 40.0, 60.0, 100.0])
+    assert three.rate == pytest.approx(20.0, rel=1e-12) and np.isnan(three.err)
+    assert three.why == ("no error: 0 of the fitted interval's 5 blocks hold 3 samples for a "
+                         "slope, and batch means need 2")
+    t = np.linspace(0.0, 2.0, 201)
+    assert steady_rate(t, 5.0 * t).why == ""  # a rate and its error
+
+
 def test_no_rate_from_two_grains_before_an_arch():
     """Two grains out, then an arch: the mass between 15 % and 75 % of its final value is the
     one plateau of the first grain, whose fitted slope was round-off (-6.5e-14 kg/s in a
@@ -92,6 +113,8 @@ def test_no_rate_from_two_grains_before_an_arch():
     t = np.linspace(0.0, 2.0, 201)
     two = np.where(t >= 0.3, 23.79, 0.0) + np.where(t >= 0.38, 28.69, 0.0)
     assert np.isnan(steady_rate(t, two).rate)
+    assert steady_rate(t, two).why == (
+        "no grain left within 15 - 75 % of the discharged mass, where the rate is fitted")
     three = np.where(t >= 0.3, 20.0, 0.0) + np.where(t >= 0.5, 20.0, 0.0) + \
         np.where(t >= 0.7, 20.0, 0.0)
     est = steady_rate(t, three)

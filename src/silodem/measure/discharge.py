@@ -34,12 +34,14 @@ import numpy.typing as npt
 
 @dataclass(frozen=True)
 class RateEstimate:
-    """Steady discharge rate [kg/s] with standard error [kg/s] over [t0, t1] [s]."""
+    """Steady discharge rate [kg/s] with standard error [kg/s] over [t0, t1] [s]; ``why``
+    says, in words, why the rate or its error is NaN ("" when both are numbers)."""
 
     rate: float
     err: float
     t0: float
     t1: float
+    why: str = ""
 
 
 def mean_of_runs(rates: npt.ArrayLike, errs: npt.ArrayLike) -> tuple[float, float]:
@@ -60,16 +62,18 @@ def steady_rate(t: npt.ArrayLike, m: npt.ArrayLike, lo: float = 0.15, hi: float 
     """Steady discharge rate from the discharged mass m(t) [kg] at times t [s] (see module)."""
     t = np.asarray(t, dtype=float)
     m = np.asarray(m, dtype=float)
-    nan = RateEstimate(float("nan"), float("nan"), float("nan"), float("nan"))
     if t.size < 3 or not np.isfinite(m).any() or np.nanmax(m) <= 0:
-        return nan
+        return _no_rate("no grain left the outlet" if t.size >= 3 else
+                        f"{t.size} samples of the discharged mass: at least 3 are needed")
     total = np.nanmax(m)
     sel = (m >= lo * total) & (m <= hi * total)
-    if sel.sum() < 3:
-        return nan
+    share = f"{100 * lo:.0f} - {100 * hi:.0f} % of the discharged mass"
+    if sel.sum() < 3:  # (5 grains: the mass jumped past the interval in 2 samples)
+        return _no_rate(f"{int(sel.sum())} samples in {share}, where the rate is fitted: too "
+                        "few grains left, or they left together")
     ts, ms = t[sel], m[sel]
     if np.ptp(ms) == 0.0:  # one plateau: no grain left in the interval, no flow to fit
-        return nan
+        return _no_rate(f"no grain left within {share}, where the rate is fitted")
     rate = float(np.polyfit(ts, ms, 1)[0])
     edges = np.linspace(ts[0], ts[-1], blocks + 1)
     slopes = []
@@ -79,9 +83,17 @@ def steady_rate(t: npt.ArrayLike, m: npt.ArrayLike, lo: float = 0.15, hi: float 
         k = (ts >= a) & ((ts < b) | (b == edges[-1]))
         if k.sum() >= 3 and np.ptp(ts[k]) > 0:
             slopes.append(np.polyfit(ts[k], ms[k], 1)[0])
-    err = float(np.std(slopes, ddof=1) / np.sqrt(len(slopes))) if len(slopes) > 1 else float(
-        "nan")
+    if len(slopes) < 2:
+        return RateEstimate(rate, float("nan"), float(ts[0]), float(ts[-1]),
+                            f"no error: {len(slopes)} of the fitted interval's {blocks} blocks "
+                            "hold 3 samples for a slope, and batch means need 2")
+    err = float(np.std(slopes, ddof=1) / np.sqrt(len(slopes)))
     return RateEstimate(rate, err, float(ts[0]), float(ts[-1]))
+
+
+def _no_rate(why: str) -> RateEstimate:
+    nan = float("nan")
+    return RateEstimate(nan, nan, nan, nan, why)
 
 
 def flow_rate_series(t: npt.ArrayLike, m: npt.ArrayLike,

@@ -231,9 +231,10 @@ def fig_composition(a: Analysis) -> Figure | None:
     """Size segregation in the discharge (``measure.discharge.discharge_composition``): each
     tenth of the discharged mass's mass mean diameter over the fill's, with the band chance
     alone gives, and for a mixture of a few sizes each size's share of that tenth's mass
-    beside its share of the fill, with its band too."""
+    beside its share of the fill, with its band too.  None for grains all of one size: a
+    flat line at 1 in a band of no width (the key numbers say so)."""
     c = a.flow.get("composition")
-    if c is None:
+    if c is None or c.sizes.size == 1:
         return None
     mixture = c.sizes.size > 1
     fig = Figure(figsize=(10.5, 6.5 if mixture else 3.8), dpi=100)  # (legends on the right)

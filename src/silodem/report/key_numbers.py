@@ -118,19 +118,63 @@ def _clogged_after(a: Analysis, rate) -> str:
             "the flow before the clog)")
 
 
+def _narrow_for_beverloo(B: float, D: float, d: float) -> str:
+    """' (the silo is narrow for Beverloo's law: ...)' when a silo of width B [m] is too narrow
+    for its outlet D [m] and grains of diameter d [m] for a rate independent of the width:
+    B >= 2.5 D and B >= D + 30 d (Nedderman 1992, as Mankoc et al. 2007, Granular Matter 9,
+    407, quote it); '' when it is wide enough.  An outlet of 0.93 B gave a C as if the walls
+    had no part in the flow (an audit)."""
+    short = [f"{what} = {_fmt(need, 3)} m" for what, need in
+             (("2.5 D", 2.5 * D), ("D + 30 d", D + 30.0 * d)) if B < need]
+    if not short:
+        return ""
+    return (" (the silo is narrow for Beverloo's law, whose rate is independent of the width "
+            "B from B = 2.5 D and D + 30 d on (Nedderman 1992): here B = "
+            f"{_fmt(B, 3)} m, under {' and '.join(short)}, so this C holds the walls' effect "
+            "on the flow too)")
+
+
 CHANGE_ERROR = f" (+- its standard error: batch means, {BATCHES} blocks a window)"
 
 
-def change_text(pct: float, err: float) -> str:
+def change_text(pct: float, err: float, why: str = "") -> str:
     """A change [%] as the key numbers write it: '53.2 +- 12'; one within its error 'not
-    resolved' (:func:`~silodem.report.numbers.resolved`); 'n/a' without a value."""
+    resolved' (:func:`~silodem.report.numbers.resolved`); 'n/a' without a value, followed
+    by ``why`` in parentheses when given (:func:`change_missing`)."""
     if not math.isfinite(pct):
-        return "n/a"
+        return "n/a" + (f" ({why})" if why else "")
     text = f"{_fmt(pct, 3)} +- {_fmt(err, 2)}"
     if not resolved(pct, err):
         text += (" (within its error: not resolved)" if math.isfinite(err)
                  else " (no error: too few samples; not resolved)")
     return text
+
+
+def change_missing(row: dict, component: str, where: str) -> str:
+    """Why ``row``'s change of ``component`` (sigma_h, sigma_v) fill -> discharge is not a
+    number, in words (``where``: 'in the circle'), or "": no contact in the place in a window
+    (its window mean is NaN: ``analysis.window_mean``), or a filling value of 0, against
+    which no relative change can be told.  Five grains left the circles empty during
+    discharge, and the rows read 'h n/a, v n/a' without a reason (an audit)."""
+    before, after = row[component + "_fill"], row[component + "_discharge"]
+    if not math.isfinite(before):
+        return f"no contact {where} after filling"
+    if before == 0.0:
+        return f"0 Pa {where} after filling: no relative change from 0"
+    if not math.isfinite(after):
+        return f"no contact {where} during discharge"
+    return ""
+
+
+def _circle_change(row: dict) -> str:
+    """The circle's 'h <change>, v <change>' [%], or one 'n/a (why)' when both are missing
+    for one reason."""
+    whys = [change_missing(row, c, "in the circle") for c in ("sigma_h", "sigma_v")]
+    if whys[0] and whys[0] == whys[1]:
+        return f"n/a ({whys[0]})"
+    return ", ".join(
+        f"{c[-1]} {change_text(row[c + '_change_pct'], row[c + '_change_pct_err'], why)}"
+        for c, why in zip(("sigma_h", "sigma_v"), whys, strict=True))
 
 
 LOST = ("grains lost through a wall (pushed through by too soft contacts: the numbers below "
@@ -379,12 +423,12 @@ def add_numbers(a: Analysis) -> None:
                 label = ("change fill -> discharge, wall peak: the switch zone's largest wall "
                          f"normal stress in each window, at z = {_fmt(row['z_fill'], 3)} m "
                          f"-> {_fmt(row['z_discharge'], 3)} m" + CHANGE_ERROR)
+                why = change_missing(row, "sigma_h", "on the switch zone's walls")
                 n.append((label, change_text(row["sigma_h_change_pct"],
-                                             row["sigma_h_change_pct_err"]), "%"))
+                                             row["sigma_h_change_pct_err"], why), "%"))
                 continue
-            parts = [f"{c[-1]} {change_text(row[c + '_change_pct'], row[c + '_change_pct_err'])}"
-                     for c in ("sigma_h", "sigma_v")]  # [%]
-            n.append((f"change fill -> discharge, {name}{CHANGE_ERROR}", ", ".join(parts), "%"))
+            n.append((f"change fill -> discharge, {name}{CHANGE_ERROR}", _circle_change(row),
+                      "%"))
         same = a.wall_at_fill_peak
         if same is not None and same[0] != a.change.get("wall peak", {}).get("z_discharge"):
             z, f, dd, pct = same  # (at one height the peak-to-peak row says it already)
@@ -403,8 +447,9 @@ def add_numbers(a: Analysis) -> None:
                    + ("all of it of a partly open outlet)" if whole else
                       "its start of a partly open outlet)")
                    if np.isfinite(r.rate) and r.t0 < opening else "")
-        n.append((label, f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}{sliding}{_clogged_after(a, r)}",
-                  "kg/s"))
+        value = (f"n/a ({r.why})" if not np.isfinite(r.rate) else
+                 f"{_fmt(r.rate)} +- {_fmt(r.err, 2)}" + (f" ({r.why})" if r.why else ""))
+        n.append((label, f"{value}{sliding}{_clogged_after(a, r)}", "kg/s"))
     if "pattern" in f:
         where = mfi_where(a)
         n.append((f"mass flow index v_wall / v_axis, {where}", _fmt(f["mfi"], 3), "-"))
@@ -420,12 +465,16 @@ def add_numbers(a: Analysis) -> None:
         label = ("size segregation in the discharge: mass mean diameter of the first and last "
                  f"tenth of the discharged mass (and the least and largest tenth) over the "
                  f"fill's, {_fmt(c.fill_diameter, 3)} m (1: none)")
-        value = (f"{_fmt(c.diameter_ratio[0], 3)} / {_fmt(c.diameter_ratio[-1], 3)} "
-                 f"({_fmt(np.nanmin(c.diameter_ratio), 3)} - "
-                 f"{_fmt(np.nanmax(c.diameter_ratio), 3)})")
-        n.append((label, value + "; " + _chance_words(c), "-"))
+        if c.sizes.size == 1:  # (read as "1 / 1 (1 - 1); chance ... 1 - 1" by an audit)
+            value = (f"n/a (the grains are all of one size, r = {_fmt(c.sizes[0], 3)} m: "
+                     "there are no sizes to segregate)")
+        else:
+            value = (f"{_fmt(c.diameter_ratio[0], 3)} / {_fmt(c.diameter_ratio[-1], 3)} "
+                     f"({_fmt(np.nanmin(c.diameter_ratio), 3)} - "
+                     f"{_fmt(np.nanmax(c.diameter_ratio), 3)}); " + _chance_words(c))
+        n.append((label, value, "-"))
     if "beverloo_C" in f:
         slope = (" (Beverloo's law is for a flat bottom: through a hopper C also depends on "
                  "its slope)" if hopper else "")
         n.append((f"Beverloo 2D constant C implied by W (k = 1.5){slope}",
-                  _fmt(f["beverloo_C"], 3), "-"))
+                  _fmt(f["beverloo_C"], 3) + _narrow_for_beverloo(g["B"], g["D"], g["d"]), "-"))
