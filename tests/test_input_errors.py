@@ -1138,6 +1138,24 @@ def test_a_character_the_output_encoding_lacks_is_written_as_an_escape():
     assert b"(\\xa75.3)" in result.stdout
 
 
+def test_a_file_name_the_locale_cannot_decode_is_printed_as_its_bytes(tmp_path):
+    """Under an ASCII locale with the C locale's coercion and UTF-8 mode off, Python holds the
+    bytes of a UTF-8 name it cannot decode as surrogates; the error line wrote them as
+    escapes ('Gr\\udcc3\\udcbc...'), a path that cannot be pasted back (an audit).  They go
+    out as the bytes they were: the UTF-8 of the name on disk."""
+    folder = tmp_path / "Grüße"
+    folder.mkdir()
+    missing = os.fsencode(folder) + "/nö such.toml".encode()
+    env = {**os.environ, "LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    env.pop("LANG", None)
+    env.pop("PYTHONIOENCODING", None)
+    result = subprocess.run([sys.executable, "-m", "silodem", "run", missing],
+                            capture_output=True, env=env, check=False, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.startswith(b"error: file not found: " + missing + b" "), result.stderr
+    assert b"\\udc" not in result.stderr
+
+
 @pytest.mark.parametrize("blank", ["", " "])
 def test_a_blank_numba_thread_count_is_unset(blank):
     """`NUMBA_NUM_THREADS= silodem show` (blank: unset, as silodem reads it) printed numba's

@@ -6,6 +6,7 @@ here in the same line and exit code 130 instead of a traceback."""
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import os
 import signal
@@ -60,6 +61,22 @@ class ReaderGone:
         return getattr(self._stream, name)
 
 
+def _bytes_back_or_escape(err: UnicodeError) -> tuple[str | bytes, int]:
+    """An encoding error handler: a run of the surrogates by which Python holds the bytes of
+    a file name its locale could not decode ('surrogateescape': 'Grüße' under LANG=C) is
+    written as those bytes, so that the path printed is the one on disk and can be pasted
+    back; any other character the encoding lacks as its backslash escape."""
+    if not isinstance(err, UnicodeEncodeError):
+        raise err
+    out = b"".join(bytes([ord(c) - 0xDC00]) if "\udc80" <= c <= "\udcff" else
+                   c.encode("ascii", "backslashreplace") for c in err.object[err.start:err.end])
+    return out, err.end
+
+
+OUTPUT_ERRORS = "silodem-output"  # the error handler of stdout and stderr
+codecs.register_error(OUTPUT_ERRORS, _bytes_back_or_escape)
+
+
 def main() -> None:
     """Import :mod:`silodem.cli` under a Ctrl-C guard and run its ``main``, with output that
     a reader who has gone does not stop (``ReaderGone``); then answer a signal during the
@@ -69,9 +86,10 @@ def main() -> None:
         if stream is None or isinstance(stream, ReaderGone) or not hasattr(stream, "fileno"):
             continue
         # a character the stream's encoding lacks (PYTHONIOENCODING=ascii: the config's '§')
-        # is written as an escape, not a UnicodeEncodeError's traceback
+        # is written as an escape, not a UnicodeEncodeError's traceback; the bytes of a file
+        # name that the locale could not decode go out as they came (OUTPUT_ERRORS)
         with contextlib.suppress(AttributeError, ValueError, OSError):
-            stream.reconfigure(errors="backslashreplace")
+            stream.reconfigure(errors=OUTPUT_ERRORS)
         setattr(sys, name, ReaderGone(stream))
     try:
         from silodem.cli import main as cli_main
