@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import html
+import html.parser
 import os
 import re
 import shutil
@@ -489,24 +490,28 @@ def _chromium() -> str | None:
     return None
 
 
-def test_chromium_renders_the_report_with_its_figures(run_dir, tmp_path):
+def _headless(*args: str) -> str:
+    """stdout of headless chromium run with ``args`` (a fresh profile, nothing fetched)."""
     browser = _chromium()
     if browser is None:
         if os.environ.get("CI"):
             pytest.fail("chromium is not installed in CI (.ci/run installs it)")
         pytest.skip("chromium not installed")
-    shot = tmp_path / "shot.png"
     profile = tempfile.mkdtemp(prefix="chromium-profile-")
     try:
-        subprocess.run(
+        return subprocess.run(
             [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
              "--no-first-run", "--disable-background-networking", "--disable-component-update",
-             "--disable-sync", f"--user-data-dir={profile}", "--hide-scrollbars",
-             "--window-size=1200,12000", f"--screenshot={shot}",
-             (run_dir / "report.html").resolve().as_uri()],
-            check=True, capture_output=True, timeout=120)
+             "--disable-sync", f"--user-data-dir={profile}", *args],
+            check=True, capture_output=True, text=True, timeout=120).stdout
     finally:
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def test_chromium_renders_the_report_with_its_figures(run_dir, tmp_path):
+    shot = tmp_path / "shot.png"
+    _headless("--hide-scrollbars", "--window-size=1200,12000", f"--screenshot={shot}",
+              (run_dir / "report.html").resolve().as_uri())
     import matplotlib.image as mpimg
 
     img = mpimg.imread(shot)[..., :3]
@@ -519,6 +524,129 @@ def test_chromium_renders_the_report_with_its_figures(run_dir, tmp_path):
     assert coloured.mean() > 0.01
     rows = np.flatnonzero(coloured.any(axis=1))
     assert rows.max() - rows.min() > 4000
+
+
+PHONE_PX = 400  # a phone's width in CSS pixels
+
+
+def test_the_report_fits_a_phone_s_width(run_dir, tmp_path):
+    """At 400 px the key numbers' and the events' tables ran 17 and 26 px past the page's
+    right edge (long words: switch_centre, discharge_end_reason), and a phone laid the page
+    out at desktop width without a viewport (an audit).  Chromium lays the page out in a
+    frame 400 px wide (headless, it lays out no window under 500 px) and measures how far its
+    widest element reaches: no further than the page's own width."""
+    page = tmp_path / "report.html"
+    shutil.copy(run_dir / "report.html", page)
+    assert "<meta name='viewport' content='width=device-width, initial-scale=1'>" in \
+        page.read_text(encoding="utf-8")
+    frame = tmp_path / "phone.html"
+    frame.write_text(
+        f"<html><body style='margin:0'><iframe id=f src='report.html' style='width:{PHONE_PX}px;"
+        "height:1500px;border:0'></iframe><script>document.getElementById('f').onload="
+        "function(){var d=document.getElementById('f').contentDocument.documentElement;"
+        "document.body.setAttribute('data-widths',d.scrollWidth+' '+d.clientWidth);}"
+        "</script></body></html>", encoding="utf-8")
+    dom = _headless("--allow-file-access-from-files", "--window-size=1200,2000",
+                    "--virtual-time-budget=5000", "--dump-dom", frame.resolve().as_uri())
+    found = re.search(r'data-widths="(\d+) (\d+)"', dom)
+    assert found, dom[-300:]
+    scroll, client = map(int, found.groups())
+    assert client <= PHONE_PX and scroll <= client, (scroll, client)
+
+
+class _Figures(html.parser.HTMLParser):
+    """(figure id, img alt, figcaption text) of a page's figures."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.found: list[list[str]] = []
+        self._caption = False
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "figure":
+            self.found.append([a.get("id", ""), "", ""])
+        elif tag == "img" and self.found:
+            self.found[-1][1] = a.get("alt", "")
+        self._caption = self._caption or tag == "figcaption"
+
+    def handle_endtag(self, tag):
+        self._caption = self._caption and tag != "figcaption"
+
+    def handle_data(self, data):
+        if self._caption:
+            self.found[-1][2] += data
+
+
+def test_every_figure_s_alt_text_says_what_it_shows(run_dir):
+    """A screen reader read each figure's file name ("fig2 underscore coordination"): the alt
+    text is now the first clause of the caption that follows, what the figure shows."""
+    from silodem.report.html import ALT_CHARS, alt_text
+
+    parser = _Figures()
+    parser.feed((run_dir / "report.html").read_text(encoding="utf-8"))
+    assert len(parser.found) == len(_imgs((run_dir / "report.html").read_text("utf-8")))
+    for name, alt, caption in parser.found:
+        caption = re.sub(r"^Fig\. \w+ equivalent\. ", "", caption)
+        assert alt and not alt.startswith(name), (name, alt)
+        assert alt == alt_text(caption) and len(alt) <= ALT_CHARS + 4
+        assert caption.startswith(alt.removesuffix(" ...")), (alt, caption)
+    assert alt_text("Wall friction along the wall: its value; more. End.") == (
+        "Wall friction along the wall")
+    assert alt_text("C_n (eq. 10) in time. The band") == "C_n (eq. 10) in time"
+    assert alt_text("One clause.") == "One clause"
+    assert alt_text("Stress (time average: window), more") == "Stress"  # (no open parenthesis)
+    long = "word " * 60
+    assert alt_text(long) == ("word " * 29 + "word ...") and len(alt_text(long)) <= ALT_CHARS + 4
+
+
+# Machado, Oliveira & Fernandes (2009), IEEE TVCG 15, 1291: linear-RGB matrices of
+# protanopia and deuteranopia, severity 1
+PROTANOPIA = np.array([[0.152286, 1.052583, -0.204868], [0.114503, 0.786281, 0.099216],
+                       [-0.003882, -0.048116, 1.051998]])
+DEUTERANOPIA = np.array([[0.367322, 0.860646, -0.227968], [0.280085, 0.672501, 0.047413],
+                         [-0.011820, 0.042940, 0.968881]])
+
+
+def _as_seen(color, vision: np.ndarray) -> np.ndarray:
+    """sRGB [0, 1] of ``color`` as a reader with that colour vision sees it (sRGB's
+    transfer curve, IEC 61966-2-1, around the matrix)."""
+    from matplotlib.colors import to_rgb
+
+    c = np.array(to_rgb(color))
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    seen = np.clip(vision @ lin, 0.0, 1.0)
+    return np.where(seen <= 0.0031308, 12.92 * seen, 1.055 * seen ** (1 / 2.4) - 0.055)
+
+
+def test_the_circles_keep_one_style_that_every_colour_vision_tells_apart(run_dir):
+    """Fig. 7 drew the left, centre and right circles blue, green and red, all solid: to a
+    deuteranope green and red lie 0.12 apart in sRGB (Machado et al. 2009), and Fig. 2 gave
+    the same circles other colours (an audit).  Each circle now has one colour and marker in
+    both figures, and the three circles' colours lie at least 0.3 apart in every vision."""
+    from silodem.report import figures_stress as fs
+    from silodem.report.analysis import analyse
+    from silodem.report.load import load_results
+
+    a = analyse(load_results(run_dir))
+    names = [str(n) for n in a.res.group("measure", "circles")["name"]]
+    styles = {}
+    for fig in (fs.fig_coordination(a), fs.fig_evolution(a)):
+        for ax in fig.axes:
+            for line in ax.get_lines():
+                name = line.get_label().split(":")[0]
+                if name in names:
+                    styles.setdefault(name, set()).add((line.get_color(), line.get_marker()))
+    assert sorted(styles) == sorted(names) and len(names) == 3
+    assert all(len(s) == 1 for s in styles.values()), styles  # one style a circle
+    (colors, markers) = zip(*(next(iter(styles[n])) for n in names), strict=True)
+    assert len(set(markers)) == 3 and "None" not in markers  # told apart without colour too
+    for vision in (np.eye(3), PROTANOPIA, DEUTERANOPIA):
+        seen = [_as_seen(c, vision) for c in colors]
+        gaps = [np.linalg.norm(seen[i] - seen[j]) for i in range(3) for j in range(i + 1, 3)]
+        assert min(gaps) > 0.3, (vision, gaps)
+    old = [_as_seen(c, DEUTERANOPIA) for c in ("#2ca02c", "#d62728")]
+    assert np.linalg.norm(old[0] - old[1]) < 0.15  # the green and red that were used
 
 
 def test_grain_disks_widen_the_axes_to_the_whole_disks():

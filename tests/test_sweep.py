@@ -472,6 +472,11 @@ def test_a_grid_over_outlet_widths_gets_the_beverloo_constants(tmp_path):
         assert f"<td>{column}</td>" in html
     for column, _, _ in CIRCLE_QUANTITIES:
         assert f"<td>circle_&lt;name&gt;_{column}</td>" in html
+    # a study without a description writes no empty paragraph, a figure without the paper's
+    # number no empty bold label, and an image's alt text is what it shows, not its file name
+    # (an audit: alt='beverloo' was read out to a screen reader)
+    assert "<p></p>" not in html and "<b></b>" not in html
+    assert "alt='beverloo'" not in html and "alt='Discharge rate against outlet width" in html
 
     # a clog at the narrowest outlet of phiG = 30: that width leaves the fit and the note says
     # so; its settled packing still counts in rho_b.  With one more width clogged, no fit.

@@ -174,6 +174,24 @@ def draw_force_network(ax: Axes, snap: dict[str, Any], walls: dict[str, Any],
     return lc, scale
 
 
+# the measurement circles' colours (Okabe & Ito's palette, told apart by readers of every
+# kind of colour vision) and markers (for a reader who cannot tell any colours, and in print):
+# circle k has the same style in every figure of a report (Figs. 2 and 7); the switch zone's
+# left and right circles were green and red, alike to a red-green colour-blind reader
+CIRCLE_COLORS = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9")
+CIRCLE_MARKERS = ("o", "s", "^", "D", "v", "P")
+CIRCLE_MARKS = 12  # markers along a curve of circle samples
+
+
+def circle_style(k: int, samples: int) -> dict[str, Any]:
+    """Matplotlib line keywords of measurement circle ``k`` on a curve of ``samples`` points:
+    its colour and marker (:data:`CIRCLE_COLORS`, :data:`CIRCLE_MARKERS`), about
+    :data:`CIRCLE_MARKS` markers along it."""
+    return {"color": CIRCLE_COLORS[k % len(CIRCLE_COLORS)],
+            "marker": CIRCLE_MARKERS[k % len(CIRCLE_MARKERS)], "ms": 5,
+            "markevery": max(1, samples // CIRCLE_MARKS)}
+
+
 def shade_phases(ax: Axes, x: npt.ArrayLike, phase: npt.ArrayLike) -> None:
     """Shade the filling, settling and discharge periods along the x axis (time or steps)."""
     x = np.asarray(x)

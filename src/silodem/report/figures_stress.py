@@ -12,6 +12,7 @@ from matplotlib.patches import Patch, Polygon
 from silodem import theory as th
 from silodem.report.analysis import BATCHES, Analysis, above_coulomb
 from silodem.report.draw import (
+    circle_style,
     draw_walls,
     legend_below,
     legend_right,
@@ -109,7 +110,8 @@ def fig_coordination(a: Analysis) -> Figure | None:
         seconds.set_xlabel("time [s]", fontsize=9)
     c = m["circles"]
     for k, name in enumerate(c["name"]):
-        ax2.plot(step, rolling_mean(c["coordination"][:, k], 9), lw=1.4, label=str(name))
+        ax2.plot(step, rolling_mean(c["coordination"][:, k], 9), lw=1.4, label=str(name),
+                 **circle_style(k, step.size))
     ax2.set_ylabel("C_n [-]")
     ax2.set_xlabel("cycles (time steps)")
     ax2.set_title("(b) in the measurement circles", fontsize=10)
@@ -339,18 +341,17 @@ def fig_evolution(a: Analysis) -> Figure | None:
     ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for ax in (ax1, ax2):
         shade_phases(ax, t, phase)
-    colors = ["#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2"]
     ratios = []
     for k, name in enumerate(c["name"]):
-        col = colors[k % len(colors)]
+        style = circle_style(k, t.size)
         sh, sv = c["stress"][:, k, 0], c["stress"][:, k, 1]
-        ax1.plot(t, rolling_mean(sh, n_smooth), color=col, lw=1.5, label=f"{name}: sigma_h")
-        ax1.plot(t, rolling_mean(sv, n_smooth), color=col, lw=1.2, ls="--",
-                 label=f"{name}: sigma_v")
+        ax1.plot(t, rolling_mean(sh, n_smooth), lw=1.5, label=f"{name}: sigma_h", **style)
+        ax1.plot(t, rolling_mean(sv, n_smooth), lw=1.2, ls="--", label=f"{name}: sigma_v",
+                 **style)
         # the ratio of each sample, almost unloaded ones left out (as a study's CV and its
         # Fig. 7 do), then the running mean of what is left
         ratios.append(rolling_mean(loaded_ratio(sh, sv), n_smooth))
-        ax2.plot(t, ratios[-1], color=col, lw=1.3, label=str(name))
+        ax2.plot(t, ratios[-1], lw=1.3, label=str(name), **style)
     wb = a.res.group("measure", "wall_bins")
     if wb is not None:
         names = list(a.res.group("walls")["name"])

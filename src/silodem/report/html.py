@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -225,7 +226,10 @@ def quick_caveat(hopper: bool) -> str:
             "full-size silo.")
 
 
-# the style and the table of a run's report.html and a study's (study/report.py)
+# the style and the table of a run's report.html and a study's (study/report.py); a table of
+# class long-first may break its first column's long words (switch_centre,
+# discharge_end_reason) anywhere, so that it fits a phone's width (400 px) with no sideways
+# scrolling; in print, no figure is cut from its caption, no heading from what follows
 PAGE_CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;
 margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
@@ -237,16 +241,57 @@ figure img{max-width:100%;height:auto;display:block;margin:auto}
 figcaption{font-size:.92em;color:#444;margin-top:.4em}.warn{color:#8a4b00}
 .unfinished{border:2px solid #c77700;background:#fff4e0;padding:.6em .9em;color:#5a3200}
 pre{background:#f7f7f7;padding:.8em;overflow:auto;font-size:.85em;white-space:pre-wrap;
-overflow-wrap:anywhere}
+overflow-wrap:anywhere}table.long-first td:first-child{overflow-wrap:anywhere}
+@media print{body{max-width:none;margin:0}figure{break-inside:avoid}h2{break-after:avoid}}
 """
 
 
-def html_table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
-    """An HTML table of ``rows`` under the column names ``head``, every cell escaped."""
-    h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
+def html_table(rows: list[tuple[str, ...]], head: tuple[str, ...], cls: str = "") -> str:
+    """An HTML table of ``rows`` under the column names ``head`` (header cells of their
+    columns), every cell escaped; ``cls``: its class attribute ("": none)."""
+    h = "".join(f"<th scope='col'>{html.escape(c)}</th>" for c in head)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
                    for r in rows)
-    return f"<table><tr>{h}</tr>{body}</table>"
+    attr = f" class='{html.escape(cls)}'" if cls else ""
+    return f"<table{attr}><tr>{h}</tr>{body}</table>"
+
+
+def page_head(title: str, css: str) -> str:
+    """The start of a run's or a study's page, to its <body>: the charset, a viewport at the
+    device's width (a phone laid the page out 1100 px wide and shrank it), the title, ``css``."""
+    return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+            "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+            f"<title>{html.escape(title)}</title><style>{css}</style></head><body>")
+
+
+ALT_CHARS = 150  # an image's alt text is its caption's first clause, cut to this length
+
+
+_CLAUSE_END = re.compile(r"\.\s+(?=[A-Z])|[:;]\s")  # (not the point of "eq. 10")
+
+
+def alt_text(caption: str) -> str:
+    """A figure's alt text: its caption's first clause (to the first ': ', '; ' or a full
+    stop before a capital), at most :data:`ALT_CHARS` characters, cut at a word.  A screen
+    reader read the file name ("fig2 underscore coordination"); the caption that follows the
+    image says the rest."""
+    end = _CLAUSE_END.search(caption)
+    text = caption[:end.start()] if end else caption.rstrip(".")
+    if text.count("(") > text.count(")"):  # a clause ended inside a parenthesis: without it
+        text = text[:text.rfind("(")].rstrip(" ,")
+    if len(text) > ALT_CHARS:
+        text = text[:ALT_CHARS].rsplit(" ", 1)[0] + " ..."
+    return text
+
+
+def figure_html(name: str, png: bytes, caption: str, label: str = "") -> str:
+    """A <figure> with ``png`` inline (the page stays one file), its alt text from the
+    caption (:func:`alt_text`), and the caption after the bold ``label`` ("": none)."""
+    b64 = base64.b64encode(png).decode("ascii")
+    bold = f"<b>{html.escape(label)}</b> " if label else ""
+    return (f"<figure id='{html.escape(name)}'><img alt='{html.escape(alt_text(caption))}' "
+            f"src='data:image/png;base64,{b64}'><figcaption>{bold}{html.escape(caption)}"
+            "</figcaption></figure>")
 
 
 # the meaning and unit of each event (results.h5 /events; docs/output.md)
@@ -348,8 +393,7 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
     res = a.res
     cfg = res.cfg
     title = f"silodem report: {cfg.name}"
-    head = (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-            f"<title>{html.escape(title)}</title><style>{PAGE_CSS}</style></head><body>")
+    head = page_head(title, PAGE_CSS)
     hopper = cfg.silo.kind == "hopper"
     angle = (f" The hopper angle of the config, theta = "
              f"{cfg.silo.hopper_angle_from_horizontal_deg:g} deg, is measured from the "
@@ -372,7 +416,8 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         parts.append("<h2>Warnings</h2><ul>" + "".join(
             f"<li class='warn'>{html.escape(w)}</li>" for w in res.warnings) + "</ul>")
     parts.append("<h2>Key numbers</h2>")
-    parts.append(html_table(a.numbers, ("quantity", "value", "unit")) if a.numbers else
+    parts.append(html_table(a.numbers, ("quantity", "value", "unit"), cls="long-first")
+                 if a.numbers else
                  "<p>No measurements in this results file: the run took no measurement "
                  "sample (measure.interval longer than the run), or it was made without the "
                  "measurements. The figures that need them are left out.</p>")
@@ -391,11 +436,8 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
                      f"{html.escape(', '.join(left_out))} (the key numbers' n/a rows and the "
                      "warnings say what is missing).</p>")
     for spec, png in figures:
-        b64 = base64.b64encode(png).decode("ascii")
-        label = f"<b>{html.escape(spec.paper)} equivalent.</b> " if spec.paper else ""
-        parts.append(f"<figure id='{spec.name}'><img alt='{html.escape(spec.name)}' "
-                     f"src='data:image/png;base64,{b64}'><figcaption>{label}"
-                     f"{html.escape(spec.caption_for(a))}</figcaption></figure>")
+        label = f"{spec.paper} equivalent." if spec.paper else ""
+        parts.append(figure_html(spec.name, png, spec.caption_for(a), label))
     parts.append("<h2>Force network snapshots</h2>")
     if len(snapshots) < len(_SNAPSHOT_CAPTIONS):
         shown = {name for name, _, _ in snapshots}
@@ -404,13 +446,9 @@ def build_html(a: Analysis, figures: list[tuple[FigureSpec, bytes]],
         parts.append(f"<p class='warn'>{html.escape(_left_out_snapshots(a, missing, unreadable))}"
                      "</p>")
     for name, caption, png in snapshots:
-        caption = _snapshot_caption(a, name, caption)
-        b64 = base64.b64encode(png).decode("ascii")
-        parts.append(f"<figure id='{name}'><img alt='{html.escape(name)}' "
-                     f"src='data:image/png;base64,{b64}'><figcaption>{html.escape(caption)}"
-                     "</figcaption></figure>")
-    parts.append("<h2>Run events</h2>" + html_table(_event_rows(res.events),
-                                                      ("event", "value", "meaning [unit]")))
+        parts.append(figure_html(name, png, _snapshot_caption(a, name, caption)))
+    parts.append("<h2>Run events</h2>" + html_table(
+        _event_rows(res.events), ("event", "value", "meaning [unit]"), cls="long-first"))
     parts.append("<h2>Configuration</h2><pre>" + html.escape(res.config_toml) + "</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)

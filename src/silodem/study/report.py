@@ -9,7 +9,6 @@ series are those of the first seed.
 
 from __future__ import annotations
 
-import base64
 import html
 import itertools
 import math
@@ -35,7 +34,7 @@ from silodem.report.draw import (
     shade_phases,
     tight_layout,
 )
-from silodem.report.html import PAGE_CSS, html_table, quick_caveat
+from silodem.report.html import PAGE_CSS, figure_html, html_table, page_head, quick_caveat
 from silodem.report.numbers import UNLOADED, poorly_determined, significant
 from silodem.study.beverloo import FIT_COLUMNS, fig_beverloo, fit_rows, outlet_fits
 from silodem.study.plan import (
@@ -56,11 +55,14 @@ from silodem.study.table import (
 )
 
 # the Runs table: one line per run (its name wrapped over five lines in the column the ten
-# numbers left it), a smaller font, and a scroll bar when it is wider than the page
+# numbers left it), a smaller font, and a scroll bar when it is wider than the page; in print
+# (paper does not scroll: its right-hand columns were cut off) its cells wrap
 STUDY_CSS = """
 .wide{overflow-x:auto;margin:.5em 0}table.runs{margin:0}table.runs td,table.runs th{
 font-size:.8em;padding:3px 5px}table.runs td{white-space:nowrap}table.runs td.warn{
 white-space:normal}
+@media print{.wide{overflow:visible}table.runs{width:100%;table-layout:fixed}table.runs td,
+table.runs th{white-space:normal;overflow-wrap:anywhere;font-size:.7em}}
 """
 BEVERLOO_CSV = "beverloo.csv"  # the Beverloo fits, when the grid varies the outlet width
 CV_ANISOTROPIC = 0.5  # ratio CV during discharge above this: 'anisotropic' (our judgement)
@@ -452,7 +454,7 @@ def _run_table(plan: StudyPlan, rows_by_id: dict, out_dir: Path, failed: dict[st
             "CV of the ratio [-]", "regime", "wall peak change, peak to peak [%]",
             "wall change at the filling peak's height [%]", "emptied at the window's end [%]",
             "discharge rate [kg/s]", "flow pattern")
-    cells = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    cells = "".join(f"<th scope='col'>{html.escape(h)}</th>" for h in head)
     body = []
     for run in plan.runs:
         row = rows_by_id.get(run.id)
@@ -565,10 +567,9 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
         pngs.append((name, paper, caption, png))
     spec = plan.study.spec
     title = f"silodem study: {plan.name}" + (" (--quick)" if plan.quick else "")
-    parts = [(f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{PAGE_CSS}{STUDY_CSS}</style></head>"
-             "<body>"),
-             f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(spec.description)}</p>"]
+    parts = [page_head(title, PAGE_CSS + STUDY_CSS), f"<h1>{html.escape(title)}</h1>"]
+    if spec.description:  # (no empty paragraph without one)
+        parts.append(f"<p>{html.escape(spec.description)}</p>")
     n_done = len(rows)
     meta = [("base", spec.base or "the grid's", ""), ("seeds", ", ".join(map(str, spec.seeds)), ""),
             *((f"set {k}", format_value(v), "") for k, v in spec.set.items()),
@@ -607,16 +608,12 @@ def write_study_report(plan: StudyPlan, out_dir: Path, rows: list[dict[str, Any]
     parts.append("<h2>Figures</h2>")
     parts += [f"<p class='warn'>{html.escape(name)} could not be drawn ({html.escape(why)})."
               "</p>" for name, why in undrawn.items()]
-    for name, paper, caption, png in pngs:
-        b64 = base64.b64encode(png).decode("ascii")
-        label = f"{paper} equivalent. " if paper else ""
-        parts.append(f"<figure id='{name}'><img alt='{name}' src='data:image/png;base64,{b64}'>"
-                     f"<figcaption><b>{html.escape(label)}</b>{html.escape(caption)}"
-                     "</figcaption></figure>")
+    parts += [figure_html(name, png, caption, f"{paper} equivalent." if paper else "")
+              for name, paper, caption, png in pngs]
     parts.append("<h2>Columns of results.csv</h2>" + html_table(
         [(c, u or "-", d) for c, u, d in COLUMNS]
         + [(f"circle_<name>_{c}", u or "-", d) for c, u, d in CIRCLE_QUANTITIES],
-        ("column", "unit", "meaning")))
+        ("column", "unit", "meaning"), cls="long-first"))
     parts.append("<h2>Study file</h2><pre>" + html.escape(plan.study.text) + "</pre>")
     parts.append("</body></html>")
     path = out_dir / "report.html"
