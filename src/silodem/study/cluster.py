@@ -39,8 +39,9 @@ MAX_WORKERS = 4096
 LOCAL_WORKERS_PER_CORE = 4
 """The most worker processes per core a local cluster may have.  A run is single-threaded and
 CPU-bound, so workers beyond one per core only share the cores, and each holds its own
-interpreter (about 180 MB once silodem's engine is imported, measured with a LocalCluster
-worker) besides its run: 4096 workers would need some 740 GB before a run starts."""
+interpreter and compiled kernels: a LocalCluster worker's resident memory was about 260 MB as
+its first run started and 350-400 MB through `paper-study --quick`'s runs (ps, 2026-11): 4096
+workers would need some 1.5 TB."""
 
 
 def check_workers(workers: int | None, what: str = "workers", *, local: bool = False) -> None:
@@ -55,7 +56,7 @@ def check_workers(workers: int | None, what: str = "workers", *, local: bool = F
         raise InputError(
             f"{what} {workers}: a local cluster takes at most {LOCAL_WORKERS_PER_CORE * cores} "
             f"workers here ({LOCAL_WORKERS_PER_CORE} per core, {cores} core(s)); more would only "
-            "share the cores, each with its own ~180 MB process. For more, start a Dask "
+            "share the cores, each with its own process of ~350 MB. For more, start a Dask "
             "scheduler and workers on other machines and pass its address as the scheduler")
 
 
