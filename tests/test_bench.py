@@ -98,6 +98,10 @@ def test_bench_text_keeps_one_record_per_line_when_piped():
     assert proc.returncode == 0, proc.stderr
     rows = [line for line in proc.stdout.splitlines() if line.startswith("silodem  n =")]
     assert len(rows) == 1 and "M particle-steps/s" in rows[0] and rows[0].endswith("builds")
+    # the whole process's peak, not divided by n as "bytes per grain" (400 grains: ~580 KB
+    # each, and 7.7 KB at 31,700; a grain's state is 300-400 B, docs/performance.md)
+    peak = [line for line in proc.stdout.splitlines() if line.startswith("peak memory")]
+    assert len(peak) == 1 and "bytes per grain" not in peak[0] and "whole process" in peak[0]
 
 
 @pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (Debian package lammps) absent")

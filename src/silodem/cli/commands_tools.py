@@ -187,6 +187,9 @@ def _quiet_dask_client() -> None:
     logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
 
 
+# the bench process's resident memory before any grain: Python, numba and LLVM
+# (docs/performance.md, "Memory")
+BASE_MB = "185-230"
 _MAX_BENCH_STEPS = 10**12  # as silo.checks.MAX_STEPS; a 64-bit step count beyond is an overflow
 
 
@@ -245,9 +248,11 @@ def bench(
     console = Console(soft_wrap=True)
     for r in results:
         console.print(r.line(), markup=False, highlight=False)
-    console.print(f"peak memory {results[0].peak_memory_bytes / 1e6:.0f} MB "
-                  f"({results[0].peak_memory_bytes / results[0].n:.0f} bytes per grain, "
-                  "whole process)", markup=False, highlight=False)
+    # (not over n: at 31,700 grains that gave 7,688 bytes per grain, 25 times the state's)
+    console.print(f"peak memory {results[0].peak_memory_bytes / 1e6:.0f} MB, whole process "
+                  f"(Python, numba and LLVM take about {BASE_MB} MB of it before any grain; "
+                  "a grain about 300-400 bytes: docs/performance.md)", markup=False,
+                  highlight=False)
     on = benchmark.machine()
     console.print(f"machine: {on['cpu']}, {on['cpus']} CPUs", markup=False, highlight=False)
     if len(results) > 1:
