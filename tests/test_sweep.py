@@ -944,11 +944,14 @@ def test_each_finished_run_line_says_how_far_the_study_is(tmp_path, capsys, monk
     with study_api._progress_bar(5, True) as done:
         for run in plan.runs[:2]:
             done(run, result)
-    lines = [line for line in capsys.readouterr().err.splitlines() if "computed" in line]
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "computed" in line]
     assert lines[0].startswith(f"computed {plan.runs[0].id} (9.5 s on h:7; 1/5, about 80 s "
                                "left)")
     assert lines[1].startswith(f"computed {plan.runs[1].id} (9.5 s on h:7; 2/5, about 3 min "
                                "left)")
+    # (the bar's last state is not written to a log: 'runs ━━━━ 16/16 0:01:05 left 0:00:00')
+    assert "\u2501" not in err
     assert study_api._time_left(100000.0, 5, 5) == "all done"
     assert study_api._time_left(3600.0, 1, 3) == "about 2.0 h left"
     # with 4 runs under way at once, the first finishes when all 4 nearly have: after 100 s,

@@ -313,8 +313,10 @@ def animate(
     from silodem.viz.animate import plan_animation, render_animation  # matplotlib: when used
 
     plan = plan_animation(run_dir, out, color=color, fmt=fmt, fps=fps)
+    err = Console(stderr=True, soft_wrap=True)  # (a log file gets no bar: rich wrote its
+    # last state there, bar characters and all; the closing line says what was drawn)
     with Bar(TextColumn("rendering"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-             console=Console(stderr=True, soft_wrap=True), transient=False) as bar, \
+             console=err, transient=False, disable=not err.is_terminal) as bar, \
             noted_signals(hold=False) as noted:
         task = bar.add_task("frames", total=len(plan.frames))
         result = render_animation(plan, lambda done, _: bar.update(task, completed=done))

@@ -262,20 +262,22 @@ class FramesRecorder(Recorder):
         frames = duration / (self._frame_steps(dt) * dt)
         size = frames * n * FRAME_BYTES_PER_GRAIN
         if size > WARN_BYTES:
-            said.append(f"output.frame_interval = {self.interval:.3g} s may save about "
-                        f"{frames:.3g} frames, {_bytes(size)} on disk")
+            said.append(f"output.frame_interval = {self.interval:.3g} s may save up to about "
+                        f"{frames:.3g} frames, {_bytes(size)} before compression")
         vs = self._vtk_steps(dt)
         if vs is not None:
             outputs = duration / (vs * dt)
             size = outputs * n * VTK_BYTES_PER_GRAIN
             files = outputs * VTK_FILES_PER_OUTPUT
             if size > WARN_BYTES or files > WARN_VTK_FILES:
-                said.append(f"output.vtk_interval = {self.vtk_interval:.3g} s may write about "
+                said.append(f"output.vtk_interval = {self.vtk_interval:.3g} s may write up to "
+                            "about "
                             f"{files:.3g} VTK files, {_bytes(size)}")
         if not said:
             return None
         return (f"{'; '.join(said)} ({n} grains, time step {dt:.3g} s, up to {duration:.3g} s "
-                f"of simulated time: {words}); a larger interval saves less")
+                f"of simulated time: {words}, a bound that a run which settles and empties "
+                "sooner stays under); a larger interval saves less")
 
     # --- recording ------------------------------------------------------------------------
     def record(self, run: SiloRun) -> None:

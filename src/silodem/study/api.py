@@ -113,7 +113,8 @@ def _progress_bar(total: int, enabled: bool,
     with beat or contextlib.nullcontext(), \
             Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                 TextColumn("left"), TimeRemainingColumn(), TextColumn("{task.description}"),
-                console=console, transient=False) as bar:
+                console=console, transient=False, disable=not console.is_terminal) as bar:
+        # (a log gets the runs' lines, not the bar's last state, 'runs ━━━━ 16/16 ...')
         task = bar.add_task("", total=total)
 
         def done(run: PlannedRun, result: dict) -> None:
