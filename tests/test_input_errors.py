@@ -1138,6 +1138,38 @@ def test_a_character_the_output_encoding_lacks_is_written_as_an_escape():
     assert b"(\\xa75.3)" in result.stdout
 
 
+def test_an_out_path_with_no_room_for_the_runs_files_is_refused_before_any_folder(tmp_path):
+    """A --out of 4077 bytes made its 20 folders, then failed on its first file (an audit):
+    the files a run writes in its folder add up to 48 bytes to its path (run.PATH_ROOM:
+    figures/.fig7_switch_zone_evolution.png.tmp is 43), and a path must stay under the
+    system's PATH_MAX (4096 on Linux, counting its NUL).  One byte short of room: refused,
+    nothing made; with room: made."""
+    from silodem.run import PATH_ROOM, check_out
+
+    limit = os.pathconf(tmp_path, "PC_PATH_MAX")
+    room = "figures/.fig7_switch_zone_evolution.png.tmp"
+    assert len(room) <= PATH_ROOM
+
+    def deep(size: int) -> Path:  # a path of ``size`` bytes under tmp_path/d
+        left, names = size - len(os.fsencode(tmp_path / "d")), []
+        while left > 256:  # ("/" and a name of 200)
+            names.append("e" * 200)
+            left -= 201
+        path = tmp_path.joinpath("d", *names, "f" * (left - 1))
+        assert len(os.fsencode(path)) == size
+        return path
+
+    with pytest.raises(InputError, match=f"a path of {limit - PATH_ROOM - 1} bytes leaves no "
+                       f"room .* under the system's limit of {limit} bytes"):
+        check_out(deep(limit - PATH_ROOM - 1))
+    assert not (tmp_path / "d").exists()
+    fits = deep(limit - PATH_ROOM - 2)
+    check_out(fits)
+    assert fits.is_dir()
+    (fits / "figures").mkdir()
+    (fits / room).write_bytes(b"")  # the run's longest name fits
+
+
 def test_a_file_name_the_locale_cannot_decode_is_printed_as_its_bytes(tmp_path):
     """Under an ASCII locale with the C locale's coercion and UTF-8 mode off, Python holds the
     bytes of a UTF-8 name it cannot decode as surrogates; the error line wrote them as

@@ -107,6 +107,7 @@ def _check_out_folder(out: Path, flag: str, make: bool) -> None:
                 raise InputError(f"{flag} {out}: {folder} is a file, not a folder")
             if not os.access(folder, os.W_OK | os.X_OK):
                 raise InputError(f"{flag} {out}: no permission to write in {folder}")
+            _check_path_room(out, folder, flag)
             break
     if (out / "checkpoint.h5").exists() and not ended_unstable(out):  # (an unstable run's is
         # replaced: a resume is bit-identical, it only comes to the same failure again)
@@ -123,6 +124,27 @@ def _check_out_folder(out: Path, flag: str, make: bool) -> None:
         raise
     if not make:
         _remove(made)
+
+
+# bytes a run's own names add to its folder's path: the longest, the temporary file of
+# figures/fig7_switch_zone_evolution.png (43 bytes), and room for longer frame counters
+PATH_ROOM = 48
+
+
+def _check_path_room(out: Path, existing: Path, flag: str) -> None:
+    """InputError when ``out``'s absolute path leaves no room under the system's limit
+    (PATH_MAX of ``existing``, the deepest folder of it there is) for the files a run writes
+    in it (:data:`PATH_ROOM`): a path of 4077 bytes made its 20 folders, then failed on its
+    first file (an audit); this refuses it before any folder is made."""
+    try:
+        limit = os.pathconf(existing, "PC_PATH_MAX")
+    except (OSError, ValueError):  # (no such limit here)
+        return
+    size = len(os.fsencode(out.absolute()))
+    if size + 1 + PATH_ROOM >= limit:
+        raise InputError(f"{flag} {out}: a path of {size} bytes leaves no room for the files "
+                         f"a run writes in it (up to {PATH_ROOM} bytes more) under the system's "
+                         f"limit of {limit} bytes; give a shorter path")
 
 
 def _remove(made: list[Path]) -> None:
