@@ -271,8 +271,7 @@ class FramesRecorder(Recorder):
             files = outputs * VTK_FILES_PER_OUTPUT
             if size > WARN_BYTES or files > WARN_VTK_FILES:
                 said.append(f"output.vtk_interval = {self.vtk_interval:.3g} s may write up to "
-                            "about "
-                            f"{files:.3g} VTK files, {_bytes(size)}")
+                            f"about {files:.3g} VTK files, {_bytes(size)}")
         if not said:
             return None
         return (f"{'; '.join(said)} ({n} grains, time step {dt:.3g} s, up to {duration:.3g} s "
