@@ -36,7 +36,7 @@ from silodem.report.analysis import (
 from silodem.report.eurocode import _hopper_numbers, add_loads, highest_wall_contact, hopper_loads
 from silodem.report.key_numbers import _fmt, add_numbers
 from silodem.report.load import load_results
-from silodem.report.numbers import significant
+from silodem.report.numbers import pascals, significant
 from silodem.run import run_simulation
 from silodem.scenario_files import config_to_toml
 from silodem.study.table import (
@@ -743,6 +743,20 @@ def test_a_switch_zone_peak_of_nothing_is_not_placed_at_a_height(synth):
     assert _number(b, "switch-zone peak of the wall normal stress, after filling") == (
         "0: no grain pressed on the walls of the switch zone")
     assert " at z = " in _number(b, "switch-zone peak of the wall normal stress, during")
+
+
+def test_a_same_place_change_from_nothing_says_why(synth):
+    """The stress at the filling peak's height, after filling -> during discharge: from a
+    filling stress of 0 no relative change can be told, and the row says so, as the circles'
+    and the wall peak's rows do (it read a bare 'n/a')."""
+    a, _ = synth
+    b = copy.copy(a)
+    z, _, dd, _ = a.wall_at_fill_peak
+    b.wall_at_fill_peak, b.numbers = (z, 0.0, dd, NAN), []
+    add_numbers(b)
+    assert _number(b, f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m") \
+        == (f"0 -> {pascals(dd)} (n/a (0 Pa on the wall at that height after filling: no "
+            "relative change from 0) %)")
 
 
 def test_plain_columns_copy_the_run(synth):

@@ -245,6 +245,20 @@ def test_janssen_free_fit_of_a_hydrostatic_profile_says_mu_w_is_at_its_bound():
     assert not curved.mu_w_at_bound and (curved.K, curved.mu_w) == pytest.approx((0.5, 0.4))
 
 
+def test_beverloo_narrow_widths_are_nedderman_s_two_conditions():
+    """A rate independent of the silo's width B needs B >= 2.5 D and B >= D + 30 d (Nedderman
+    1992, as Mankoc et al. 2007 quote it): each width B is under is listed, none for a silo
+    wide enough; B equal to a width (exact in binary) is wide enough for it."""
+    assert th.beverloo_narrow_widths(3.4, 1.0, 0.2) == [("D + 30 d", pytest.approx(7.0))]
+    assert th.beverloo_narrow_widths(2.0, 1.0, 0.2) == [("2.5 D", 2.5),
+                                                        ("D + 30 d", pytest.approx(7.0))]
+    assert th.beverloo_narrow_widths(3.0, 1.4, 0.05) == [("2.5 D", pytest.approx(3.5))]
+    assert th.beverloo_narrow_widths(4.75, 1.0, 0.125) == []  # D + 30 d = 4.75 exactly
+    assert th.beverloo_narrow_widths(2.5, 1.0, 0.03125) == []  # 2.5 D = 2.5 exactly
+    with pytest.raises(ValueError, match="beverloo_narrow_widths: B"):
+        th.beverloo_narrow_widths(0.0, 1.0, 0.1)
+
+
 def test_beverloo_fit_errors_match_the_scatter_of_noisy_fits():
     """The standard errors the two fits report (covariance of the least squares, propagated to
     C and k) against a brute-force reference: the spread of the constants fitted to 600 sets of

@@ -172,6 +172,12 @@ class Composition:
     share_lo: np.ndarray
     share_hi: np.ndarray
 
+    @property
+    def one_size(self) -> bool:
+        """The grains are all of one size: every share is the fill, with no sizes to
+        segregate (the report leaves its figure out and says so)."""
+        return self.sizes.size == 1
+
 
 CHANCE_ORDERS = 200  # random departure orders behind a composition's chance band
 CHANCE_SEED = 20261125  # their generator's seed: the band is the same at every reading

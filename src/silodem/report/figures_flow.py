@@ -234,7 +234,7 @@ def fig_composition(a: Analysis) -> Figure | None:
     beside its share of the fill, with its band too.  None for grains all of one size: a
     flat line at 1 in a band of no width (the key numbers say so)."""
     c = a.flow.get("composition")
-    if c is None or c.sizes.size == 1:
+    if c is None or c.one_size:
         return None
     mixture = c.sizes.size > 1
     fig = Figure(figsize=(10.5, 6.5 if mixture else 3.8), dpi=100)  # (legends on the right)

@@ -119,13 +119,11 @@ def _clogged_after(a: Analysis, rate) -> str:
 
 
 def _narrow_for_beverloo(B: float, D: float, d: float) -> str:
-    """' (the silo is narrow for Beverloo's law: ...)' when a silo of width B [m] is too narrow
-    for its outlet D [m] and grains of diameter d [m] for a rate independent of the width:
-    B >= 2.5 D and B >= D + 30 d (Nedderman 1992, as Mankoc et al. 2007, Granular Matter 9,
-    407, quote it); '' when it is wide enough.  An outlet of 0.93 B gave a C as if the walls
-    had no part in the flow (an audit)."""
-    short = [f"{what} = {_fmt(need, 3)} m" for what, need in
-             (("2.5 D", 2.5 * D), ("D + 30 d", D + 30.0 * d)) if B < need]
+    """' (the silo is narrow for Beverloo's law: ...)' when a silo of width B [m] is narrower
+    than the widths from which the rate no longer depends on it
+    (``theory.beverloo_narrow_widths``); '' when it is wide enough.  An outlet of 0.93 B gave
+    a C as if the walls had no part in the flow (an audit)."""
+    short = [f"{what} = {_fmt(need, 3)} m" for what, need in th.beverloo_narrow_widths(B, D, d)]
     if not short:
         return ""
     return (" (the silo is narrow for Beverloo's law, whose rate is independent of the width "
@@ -150,13 +148,13 @@ def change_text(pct: float, err: float, why: str = "") -> str:
     return text
 
 
-def change_missing(row: dict, component: str, where: str) -> str:
-    """Why ``row``'s change of ``component`` (sigma_h, sigma_v) fill -> discharge is not a
-    number, in words (``where``: 'in the circle'), or "": no contact in the place in a window
-    (its window mean is NaN: ``analysis.window_mean``), or a filling value of 0, against
-    which no relative change can be told.  Five grains left the circles empty during
-    discharge, and the rows read 'h n/a, v n/a' without a reason (an audit)."""
-    before, after = row[component + "_fill"], row[component + "_discharge"]
+def change_missing(before: float, after: float, where: str) -> str:
+    """Why the change fill -> discharge of a stress from ``before`` to ``after`` [Pa] is not a
+    number (:func:`~silodem.report.numbers.percent_change`), in words (``where``: 'in the
+    circle'), or "": no contact in the place in a window (its window mean is NaN:
+    ``analysis.window_mean``), or a filling value of 0, against which no relative change can
+    be told.  Five grains left the circles empty during discharge, and the rows read 'h n/a,
+    v n/a' without a reason (an audit)."""
     if not math.isfinite(before):
         return f"no contact {where} after filling"
     if before == 0.0:
@@ -169,12 +167,14 @@ def change_missing(row: dict, component: str, where: str) -> str:
 def _circle_change(row: dict) -> str:
     """The circle's 'h <change>, v <change>' [%], or one 'n/a (why)' when both are missing
     for one reason."""
-    whys = [change_missing(row, c, "in the circle") for c in ("sigma_h", "sigma_v")]
+    comps = ("sigma_h", "sigma_v")
+    whys = [change_missing(row[c + "_fill"], row[c + "_discharge"], "in the circle")
+            for c in comps]
     if whys[0] and whys[0] == whys[1]:
         return f"n/a ({whys[0]})"
     return ", ".join(
         f"{c[-1]} {change_text(row[c + '_change_pct'], row[c + '_change_pct_err'], why)}"
-        for c, why in zip(("sigma_h", "sigma_v"), whys, strict=True))
+        for c, why in zip(comps, whys, strict=True))
 
 
 LOST = ("grains lost through a wall (pushed through by too soft contacts: the numbers below "
@@ -423,7 +423,8 @@ def add_numbers(a: Analysis) -> None:
                 label = ("change fill -> discharge, wall peak: the switch zone's largest wall "
                          f"normal stress in each window, at z = {_fmt(row['z_fill'], 3)} m "
                          f"-> {_fmt(row['z_discharge'], 3)} m" + CHANGE_ERROR)
-                why = change_missing(row, "sigma_h", "on the switch zone's walls")
+                why = change_missing(row["sigma_h_fill"], row["sigma_h_discharge"],
+                                     "on the switch zone's walls")
                 n.append((label, change_text(row["sigma_h_change_pct"],
                                              row["sigma_h_change_pct_err"], why), "%"))
                 continue
@@ -434,7 +435,9 @@ def add_numbers(a: Analysis) -> None:
             z, f, dd, pct = same  # (at one height the peak-to-peak row says it already)
             label = (f"wall normal stress at the filling peak's height z = {_fmt(z, 3)} m, "
                      "after filling -> during discharge (the same place)")
-            value = f"{pascals(f)} -> {pascals(dd)} ({change_text(pct, a.wall_at_fill_peak_err)} %)"
+            why = change_missing(f, dd, "on the wall at that height")
+            value = (f"{pascals(f)} -> {pascals(dd)} "
+                     f"({change_text(pct, a.wall_at_fill_peak_err, why)} %)")
             n.append((label, value, "Pa"))
     f = a.flow
     if "rate" in f:
@@ -465,7 +468,7 @@ def add_numbers(a: Analysis) -> None:
         label = ("size segregation in the discharge: mass mean diameter of the first and last "
                  f"tenth of the discharged mass (and the least and largest tenth) over the "
                  f"fill's, {_fmt(c.fill_diameter, 3)} m (1: none)")
-        if c.sizes.size == 1:  # (read as "1 / 1 (1 - 1); chance ... 1 - 1" by an audit)
+        if c.one_size:  # (read as "1 / 1 (1 - 1); chance ... 1 - 1" by an audit)
             value = (f"n/a (the grains are all of one size, r = {_fmt(c.sizes[0], 3)} m: "
                      "there are no sizes to segregate)")
         else:

@@ -18,6 +18,7 @@ from silodem.theory.beverloo import (
     BeverlooFit,
     beverloo_2d,
     beverloo_2d_C,
+    beverloo_narrow_widths,
     fit_beverloo_free,
     fit_beverloo_three_halves,
 )
@@ -62,6 +63,7 @@ __all__ = [
     "apex_below_outlet",
     "beverloo_2d",
     "beverloo_2d_C",
+    "beverloo_narrow_widths",
     "en1991_4_discharge",
     "en1991_4_discharge_factors",
     "en1991_4_filling",

@@ -56,6 +56,18 @@ def beverloo_2d_C(rate: float, D: float, d: float, rho_b: float, g: float, k: fl
     return rate / base if base > 0 else float("nan")
 
 
+def beverloo_narrow_widths(B: float, D: float, d: float) -> list[tuple[str, float]]:
+    """The widths [m] that a silo of width B [m] is narrower than, of the two from which the
+    rate through its outlet D [m] of grains of diameter d [m] no longer depends on the width:
+    ("2.5 D", 2.5 D) and ("D + 30 d", D + 30 d), each listed when B is under it, so that [] is
+    a silo wide enough for Beverloo's law.  Source: Nedderman (1992), as Mankoc et al. (2007),
+    Granular Matter 9, 407, quote it.  ValueError unless B, D, d > 0."""
+    for name, value in (("B", B), ("D", D), ("d", d)):
+        ck.positive("beverloo_narrow_widths", name, value)
+    return [(what, need) for what, need in (("2.5 D", 2.5 * D), ("D + 30 d", D + 30.0 * d))
+            if B < need]
+
+
 def _check_data(func: str, min_widths: int, fitted: str, D, W, W_err, d, rho_b, g,
                 t) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The data of a fit as float arrays of one length, every value finite and > 0 (W_err may
